@@ -1,0 +1,303 @@
+//! The correspondence-batch contract of `layout-opt solve` (DESIGN.md).
+//!
+//! Input:
+//! ```json
+//! { "camera": {"fx":..,"fy":..,"cx":..,"cy":..,"distortion":[k1,k2,p1,p2,k3]},
+//!   "problems": [ {"id": "shot-001", "object_points": [[x,y,z],...], "image_points": [[u,v],...]} ] }
+//! ```
+//! Pixel coordinates are raw (still distorted when distortion is given);
+//! unknown fields are ignored. A malformed file is a [`BatchError`]; a bad
+//! problem becomes an `error` entry and the rest of the batch still runs.
+//!
+//! Output: `{"solver": NAME, "results": [{"id", "rotation", "translation",
+//! "reprojection_rms_px", "seconds"} | {"id", "error"}]}`, where `seconds`
+//! times the solver call alone.
+
+use crate::camera::{Camera, CameraSpec};
+use crate::pnp::Solver;
+use crate::pose::{reprojection_rms_px, Pose};
+use nalgebra::{Vector2, Vector3};
+use serde::{Deserialize, Serialize};
+use std::time::Instant;
+
+/// A batch file that cannot be used at all.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum BatchError {
+    /// The file is not valid JSON or lacks the required structure.
+    #[error("malformed problem file: {0}")]
+    Malformed(String),
+    /// The camera is unusable.
+    #[error("malformed camera: {0}")]
+    Camera(#[from] crate::camera::CameraError),
+}
+
+#[derive(Debug, Deserialize)]
+struct RawBatch {
+    camera: serde_json::Value,
+    problems: Vec<serde_json::Value>,
+}
+
+/// One problem as read from the file.
+#[derive(Debug, Clone, Deserialize, Serialize)]
+pub struct ProblemInput {
+    /// Caller's identifier (defaults to `#<index>` when absent).
+    #[serde(default)]
+    pub id: Option<String>,
+    /// Object points, mm.
+    pub object_points: Vec<[f64; 3]>,
+    /// Raw pixel coordinates.
+    pub image_points: Vec<[f64; 2]>,
+}
+
+/// A parsed batch: a camera and problems, each of which may already have
+/// failed to parse.
+#[derive(Debug)]
+pub struct Batch {
+    /// The camera of every problem.
+    pub camera: Camera,
+    /// The problems, in file order, with their ids.
+    pub problems: Vec<(String, Result<ProblemInput, String>)>,
+}
+
+/// One entry of the output.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum ProblemResult {
+    /// A solved problem.
+    Solved {
+        /// Caller's identifier.
+        id: String,
+        /// Rotation matrix, row-major, object → camera.
+        rotation: [[f64; 3]; 3],
+        /// Translation, mm.
+        translation: [f64; 3],
+        /// RMS reprojection error against the raw pixels, distortion included.
+        reprojection_rms_px: f64,
+        /// Wall time of the solver call alone, seconds.
+        seconds: f64,
+    },
+    /// A problem that could not be solved, and why.
+    Failed {
+        /// Caller's identifier.
+        id: String,
+        /// What was wrong.
+        error: String,
+    },
+}
+
+/// The whole output document.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct BatchOutput {
+    /// Stable name of the solver used.
+    pub solver: String,
+    /// One entry per input problem, in input order.
+    pub results: Vec<ProblemResult>,
+}
+
+impl Batch {
+    /// Parses a batch document.
+    pub fn from_json(text: &str) -> Result<Batch, BatchError> {
+        let raw: RawBatch =
+            serde_json::from_str(text).map_err(|e| BatchError::Malformed(e.to_string()))?;
+        let spec: CameraSpec = serde_json::from_value(raw.camera)
+            .map_err(|e| BatchError::Malformed(format!("camera: {e}")))?;
+        let camera = spec.into_camera()?;
+        let problems = raw
+            .problems
+            .into_iter()
+            .enumerate()
+            .map(|(index, value)| {
+                let fallback_id = format!("#{index}");
+                let id = value
+                    .get("id")
+                    .and_then(|id| id.as_str().map(str::to_owned))
+                    .unwrap_or(fallback_id);
+                let parsed = serde_json::from_value::<ProblemInput>(value)
+                    .map_err(|e| format!("malformed problem: {e}"));
+                (id, parsed)
+            })
+            .collect();
+        Ok(Batch { camera, problems })
+    }
+
+    /// Solves every problem with `solver`, in order.
+    pub fn solve(&self, solver: Solver, mut on_progress: impl FnMut(usize)) -> BatchOutput {
+        let results = self
+            .problems
+            .iter()
+            .enumerate()
+            .map(|(index, (id, problem))| {
+                let result = match problem {
+                    Ok(problem) => solve_one(&self.camera, solver, id, problem),
+                    Err(error) => ProblemResult::Failed {
+                        id: id.clone(),
+                        error: error.clone(),
+                    },
+                };
+                on_progress(index + 1);
+                result
+            })
+            .collect();
+        BatchOutput {
+            solver: solver.name().to_string(),
+            results,
+        }
+    }
+}
+
+fn solve_one(camera: &Camera, solver: Solver, id: &str, problem: &ProblemInput) -> ProblemResult {
+    let failed = |error: String| ProblemResult::Failed {
+        id: id.to_string(),
+        error,
+    };
+    let object: Vec<Vector3<f64>> = problem
+        .object_points
+        .iter()
+        .map(|p| Vector3::new(p[0], p[1], p[2]))
+        .collect();
+    let pixels: Vec<Vector2<f64>> = problem
+        .image_points
+        .iter()
+        .map(|p| Vector2::new(p[0], p[1]))
+        .collect();
+    let mut normalised = Vec::with_capacity(pixels.len());
+    for (index, pixel) in pixels.iter().enumerate() {
+        if !pixel.iter().all(|v| v.is_finite()) {
+            return failed(format!("image point {index} has a non-finite coordinate"));
+        }
+        match camera.pixel_to_normalised(pixel) {
+            Ok(m) => normalised.push(m),
+            Err(e) => return failed(format!("image point {index}: {e}")),
+        }
+    }
+    let start = Instant::now();
+    let outcome = solver.solve_best(&object, &normalised);
+    let seconds = start.elapsed().as_secs_f64();
+    match outcome {
+        Ok(pose) => solved(id, camera, &pose, &object, &pixels, seconds),
+        Err(e) => failed(e.to_string()),
+    }
+}
+
+fn solved(
+    id: &str,
+    camera: &Camera,
+    pose: &Pose,
+    object: &[Vector3<f64>],
+    pixels: &[Vector2<f64>],
+    seconds: f64,
+) -> ProblemResult {
+    let r = pose.rotation.matrix();
+    ProblemResult::Solved {
+        id: id.to_string(),
+        rotation: std::array::from_fn(|row| std::array::from_fn(|col| r[(row, col)])),
+        translation: [pose.translation.x, pose.translation.y, pose.translation.z],
+        reprojection_rms_px: reprojection_rms_px(camera, pose, object, pixels),
+        seconds,
+    }
+}
+
+/// A demonstration batch: the paper's biprism seen by the paper's camera (with
+/// its real-image distortion) at a few poses along the working range, with
+/// seeded Gaussian pixel noise of `sigma_px`. Used when `solve` runs without
+/// `--problems`.
+pub fn demo_batch_json(seed: u64, sigma_px: f64) -> String {
+    use crate::synthetic::{biprism_points, project_with_noise, stream_rng};
+    use nalgebra::Rotation3;
+    let camera = Camera::paper_with_distortion();
+    let object = biprism_points(50.0);
+    let mut problems = Vec::new();
+    for (index, depth_mm) in [200.0, 400.0, 600.0, 800.0, 1000.0].into_iter().enumerate() {
+        let tilt = (-30.0 + 15.0 * index as f64).to_radians();
+        let truth = Pose::new(
+            Rotation3::from_euler_angles(tilt, 0.3, 0.1),
+            Vector3::new(20.0, -10.0, depth_mm),
+        );
+        let mut rng = stream_rng(seed, 0xD3, index as u64);
+        let problem = project_with_noise(&mut rng, &camera, object.clone(), truth, sigma_px)
+            .expect("the demo poses put the biprism in front of the camera");
+        problems.push(serde_json::json!({
+            "id": format!("demo-{depth_mm:.0}mm"),
+            "object_points": problem.object.iter().map(|p| [p.x, p.y, p.z]).collect::<Vec<_>>(),
+            "image_points": problem.pixels.iter().map(|p| [p.x, p.y]).collect::<Vec<_>>(),
+        }));
+    }
+    let document = serde_json::json!({
+        "camera": {
+            "fx": camera.fx(), "fy": camera.fy(), "cx": camera.cx(), "cy": camera.cy(),
+            "width": camera.width(), "height": camera.height(),
+            "distortion": camera.distortion(),
+        },
+        "problems": problems,
+    });
+    serde_json::to_string_pretty(&document).expect("JSON values serialise")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn demo_batch_solves_with_every_solver() {
+        let batch = Batch::from_json(&demo_batch_json(1, 0.0)).unwrap();
+        for &solver in Solver::ALL {
+            let output = batch.solve(solver, |_| {});
+            assert_eq!(output.results.len(), 5);
+            for result in &output.results {
+                match result {
+                    ProblemResult::Solved {
+                        reprojection_rms_px,
+                        ..
+                    } => assert!(*reprojection_rms_px < 1e-6, "{solver}: {result:?}"),
+                    ProblemResult::Failed { error, .. } => panic!("{solver}: {error}"),
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn bad_problems_get_error_entries_and_the_rest_runs() {
+        let text = r#"{"camera": {"fx": 1000, "fy": 1000, "cx": 320, "cy": 240},
+            "problems": [
+              {"id": "few", "object_points": [[0,0,0],[1,0,0],[0,1,0]], "image_points": [[1,1],[2,2],[3,3]]},
+              {"id": "mismatch", "object_points": [[0,0,0],[1,0,0],[0,1,0],[0,0,1]], "image_points": [[1,1]]},
+              {"id": "shape", "object_points": [[0,0]], "image_points": []},
+              {"object_points": [[0,0,0],[1,0,0],[0,1,0],[1,1,0],[2,0,0],[0,2,0]], "image_points": [[1,1],[2,1],[1,2],[2,2],[3,1],[1,3]], "extra": true}
+            ]}"#;
+        let batch = Batch::from_json(text).unwrap();
+        let output = batch.solve(Solver::EpnpGn, |_| {});
+        let errors: Vec<String> = output
+            .results
+            .iter()
+            .map(|r| match r {
+                ProblemResult::Failed { id, error } => format!("{id}: {error}"),
+                other => panic!("expected errors, got {other:?}"),
+            })
+            .collect();
+        assert_eq!(errors[0], "few: EPnP+GN needs at least 4 points, got 3");
+        assert_eq!(
+            errors[1],
+            "mismatch: mismatched lengths: 4 object points but 1 image points"
+        );
+        assert!(
+            errors[2].starts_with("shape: malformed problem"),
+            "{}",
+            errors[2]
+        );
+        assert_eq!(
+            errors[3],
+            "#3: object points are coplanar; EPnP+GN needs noncoplanar points"
+        );
+    }
+
+    #[test]
+    fn malformed_files_are_errors() {
+        assert!(Batch::from_json("not json").is_err());
+        assert!(Batch::from_json(r#"{"problems": []}"#).is_err());
+        let err =
+            Batch::from_json(r#"{"camera": {"fx": 0, "fy": 1, "cx": 0, "cy": 0}, "problems": []}"#)
+                .unwrap_err();
+        assert!(err.to_string().contains("malformed camera"), "{err}");
+    }
+}

@@ -1,0 +1,95 @@
+//! `layout-opt solve`: PnP on a batch of correspondences.
+
+use super::{progress, GlobalOptions};
+use anyhow::Context;
+use clap::Args;
+use layout_opt::batch::{demo_batch_json, Batch, ProblemResult};
+use layout_opt::pnp::Solver;
+use std::path::PathBuf;
+
+/// Flags of `solve`.
+#[derive(Debug, Args)]
+pub struct SolveArgs {
+    /// Correspondence batch (JSON, see README). Without it, a built-in demo
+    /// batch (the paper's biprism at 200..1000 mm, σ 0.5 px, from --seed).
+    #[arg(long, value_name = "FILE")]
+    problems: Option<PathBuf>,
+    /// Solver, by stable name (see --list).
+    #[arg(long, default_value = "parallel-weighted")]
+    solver: Solver,
+    /// Write the results here instead of stdout.
+    #[arg(long, value_name = "FILE")]
+    output: Option<PathBuf>,
+    /// List the solvers and exit.
+    #[arg(long)]
+    list: bool,
+}
+
+/// Noise of the built-in demo batch, px.
+const DEMO_SIGMA_PX: f64 = 0.5;
+
+pub fn run(args: SolveArgs, global: &GlobalOptions) -> anyhow::Result<()> {
+    if args.list {
+        for &solver in Solver::ALL {
+            println!("{:<18} {}", solver.name(), solver.description());
+        }
+        return Ok(());
+    }
+    let (text, source) = match &args.problems {
+        Some(path) => (
+            std::fs::read_to_string(path)
+                .with_context(|| format!("cannot read problem file {}", path.display()))?,
+            path.display().to_string(),
+        ),
+        None => (
+            demo_batch_json(global.seed, DEMO_SIGMA_PX),
+            format!(
+                "built-in demo batch (paper biprism, σ {DEMO_SIGMA_PX} px, seed {})",
+                global.seed
+            ),
+        ),
+    };
+    let batch = Batch::from_json(&text).with_context(|| format!("in {source}"))?;
+    let bar = progress::bar(batch.problems.len() as u64, "solving", global.quiet);
+    let output = batch.solve(args.solver, |done| bar.set_position(done as u64));
+    bar.finish_and_clear();
+    let json = serde_json::to_string_pretty(&output)?;
+
+    let mut seconds: Vec<f64> = output
+        .results
+        .iter()
+        .filter_map(|r| match r {
+            ProblemResult::Solved { seconds, .. } => Some(*seconds),
+            ProblemResult::Failed { .. } => None,
+        })
+        .collect();
+    seconds.sort_by(f64::total_cmp);
+    let failed = output.results.len() - seconds.len();
+    let median = seconds
+        .get(seconds.len() / 2)
+        .map(|s| format!("; median {:.2} µs per solve", s * 1e6))
+        .unwrap_or_default();
+    let summary = format!(
+        "{}: solved {} of {} problems from {source}{median}{}",
+        args.solver,
+        seconds.len(),
+        output.results.len(),
+        if failed > 0 {
+            format!("; {failed} with errors (see their \"error\" entries)")
+        } else {
+            String::new()
+        }
+    );
+    match &args.output {
+        Some(path) => {
+            std::fs::write(path, json + "\n")
+                .with_context(|| format!("cannot write {}", path.display()))?;
+            println!("{summary}; wrote {}", path.display());
+        }
+        None => {
+            println!("{json}");
+            eprintln!("{summary}");
+        }
+    }
+    Ok(())
+}

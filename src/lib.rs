@@ -1,0 +1,19 @@
+//! layout-opt: design noncoplanar 3D fiducial markers for close-range camera
+//! pose estimation, scored by how badly image noise spoils the pose.
+//!
+//! The science is Hu, Li & Tan, "Research on a Camera Position Measurement
+//! Method based on a Parallel Perspective Error Transfer Model" (the seed
+//! paper): an error-transfer model and a PnP solver (paraperspective
+//! initialisation + error-weighted Gauss–Newton over EPnP's β).
+//!
+//! Conventions: millimetres and pixels; OpenCV's camera frame; a
+//! [`pose::Pose`] maps object coordinates to camera coordinates,
+//! `X_cam = R · X_obj + t`.
+#![warn(missing_docs)]
+
+pub mod batch;
+pub mod camera;
+pub mod error_model;
+pub mod pnp;
+pub mod pose;
+pub mod synthetic;

@@ -1,0 +1,431 @@
+//! Perspective-n-Point solvers behind one interface.
+//!
+//! **Convention (all solvers).** Inputs are object points `X_i` (mm, marker
+//! frame) and *undistorted normalised* image points `m_i = (x_i, y_i)` on the
+//! plane `z = 1`, related by `λ_i [m_i; 1] = R X_i + t` with `λ_i > 0`
+//! (paper eqs. 2–3, OpenCV). Pixels are turned into normalised points by
+//! [`crate::camera::Camera::pixel_to_normalised`] before any solver runs.
+//!
+//! Every solver returns all its candidate poses ([`Solver::solve`]); the
+//! single best pose ([`Solver::solve_best`]) is the candidate with the lowest
+//! reprojection error among those that put every point in front of the
+//! camera. No solver falls back to another: a method either runs itself or
+//! returns a [`PnpError`] that says why.
+
+use crate::pose::{reprojection_rms_normalised, Pose};
+use nalgebra::{Matrix3, SymmetricEigen, Vector2, Vector3};
+use smallvec::SmallVec;
+
+pub mod dlt;
+pub mod epnp;
+pub mod gauss_newton;
+pub mod iepnp;
+pub mod ml;
+pub mod parallel;
+
+/// Candidate poses returned by a solver. Four fit inline, so the common
+/// solvers allocate nothing.
+pub type Candidates = SmallVec<[Pose; 4]>;
+
+/// Relative size of the smallest principal extent of the object points,
+/// below which they count as coplanar (and of the second, as collinear).
+pub const PLANARITY_TOLERANCE: f64 = 1e-6;
+/// Two object points closer than this fraction of the point spread are
+/// duplicates.
+pub const DUPLICATE_TOLERANCE: f64 = 1e-9;
+
+/// Why a solver could not return a pose.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum PnpError {
+    /// Fewer correspondences than the method needs.
+    #[error("{solver} needs at least {needed} points, got {got}")]
+    TooFewPoints {
+        /// Human name of the method.
+        solver: &'static str,
+        /// Minimum number of correspondences.
+        needed: usize,
+        /// Number given.
+        got: usize,
+    },
+    /// Object and image point lists differ in length.
+    #[error("mismatched lengths: {object} object points but {image} image points")]
+    MismatchedLengths {
+        /// Number of object points.
+        object: usize,
+        /// Number of image points.
+        image: usize,
+    },
+    /// A coordinate was NaN or infinite.
+    #[error("{kind} point {index} has a non-finite coordinate")]
+    NonFinite {
+        /// "object" or "image".
+        kind: &'static str,
+        /// Index of the offending point.
+        index: usize,
+    },
+    /// Two object points coincide.
+    #[error("object points {first} and {second} coincide")]
+    DuplicatePoints {
+        /// Index of the first point.
+        first: usize,
+        /// Index of the second point.
+        second: usize,
+    },
+    /// All object points lie on one line: no method can recover the roll about it.
+    #[error("object points are collinear; no PnP method can recover the pose")]
+    Collinear,
+    /// The object points are coplanar and the method needs a 3D spread.
+    #[error("object points are coplanar; {solver} needs noncoplanar points")]
+    Coplanar {
+        /// Human name of the method.
+        solver: &'static str,
+    },
+    /// Every candidate puts some point behind the camera: the image points
+    /// cannot come from these object points under a perspective camera.
+    #[error("{solver} found no pose that puts every point in front of the camera (points behind the camera)")]
+    BehindCamera {
+        /// Human name of the method.
+        solver: &'static str,
+    },
+    /// The method's numerics broke down on this input.
+    #[error("{solver} failed: {reason}")]
+    Degenerate {
+        /// Human name of the method.
+        solver: &'static str,
+        /// What went wrong.
+        reason: &'static str,
+    },
+}
+
+/// Every solver, by stable CLI name (DESIGN.md).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+#[non_exhaustive]
+pub enum Solver {
+    /// Normalised DLT with orthonormalisation (Hartley & Zisserman).
+    Dlt,
+    /// EPnP without refinement (Lepetit et al. 2009).
+    Epnp,
+    /// EPnP + Gauss–Newton on the betas (paper eq. 10).
+    EpnpGn,
+    /// Weak-perspective initial betas + the same GN (paper §2.1, Chen [26]).
+    Iepnp,
+    /// Paraperspective pose (paper eqs. 17–21), iterated to full perspective
+    /// as Horaud et al. 1997 do; no GN.
+    Parallel,
+    /// Ablation: paraperspective betas + *unweighted* GN (eq. 10), to measure
+    /// what the weights of eq. 30 contribute.
+    ParallelGn,
+    /// The paper's method: paraperspective → betas (eqs. 14–16) → weighted
+    /// GN (eqs. 30–31) → absolute orientation.
+    ParallelWeighted,
+    /// Levenberg–Marquardt on reprojection error from the best closed-form
+    /// start: the maximum-likelihood estimate under isotropic Gaussian noise.
+    Ml,
+}
+
+impl Solver {
+    /// Every solver, in the order reports list them.
+    pub const ALL: &'static [Solver] = &[
+        Solver::Dlt,
+        Solver::Epnp,
+        Solver::EpnpGn,
+        Solver::Iepnp,
+        Solver::Parallel,
+        Solver::ParallelGn,
+        Solver::ParallelWeighted,
+        Solver::Ml,
+    ];
+
+    /// The stable CLI name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Solver::Dlt => "dlt",
+            Solver::Epnp => "epnp",
+            Solver::EpnpGn => "epnp-gn",
+            Solver::Iepnp => "iepnp",
+            Solver::Parallel => "parallel",
+            Solver::ParallelGn => "parallel-gn",
+            Solver::ParallelWeighted => "parallel-weighted",
+            Solver::Ml => "ml",
+        }
+    }
+
+    /// The name used in messages and reports.
+    pub fn display_name(self) -> &'static str {
+        match self {
+            Solver::Dlt => "DLT",
+            Solver::Epnp => "EPnP",
+            Solver::EpnpGn => "EPnP+GN",
+            Solver::Iepnp => "IEPnP",
+            Solver::Parallel => "Paraperspective",
+            Solver::ParallelGn => "Paraperspective+GN (unweighted)",
+            Solver::ParallelWeighted => "Parallel-weighted",
+            Solver::Ml => "ML (Levenberg-Marquardt)",
+        }
+    }
+
+    /// One line on the method and where it comes from.
+    pub fn description(self) -> &'static str {
+        match self {
+            Solver::Dlt => "normalised DLT with orthonormalisation (Hartley & Zisserman; paper refs [32,33])",
+            Solver::Epnp => "EPnP, no refinement, null-space cases N = 1..4 (Lepetit et al. 2009)",
+            Solver::EpnpGn => "EPnP + Gauss-Newton on the betas, paper eq. 10 (Lepetit et al. 2009)",
+            Solver::Iepnp => "weak-perspective initial betas + the same Gauss-Newton (paper §2.1, Chen [26])",
+            Solver::Parallel => "paraperspective pose, eqs. 17-21, iterated to full perspective (Horaud et al. 1997)",
+            Solver::ParallelGn => "ablation: paraperspective betas + unweighted Gauss-Newton (eq. 10)",
+            Solver::ParallelWeighted => "the paper's method: paraperspective -> betas (eqs. 14-16) -> weighted GN (eqs. 30-31) -> absolute orientation",
+            Solver::Ml => "Levenberg-Marquardt on reprojection error from the best closed-form start (maximum likelihood)",
+        }
+    }
+
+    /// Looks a solver up by its stable CLI name.
+    pub fn from_name(name: &str) -> Option<Solver> {
+        Solver::ALL.iter().copied().find(|s| s.name() == name)
+    }
+
+    /// The fewest correspondences the method accepts.
+    pub fn min_points(self) -> usize {
+        match self {
+            Solver::Dlt => dlt::MIN_POINTS,
+            _ => 4,
+        }
+    }
+
+    /// Whether the method needs noncoplanar object points.
+    pub fn needs_noncoplanar(self) -> bool {
+        true
+    }
+
+    /// Runs the method and returns every candidate pose it produces.
+    pub fn solve(
+        self,
+        object: &[Vector3<f64>],
+        image: &[Vector2<f64>],
+    ) -> Result<Candidates, PnpError> {
+        validate_input(self, object, image)?;
+        let candidates = match self {
+            Solver::Dlt => dlt::solve(object, image)?,
+            Solver::Epnp => epnp::solve(object, image, false)?,
+            Solver::EpnpGn => epnp::solve(object, image, true)?,
+            Solver::Iepnp => iepnp::solve(object, image)?,
+            Solver::Parallel => parallel::solve_iterative(object, image)?,
+            Solver::ParallelGn => parallel::solve_with_gauss_newton(object, image, false)?,
+            Solver::ParallelWeighted => parallel::solve_with_gauss_newton(object, image, true)?,
+            Solver::Ml => ml::solve(object, image)?,
+        };
+        Ok(candidates)
+    }
+
+    /// Runs the method and returns its best candidate: the lowest
+    /// reprojection error among the poses that put every point in front of
+    /// the camera.
+    pub fn solve_best(
+        self,
+        object: &[Vector3<f64>],
+        image: &[Vector2<f64>],
+    ) -> Result<Pose, PnpError> {
+        let candidates = self.solve(object, image)?;
+        best_candidate(self.display_name(), &candidates, object, image)
+    }
+}
+
+impl std::fmt::Display for Solver {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl std::str::FromStr for Solver {
+    type Err = String;
+    fn from_str(name: &str) -> Result<Self, Self::Err> {
+        Solver::from_name(name).ok_or_else(|| {
+            let names: Vec<&str> = Solver::ALL.iter().map(|s| s.name()).collect();
+            format!("unknown solver '{name}'; known: {}", names.join(", "))
+        })
+    }
+}
+
+/// Picks the candidate with the lowest reprojection error among those that
+/// put every object point in front of the camera.
+pub fn best_candidate(
+    solver: &'static str,
+    candidates: &[Pose],
+    object: &[Vector3<f64>],
+    image: &[Vector2<f64>],
+) -> Result<Pose, PnpError> {
+    candidates
+        .iter()
+        .filter(|pose| pose.is_finite() && pose.all_in_front(object))
+        .map(|pose| (reprojection_rms_normalised(pose, object, image), pose))
+        .filter(|(error, _)| error.is_finite())
+        .min_by(|a, b| a.0.total_cmp(&b.0))
+        .map(|(_, pose)| *pose)
+        .ok_or(PnpError::BehindCamera { solver })
+}
+
+/// Principal spread of a point set: centroid and the singular values
+/// (square roots of the scatter eigenvalues, largest first) with their axes
+/// as columns.
+#[derive(Debug, Clone, Copy)]
+pub struct Spread {
+    /// Centroid of the points.
+    pub centroid: Vector3<f64>,
+    /// RMS extents along the principal axes, largest first.
+    pub extents: Vector3<f64>,
+    /// Principal axes as columns, in the order of `extents`.
+    pub axes: Matrix3<f64>,
+}
+
+impl Spread {
+    /// Computes the principal spread of `points` (non-empty).
+    pub fn of(points: &[Vector3<f64>]) -> Spread {
+        let count = points.len() as f64;
+        let centroid = points.iter().sum::<Vector3<f64>>() / count;
+        let mut scatter = Matrix3::zeros();
+        for p in points {
+            let d = p - centroid;
+            scatter += d * d.transpose();
+        }
+        let eigen = SymmetricEigen::new(scatter / count);
+        let mut order = [0usize, 1, 2];
+        order.sort_by(|&a, &b| eigen.eigenvalues[b].total_cmp(&eigen.eigenvalues[a]));
+        let extents = Vector3::from_fn(|k, _| eigen.eigenvalues[order[k]].max(0.0).sqrt());
+        let axes = Matrix3::from_fn(|r, c| eigen.eigenvectors[(r, order[c])]);
+        Spread {
+            centroid,
+            extents,
+            axes,
+        }
+    }
+}
+
+/// Checks the inputs every method shares: matching lengths, enough points,
+/// finite values, no duplicate object points, not collinear, and (for the
+/// methods that need it) not coplanar.
+pub fn validate_input(
+    solver: Solver,
+    object: &[Vector3<f64>],
+    image: &[Vector2<f64>],
+) -> Result<(), PnpError> {
+    if object.len() != image.len() {
+        return Err(PnpError::MismatchedLengths {
+            object: object.len(),
+            image: image.len(),
+        });
+    }
+    if object.len() < solver.min_points() {
+        return Err(PnpError::TooFewPoints {
+            solver: solver.display_name(),
+            needed: solver.min_points(),
+            got: object.len(),
+        });
+    }
+    if let Some(index) = object.iter().position(|p| !p.iter().all(|v| v.is_finite())) {
+        return Err(PnpError::NonFinite {
+            kind: "object",
+            index,
+        });
+    }
+    if let Some(index) = image.iter().position(|p| !p.iter().all(|v| v.is_finite())) {
+        return Err(PnpError::NonFinite {
+            kind: "image",
+            index,
+        });
+    }
+    let spread = Spread::of(object);
+    let scale = spread.extents[0];
+    if scale == 0.0 {
+        return Err(PnpError::DuplicatePoints {
+            first: 0,
+            second: 1,
+        });
+    }
+    let duplicate_distance = DUPLICATE_TOLERANCE * scale;
+    for (i, a) in object.iter().enumerate() {
+        for (j, b) in object.iter().enumerate().skip(i + 1) {
+            if (a - b).norm() <= duplicate_distance {
+                return Err(PnpError::DuplicatePoints {
+                    first: i,
+                    second: j,
+                });
+            }
+        }
+    }
+    if spread.extents[1] <= PLANARITY_TOLERANCE * scale {
+        return Err(PnpError::Collinear);
+    }
+    if solver.needs_noncoplanar() && spread.extents[2] <= PLANARITY_TOLERANCE * scale {
+        return Err(PnpError::Coplanar {
+            solver: solver.display_name(),
+        });
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn cube() -> Vec<Vector3<f64>> {
+        vec![
+            Vector3::new(0.0, 0.0, 0.0),
+            Vector3::new(1.0, 0.0, 0.0),
+            Vector3::new(0.0, 1.0, 0.0),
+            Vector3::new(0.0, 0.0, 1.0),
+            Vector3::new(1.0, 1.0, 0.0),
+            Vector3::new(1.0, 0.0, 1.0),
+        ]
+    }
+
+    #[test]
+    fn names_round_trip_and_are_unique() {
+        for &solver in Solver::ALL {
+            assert_eq!(Solver::from_name(solver.name()), Some(solver));
+            assert_eq!(solver.name().parse::<Solver>(), Ok(solver));
+        }
+        let err = "nope".parse::<Solver>().unwrap_err();
+        assert!(err.contains("unknown solver 'nope'") && err.contains("parallel-weighted"));
+    }
+
+    #[test]
+    fn validation_messages() {
+        let image = vec![Vector2::new(0.0, 0.0); 6];
+        let object = cube();
+        let err = validate_input(Solver::Epnp, &object[..3], &image[..3]).unwrap_err();
+        assert_eq!(err.to_string(), "EPnP needs at least 4 points, got 3");
+        let err = validate_input(Solver::Epnp, &object, &image[..5]).unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "mismatched lengths: 6 object points but 5 image points"
+        );
+        let mut bad = object.clone();
+        bad[2].y = f64::NAN;
+        let err = validate_input(Solver::Epnp, &bad, &image).unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "object point 2 has a non-finite coordinate"
+        );
+        let mut bad_image = image.clone();
+        bad_image[4].x = f64::INFINITY;
+        let err = validate_input(Solver::Epnp, &object, &bad_image).unwrap_err();
+        assert_eq!(err.to_string(), "image point 4 has a non-finite coordinate");
+        let mut dup = object.clone();
+        dup[5] = dup[1];
+        let err = validate_input(Solver::Epnp, &dup, &image).unwrap_err();
+        assert_eq!(err.to_string(), "object points 1 and 5 coincide");
+        let line: Vec<_> = (0..6)
+            .map(|i| Vector3::new(i as f64, 2.0 * i as f64, 0.5))
+            .collect();
+        let err = validate_input(Solver::Epnp, &line, &image).unwrap_err();
+        assert_eq!(err, PnpError::Collinear);
+        let plane: Vec<_> = (0..6)
+            .map(|i| Vector3::new(i as f64, (i * i) as f64, 3.0))
+            .collect();
+        let err = validate_input(Solver::Dlt, &plane, &image).unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "object points are coplanar; DLT needs noncoplanar points"
+        );
+    }
+}

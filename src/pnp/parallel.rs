@@ -1,0 +1,298 @@
+//! The seed paper's solver family: paraperspective pose (Horaud et al.,
+//! "Object pose: the link between weak perspective, paraperspective, and full
+//! perspective", IJCV 22(2), 1997; paper §3.2, eqs. 17–21) and the paper's
+//! method, paraperspective → β (eqs. 14–16) → weighted Gauss–Newton
+//! (eqs. 30–31) → absolute orientation (§3.5).
+//!
+//! # Reference point
+//! Paraperspective is written about a reference point P0 at the object origin
+//! whose image `(u0, v0)` is measured (eq. 17). The paper's biprism has its
+//! centre O0 as a feature for this. For any layout we use the feature nearest
+//! the centroid ([`reference_index`]) and shift the object coordinates so that
+//! it is the origin; the pose is shifted back at the end. Reports name the
+//! point (`reference_index`).
+//!
+//! # Choices the paper leaves open (see `shared/seed/NOTES.md`)
+//! * Eq. 19 is used as corrected: `tz = ½(√(1+u0²)/‖I‖ + √(1+v0²)/‖J‖)`.
+//! * The near-rotation `[i j k]ᵀ` of eq. 21 is projected onto SO(3) by SVD.
+//! * Control points of the paper's method (§4.1): the reference point plus one
+//!   point at distance `s` along each object axis, `s` being the largest
+//!   distance of a feature from the reference. For the paper's biprism this is
+//!   exactly `[L,0,0], [0,L,0], [0,0,L], [0,0,0]`.
+//! * Weights (eq. 30): `w = d² / (tz² · m_o · m)` with d the pair's 3D length
+//!   and m its projected length on the normalised image plane under the
+//!   initial pose. For the three pairs through the reference point, m_o is the
+//!   distance of the reference image from the principal point,
+//!   `√(u0² + v0²)`; for the three other pairs, it is that of the pair's
+//!   midpoint image. m_o is floored at [`M_O_FLOOR_FRACTION`] times the mean
+//!   projected pair length, because m_o → 0 on the optical axis would make the
+//!   three pairs through the origin swamp the others. Weights are computed
+//!   once, from the paraperspective pose.
+//! * The unweighted variant (`parallel-gn`) runs the same pipeline with unit
+//!   weights, so the effect of eq. 30 can be measured.
+//! * `parallel` iterates the paraperspective equations with Horaud's
+//!   perspective correction `(x_i − u0)(1 + ε_i) = I·P_i`, `ε_i = k·P_i / tz`,
+//!   until the corrections stop changing; its first iteration is eqs. 17–21.
+
+use super::epnp::{EpnpSystem, PAIRS};
+use super::{gauss_newton, Candidates, PnpError};
+use crate::pose::{nearest_rotation, Pose};
+use nalgebra::{Matrix3, Rotation3, Vector2, Vector3, Vector4};
+use smallvec::smallvec;
+
+/// m_o is floored at this fraction of the mean projected control-pair length.
+pub const M_O_FLOOR_FRACTION: f64 = 0.5;
+/// Horaud's iteration stops when no perspective correction ε_i moves by more
+/// than this.
+pub const ITERATION_TOLERANCE: f64 = 1e-14;
+/// Upper bound on Horaud's iterations.
+pub const MAX_ITERATIONS: usize = 500;
+
+const SOLVER: &str = "Paraperspective";
+
+/// The feature used as paraperspective reference point P0: the one nearest
+/// the centroid of the object points (ties go to the lowest index).
+pub fn reference_index(object: &[Vector3<f64>]) -> usize {
+    let centroid = object.iter().sum::<Vector3<f64>>() / object.len() as f64;
+    let mut best = 0;
+    let mut best_distance = f64::INFINITY;
+    for (index, p) in object.iter().enumerate() {
+        let distance = (p - centroid).norm_squared();
+        if distance < best_distance {
+            best = index;
+            best_distance = distance;
+        }
+    }
+    best
+}
+
+/// A paraperspective problem: object points relative to the reference point.
+struct Paraperspective<'a> {
+    object: &'a [Vector3<f64>],
+    image: &'a [Vector2<f64>],
+    reference: usize,
+    shift: Vector3<f64>,
+    /// `(Σ P_i P_iᵀ)⁻¹` over the shifted points (eq. 17's normal equations).
+    inverse_scatter: Matrix3<f64>,
+}
+
+/// The result of one paraperspective solve (eqs. 17–21), in the shifted frame.
+#[derive(Debug, Clone, Copy)]
+struct ParaperspectivePose {
+    pose: Pose,
+    /// Third row of R, used by Horaud's correction.
+    k: Vector3<f64>,
+}
+
+impl<'a> Paraperspective<'a> {
+    fn new(object: &'a [Vector3<f64>], image: &'a [Vector2<f64>]) -> Result<Self, PnpError> {
+        let reference = reference_index(object);
+        let shift = object[reference];
+        let mut scatter = Matrix3::zeros();
+        for p in object {
+            let q = p - shift;
+            scatter += q * q.transpose();
+        }
+        let inverse_scatter = scatter.try_inverse().ok_or(PnpError::Degenerate {
+            solver: SOLVER,
+            reason: "points around the reference point do not span three directions",
+        })?;
+        Ok(Self {
+            object,
+            image,
+            reference,
+            shift,
+            inverse_scatter,
+        })
+    }
+
+    fn shifted(&self, index: usize) -> Vector3<f64> {
+        self.object[index] - self.shift
+    }
+
+    /// Eqs. 17–21 with optional Horaud corrections `(1 + ε_i)`.
+    fn solve(&self, correction: impl Fn(usize) -> f64) -> Result<ParaperspectivePose, PnpError> {
+        let reference_image = self.image[self.reference];
+        let (u0, v0) = (reference_image.x, reference_image.y);
+        // Eq. 17 by linear least squares over the points other than P0
+        // (P0 itself contributes nothing: its shifted coordinates are zero).
+        let mut rhs_i = Vector3::zeros();
+        let mut rhs_j = Vector3::zeros();
+        for (index, m) in self.image.iter().enumerate() {
+            let q = self.shifted(index);
+            let scale = correction(index);
+            rhs_i += q * ((m.x - u0) * scale);
+            rhs_j += q * ((m.y - v0) * scale);
+        }
+        let big_i = self.inverse_scatter * rhs_i;
+        let big_j = self.inverse_scatter * rhs_j;
+        let (norm_i, norm_j) = (big_i.norm(), big_j.norm());
+        if !(norm_i > 0.0 && norm_j > 0.0 && norm_i.is_finite() && norm_j.is_finite()) {
+            return Err(PnpError::Degenerate {
+                solver: SOLVER,
+                reason: "the image has no extent around the reference point",
+            });
+        }
+        // Eq. 19, as corrected in NOTES.md.
+        let tz = 0.5 * ((1.0 + u0 * u0).sqrt() / norm_i + (1.0 + v0 * v0).sqrt() / norm_j);
+        // Eq. 21: (Id − tz v0 [I]× + tz u0 [J]×) k = tz² (I × J).
+        let system = Matrix3::identity() - big_i.cross_matrix() * (tz * v0)
+            + big_j.cross_matrix() * (tz * u0);
+        let k = system
+            .lu()
+            .solve(&(big_i.cross(&big_j) * (tz * tz)))
+            .ok_or(PnpError::Degenerate {
+                solver: SOLVER,
+                reason: "eq. 21 is singular",
+            })?;
+        // Eq. 18 inverted: i = tz I + u0 k, j = tz J + v0 k.
+        let i = big_i * tz + k * u0;
+        let j = big_j * tz + k * v0;
+        let near_rotation = Matrix3::from_rows(&[i.transpose(), j.transpose(), k.transpose()]);
+        if !near_rotation.iter().all(|v| v.is_finite()) {
+            return Err(PnpError::Degenerate {
+                solver: SOLVER,
+                reason: "paraperspective rotation is not finite",
+            });
+        }
+        let rotation: Rotation3<f64> = nearest_rotation(&near_rotation);
+        let translation = Vector3::new(u0 * tz, v0 * tz, tz);
+        let k = rotation.matrix().row(2).transpose();
+        Ok(ParaperspectivePose {
+            pose: Pose::new(rotation, translation),
+            k,
+        })
+    }
+
+    /// Back to the caller's object frame.
+    fn unshift(&self, pose: &Pose) -> Pose {
+        pose.with_object_origin_shifted(&self.shift)
+    }
+}
+
+/// `parallel`: the paraperspective pose of eqs. 17–21, iterated with
+/// Horaud's perspective correction until it converges to the full
+/// perspective pose. Returns one candidate.
+pub fn solve_iterative(
+    object: &[Vector3<f64>],
+    image: &[Vector2<f64>],
+) -> Result<Candidates, PnpError> {
+    let problem = Paraperspective::new(object, image)?;
+    let mut current = problem.solve(|_| 1.0)?;
+    for _ in 0..MAX_ITERATIONS {
+        let previous = current;
+        let tz = previous.pose.translation.z;
+        current = problem.solve(|index| 1.0 + previous.k.dot(&problem.shifted(index)) / tz)?;
+        let change = (0..object.len())
+            .map(|index| {
+                (current.k / current.pose.translation.z - previous.k / tz)
+                    .dot(&problem.shifted(index))
+                    .abs()
+            })
+            .fold(0.0, f64::max);
+        if change <= ITERATION_TOLERANCE {
+            break;
+        }
+    }
+    Ok(smallvec![problem.unshift(&current.pose)])
+}
+
+/// Control points of the paper's method: the reference point (origin of the
+/// shifted frame) and one point at distance `s` along each object axis.
+fn paper_control_points(problem: &Paraperspective) -> [Vector3<f64>; 4] {
+    let s = (0..problem.object.len())
+        .map(|index| problem.shifted(index).norm())
+        .fold(0.0, f64::max);
+    [
+        Vector3::zeros(),
+        Vector3::new(s, 0.0, 0.0),
+        Vector3::new(0.0, s, 0.0),
+        Vector3::new(0.0, 0.0, s),
+    ]
+}
+
+/// The weights of eq. 30 for the six control-point pairs, from the initial
+/// pose (see the module documentation for the choices made).
+pub fn eq30_weights(control_world: &[Vector3<f64>; 4], pose: &Pose) -> [f64; 6] {
+    let tz = pose.translation.z;
+    let control_camera: [Vector3<f64>; 4] =
+        std::array::from_fn(|j| pose.transform(&control_world[j]));
+    let project = |p: &Vector3<f64>| Vector2::new(p.x / p.z, p.y / p.z);
+    let projected_lengths: [f64; 6] = std::array::from_fn(|k| {
+        let (a, b) = PAIRS[k];
+        (project(&control_camera[a]) - project(&control_camera[b])).norm()
+    });
+    let mean_length = projected_lengths.iter().sum::<f64>() / 6.0;
+    let floor = (M_O_FLOOR_FRACTION * mean_length).max(f64::MIN_POSITIVE);
+    std::array::from_fn(|k| {
+        let (a, b) = PAIRS[k];
+        let length_sq = (control_world[a] - control_world[b]).norm_squared();
+        // Pairs through control point 0 (the reference) use the reference's
+        // image; the others the image of their midpoint.
+        let anchor = if a == 0 {
+            control_camera[0]
+        } else {
+            (control_camera[a] + control_camera[b]) * 0.5
+        };
+        let m_o = project(&anchor).norm().max(floor);
+        let m = projected_lengths[k].max(f64::MIN_POSITIVE);
+        length_sq / (tz * tz * m_o * m)
+    })
+}
+
+/// `parallel-weighted` (`weighted = true`, the paper's method) or the
+/// `parallel-gn` ablation (`weighted = false`): single-step paraperspective
+/// (eqs. 17–21) → control points (eq. 14) → β0 (eq. 16) → Gauss–Newton
+/// (eq. 31 or eq. 10) → pose. Returns one candidate.
+pub fn solve_with_gauss_newton(
+    object: &[Vector3<f64>],
+    image: &[Vector2<f64>],
+    weighted: bool,
+) -> Result<Candidates, PnpError> {
+    let problem = Paraperspective::new(object, image)?;
+    let initial = problem.solve(|_| 1.0)?.pose;
+    let control_world = paper_control_points(&problem);
+    // The EPnP system on the shifted object points.
+    let mut shifted = [Vector3::zeros(); STACK_POINTS];
+    let pose = if object.len() <= STACK_POINTS {
+        for (slot, p) in shifted.iter_mut().zip(object) {
+            *slot = p - problem.shift;
+        }
+        weighted_gauss_newton(
+            &control_world,
+            &shifted[..object.len()],
+            image,
+            &initial,
+            weighted,
+        )?
+    } else {
+        let shifted: Vec<Vector3<f64>> = object.iter().map(|p| p - problem.shift).collect();
+        weighted_gauss_newton(&control_world, &shifted, image, &initial, weighted)?
+    };
+    Ok(smallvec![problem.unshift(&pose)])
+}
+
+/// Problems up to this size keep their shifted points on the stack.
+const STACK_POINTS: usize = 32;
+
+fn weighted_gauss_newton(
+    control_world: &[Vector3<f64>; 4],
+    shifted_object: &[Vector3<f64>],
+    image: &[Vector2<f64>],
+    initial: &Pose,
+    weighted: bool,
+) -> Result<Pose, PnpError> {
+    let system = EpnpSystem::new(*control_world, shifted_object, image)?;
+    // Eq. 14: control points in the camera frame under the initial pose.
+    let control_camera: [Vector3<f64>; 4] =
+        std::array::from_fn(|j| initial.transform(&control_world[j]));
+    // Eq. 16.
+    let start: Vector4<f64> = system.betas_from_control_camera(&control_camera);
+    let weights = if weighted {
+        eq30_weights(control_world, initial)
+    } else {
+        gauss_newton::UNIT_WEIGHTS
+    };
+    let betas = gauss_newton::refine_betas(&system, &start, &weights);
+    Ok(system.pose_from_betas(&betas, shifted_object))
+}

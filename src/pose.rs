@@ -1,0 +1,322 @@
+//! Poses and pose-error metrics.
+//!
+//! A [`Pose`] maps object (marker) coordinates to camera coordinates,
+//! `X_cam = R · X_obj + t` (paper eq. 3, OpenCV). Rotation errors are in
+//! degrees at this boundary; code inside works in radians.
+
+use nalgebra::{Matrix2x3, Matrix3, Rotation3, SMatrix, Vector2, Vector3, SVD};
+use serde::{Deserialize, Serialize};
+
+/// A rigid transform from the object (marker) frame to the camera frame:
+/// `X_cam = rotation · X_obj + translation`, translation in millimetres.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Pose {
+    /// Rotation from object to camera axes.
+    pub rotation: Rotation3<f64>,
+    /// Position of the object origin in the camera frame, mm.
+    pub translation: Vector3<f64>,
+}
+
+impl Pose {
+    /// Builds a pose from a rotation and a translation.
+    pub fn new(rotation: Rotation3<f64>, translation: Vector3<f64>) -> Self {
+        Self {
+            rotation,
+            translation,
+        }
+    }
+
+    /// Maps an object point into the camera frame.
+    #[inline]
+    pub fn transform(&self, object_point: &Vector3<f64>) -> Vector3<f64> {
+        self.rotation * object_point + self.translation
+    }
+
+    /// Projects an object point onto the normalised image plane `z = 1`.
+    #[inline]
+    pub fn project_normalised(&self, object_point: &Vector3<f64>) -> Vector2<f64> {
+        let camera_point = self.transform(object_point);
+        Vector2::new(
+            camera_point.x / camera_point.z,
+            camera_point.y / camera_point.z,
+        )
+    }
+
+    /// Whether every entry of the pose is finite.
+    pub fn is_finite(&self) -> bool {
+        self.rotation.matrix().iter().all(|v| v.is_finite())
+            && self.translation.iter().all(|v| v.is_finite())
+    }
+
+    /// Whether every object point lies strictly in front of the camera.
+    pub fn all_in_front(&self, object_points: &[Vector3<f64>]) -> bool {
+        object_points.iter().all(|p| self.transform(p).z > 0.0)
+    }
+
+    /// The pose with the object frame moved by `shift`: if `self` maps
+    /// points expressed relative to `shift`, the result maps the original
+    /// coordinates (`X_cam = R (X − shift) + t`).
+    pub fn with_object_origin_shifted(&self, shift: &Vector3<f64>) -> Self {
+        Self {
+            rotation: self.rotation,
+            translation: self.translation - self.rotation * shift,
+        }
+    }
+}
+
+/// Geodesic rotation error `acos((trace(R_trueᵀ R) − 1)/2)`, in degrees.
+///
+/// Computed as `atan2(sin θ, cos θ)` of the relative rotation, with sin θ from
+/// its skew-symmetric part: the plain `acos` form cannot resolve angles below
+/// about 1e-6° in double precision (and returns NaN when rounding pushes the
+/// cosine past 1).
+pub fn rotation_error_deg(truth: &Rotation3<f64>, estimate: &Rotation3<f64>) -> f64 {
+    let relative = truth.matrix().transpose() * estimate.matrix();
+    let cosine = (relative.trace() - 1.0) / 2.0;
+    let sine = 0.5
+        * Vector3::new(
+            relative[(2, 1)] - relative[(1, 2)],
+            relative[(0, 2)] - relative[(2, 0)],
+            relative[(1, 0)] - relative[(0, 1)],
+        )
+        .norm();
+    sine.atan2(cosine).to_degrees()
+}
+
+/// The paper's E_rot (eq. 33): the largest angle between corresponding
+/// columns of the true and estimated rotation matrices, in degrees.
+pub fn paper_rotation_error_deg(truth: &Rotation3<f64>, estimate: &Rotation3<f64>) -> f64 {
+    (0..3)
+        .map(|k| {
+            let a = truth.matrix().column(k);
+            let b = estimate.matrix().column(k);
+            // atan2 of |a×b| and a·b is exact near 0, where acos loses digits.
+            let cross = a.cross(&b).norm();
+            cross.atan2(a.dot(&b))
+        })
+        .fold(0.0, f64::max)
+        .to_degrees()
+}
+
+/// Relative translation error `100·|t − t_true| / |t_true|`, in percent.
+pub fn translation_error_percent(truth: &Vector3<f64>, estimate: &Vector3<f64>) -> f64 {
+    100.0 * (estimate - truth).norm() / truth.norm()
+}
+
+/// Absolute translation error `|t − t_true|`, in millimetres.
+pub fn translation_error_mm(truth: &Vector3<f64>, estimate: &Vector3<f64>) -> f64 {
+    (estimate - truth).norm()
+}
+
+/// Root-mean-square reprojection error on the normalised image plane.
+/// Multiply by a focal length for pixels when there is no distortion;
+/// for the exact pixel figure use
+/// [`crate::camera::Camera`] with [`reprojection_rms_px`].
+pub fn reprojection_rms_normalised(
+    pose: &Pose,
+    object_points: &[Vector3<f64>],
+    normalised_points: &[Vector2<f64>],
+) -> f64 {
+    let sum: f64 = object_points
+        .iter()
+        .zip(normalised_points)
+        .map(|(p, m)| (pose.project_normalised(p) - m).norm_squared())
+        .sum();
+    (sum / object_points.len().max(1) as f64).sqrt()
+}
+
+/// Root-mean-square reprojection error in pixels, with the camera's
+/// distortion, against raw pixel measurements.
+pub fn reprojection_rms_px(
+    camera: &crate::camera::Camera,
+    pose: &Pose,
+    object_points: &[Vector3<f64>],
+    pixels: &[Vector2<f64>],
+) -> f64 {
+    let sum: f64 = object_points
+        .iter()
+        .zip(pixels)
+        .map(|(p, pixel)| {
+            let projected = camera.normalised_to_pixel(&pose.project_normalised(p));
+            (projected - pixel).norm_squared()
+        })
+        .sum();
+    (sum / object_points.len().max(1) as f64).sqrt()
+}
+
+/// The rotation nearest to `m` in the Frobenius norm (SVD projection onto
+/// SO(3), with the determinant forced to +1).
+pub fn nearest_rotation(m: &Matrix3<f64>) -> Rotation3<f64> {
+    let svd = SVD::new(*m, true, true);
+    let (u, v_t) = (svd.u.unwrap(), svd.v_t.unwrap());
+    let mut correction = Matrix3::identity();
+    if (u * v_t).determinant() < 0.0 {
+        correction[(2, 2)] = -1.0;
+    }
+    Rotation3::from_matrix_unchecked(u * correction * v_t)
+}
+
+/// Absolute orientation (Umeyama/Kabsch, without scale): the pose that best
+/// maps `object` points onto `camera` points in the least-squares sense.
+/// This is the last step of EPnP and of the paper's method (it cites LHM
+/// [29], whose closed form is the same SVD solution).
+///
+/// Needs at least three non-collinear points; callers validate that.
+pub fn absolute_orientation(
+    object: impl Iterator<Item = Vector3<f64>> + Clone,
+    camera: impl Iterator<Item = Vector3<f64>> + Clone,
+) -> Pose {
+    let mut count = 0.0;
+    let mut object_mean = Vector3::zeros();
+    let mut camera_mean = Vector3::zeros();
+    for (o, c) in object.clone().zip(camera.clone()) {
+        object_mean += o;
+        camera_mean += c;
+        count += 1.0;
+    }
+    object_mean /= count;
+    camera_mean /= count;
+    let mut cross_covariance = Matrix3::zeros();
+    for (o, c) in object.zip(camera) {
+        cross_covariance += (c - camera_mean) * (o - object_mean).transpose();
+    }
+    let rotation = nearest_rotation(&cross_covariance);
+    let translation = camera_mean - rotation * object_mean;
+    Pose::new(rotation, translation)
+}
+
+/// Jacobian of the normalised projection `π(X) = (X_x/X_z, X_y/X_z)` of a
+/// camera-frame point `X = R P + t` with respect to the pose perturbation
+/// `(ω, δt)`, where the perturbed pose is `R ← exp([ω]×) R`, `t ← t + δt`
+/// (ω in radians, about the camera axes). `∂X/∂ω = −[X]×`, `∂X/∂t = I`.
+#[inline]
+pub fn normalised_projection_jacobian(camera_point: &Vector3<f64>) -> SMatrix<f64, 2, 6> {
+    let (x, y, z) = (camera_point.x, camera_point.y, camera_point.z);
+    let inverse_z = 1.0 / z;
+    let projection = Matrix2x3::new(
+        inverse_z,
+        0.0,
+        -x * inverse_z * inverse_z,
+        0.0,
+        inverse_z,
+        -y * inverse_z * inverse_z,
+    );
+    let mut jacobian = SMatrix::<f64, 2, 6>::zeros();
+    jacobian
+        .fixed_view_mut::<2, 3>(0, 0)
+        .copy_from(&(projection * -camera_point.cross_matrix()));
+    jacobian.fixed_view_mut::<2, 3>(0, 3).copy_from(&projection);
+    jacobian
+}
+
+/// Applies the perturbation `(ω, δt)` of [`normalised_projection_jacobian`].
+pub fn perturb(pose: &Pose, delta: &SMatrix<f64, 6, 1>) -> Pose {
+    let omega = Vector3::new(delta[0], delta[1], delta[2]);
+    Pose::new(
+        Rotation3::new(omega) * pose.rotation,
+        pose.translation + Vector3::new(delta[3], delta[4], delta[5]),
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use approx::assert_relative_eq;
+
+    #[test]
+    fn rotation_error_is_the_relative_angle() {
+        let a = Rotation3::from_euler_angles(0.1, -0.4, 2.0);
+        let delta = Rotation3::from_axis_angle(&Vector3::y_axis(), 3f64.to_radians());
+        assert_relative_eq!(rotation_error_deg(&a, &(a * delta)), 3.0, epsilon = 1e-12);
+        assert_relative_eq!(rotation_error_deg(&a, &a), 0.0, epsilon = 1e-12);
+        // Tiny and near-π angles stay exact.
+        let tiny = Rotation3::from_axis_angle(&Vector3::x_axis(), 1e-12);
+        assert_relative_eq!(
+            rotation_error_deg(&a, &(a * tiny)),
+            1e-12f64.to_degrees(),
+            max_relative = 1e-6
+        );
+        let half_turn = Rotation3::from_axis_angle(&Vector3::z_axis(), std::f64::consts::PI - 1e-9);
+        assert_relative_eq!(
+            rotation_error_deg(&a, &(a * half_turn)),
+            180.0,
+            epsilon = 1e-6
+        );
+        // E_rot (eq. 33) for a rotation about one axis: two columns move by the angle.
+        assert_relative_eq!(
+            paper_rotation_error_deg(&Rotation3::identity(), &delta),
+            3.0,
+            epsilon = 1e-12
+        );
+    }
+
+    #[test]
+    fn translation_errors() {
+        let t = Vector3::new(0.0, 0.0, 500.0);
+        let e = Vector3::new(3.0, 4.0, 500.0);
+        assert_relative_eq!(translation_error_mm(&t, &e), 5.0);
+        assert_relative_eq!(translation_error_percent(&t, &e), 1.0);
+    }
+
+    #[test]
+    fn absolute_orientation_recovers_a_rigid_motion() {
+        let pose = Pose::new(
+            Rotation3::from_euler_angles(0.3, -1.1, 2.5),
+            Vector3::new(10.0, -20.0, 700.0),
+        );
+        let object: Vec<Vector3<f64>> = vec![
+            Vector3::new(0.0, 0.0, 0.0),
+            Vector3::new(50.0, 0.0, 0.0),
+            Vector3::new(0.0, 50.0, 0.0),
+            Vector3::new(0.0, 0.0, 50.0),
+            Vector3::new(-50.0, 10.0, 3.0),
+        ];
+        let camera: Vec<Vector3<f64>> = object.iter().map(|p| pose.transform(p)).collect();
+        let estimate = absolute_orientation(object.iter().copied(), camera.iter().copied());
+        assert!(rotation_error_deg(&pose.rotation, &estimate.rotation) < 1e-10);
+        assert_relative_eq!(estimate.translation, pose.translation, epsilon = 1e-9);
+    }
+
+    #[test]
+    fn nearest_rotation_has_positive_determinant() {
+        let reflection = Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, -1.0));
+        let r = nearest_rotation(&reflection);
+        assert_relative_eq!(r.matrix().determinant(), 1.0, epsilon = 1e-12);
+    }
+
+    #[test]
+    fn projection_jacobian_matches_central_differences() {
+        let pose = Pose::new(
+            Rotation3::from_euler_angles(0.3, -0.7, 1.1),
+            Vector3::new(30.0, -20.0, 400.0),
+        );
+        let point = Vector3::new(40.0, -25.0, 10.0);
+        let analytic = normalised_projection_jacobian(&pose.transform(&point));
+        let h = 1e-6;
+        for column in 0..6 {
+            let mut delta = SMatrix::<f64, 6, 1>::zeros();
+            delta[column] = h;
+            let plus = perturb(&pose, &delta).project_normalised(&point);
+            let minus = perturb(&pose, &(-delta)).project_normalised(&point);
+            let numeric = (plus - minus) / (2.0 * h);
+            assert_relative_eq!(
+                analytic.column(column).into_owned(),
+                numeric,
+                epsilon = 1e-8,
+                max_relative = 1e-6
+            );
+        }
+    }
+
+    #[test]
+    fn shifting_the_object_origin_keeps_camera_points() {
+        let pose = Pose::new(
+            Rotation3::from_euler_angles(0.3, -0.1, 0.5),
+            Vector3::new(1.0, 2.0, 300.0),
+        );
+        let shift = Vector3::new(5.0, -7.0, 11.0);
+        let shifted = pose.with_object_origin_shifted(&shift);
+        let p = Vector3::new(20.0, 30.0, -40.0);
+        assert_relative_eq!(shifted.transform(&p), pose.transform(&(p - shift)));
+    }
+}
