@@ -76,7 +76,7 @@ impl PoseCovariance {
 /// pose perturbation, distortion included: `K · D_distort · ∂π/∂(ω, δt)`.
 pub fn pixel_jacobian(camera: &Camera, pose: &Pose, p: &Vector3<f64>) -> SMatrix<f64, 2, 6> {
     let camera_point = pose.transform(p);
-    let normalised_jacobian = normalised_projection_jacobian(&camera_point);
+    let normalised_jacobian = normalised_projection_jacobian(pose, p);
     let focal = Matrix2::new(camera.fx(), 0.0, 0.0, camera.fy());
     if camera.has_distortion() {
         let m = Vector2::new(

@@ -55,7 +55,7 @@ pub fn refine(start: &Pose, object: &[Vector3<f64>], image: &[Vector2<f64>]) -> 
         for (p, m) in object.iter().zip(image) {
             let c = pose.transform(p);
             let residual = Vector2::new(c.x / c.z, c.y / c.z) - m;
-            let jacobian = normalised_projection_jacobian(&c);
+            let jacobian = normalised_projection_jacobian(&pose, p);
             normal += jacobian.transpose() * jacobian;
             gradient += jacobian.transpose() * residual;
         }
