@@ -14,6 +14,9 @@
 pub mod batch;
 pub mod camera;
 pub mod error_model;
+pub mod montecarlo;
+pub mod noise;
 pub mod pnp;
 pub mod pose;
+pub mod scenario;
 pub mod synthetic;

@@ -236,6 +236,12 @@ impl std::fmt::Display for Solver {
     }
 }
 
+impl serde::Serialize for Solver {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        serializer.serialize_str(self.name())
+    }
+}
+
 impl std::str::FromStr for Solver {
     type Err = String;
     fn from_str(name: &str) -> Result<Self, Self::Err> {

@@ -36,6 +36,7 @@
 
 use super::epnp::{EpnpSystem, PAIRS};
 use super::{gauss_newton, Candidates, PnpError};
+use crate::error_model::transfer::eq30_weight;
 use crate::pose::{nearest_rotation, Pose};
 use nalgebra::{Matrix3, Rotation3, Vector2, Vector3, Vector4};
 use smallvec::smallvec;
@@ -226,7 +227,7 @@ pub fn eq30_weights(control_world: &[Vector3<f64>; 4], pose: &Pose) -> [f64; 6] 
     let floor = (M_O_FLOOR_FRACTION * mean_length).max(f64::MIN_POSITIVE);
     std::array::from_fn(|k| {
         let (a, b) = PAIRS[k];
-        let length_sq = (control_world[a] - control_world[b]).norm_squared();
+        let length_mm = (control_world[a] - control_world[b]).norm();
         // Pairs through control point 0 (the reference) use the reference's
         // image; the others the image of their midpoint.
         let anchor = if a == 0 {
@@ -236,7 +237,7 @@ pub fn eq30_weights(control_world: &[Vector3<f64>; 4], pose: &Pose) -> [f64; 6] 
         };
         let m_o = project(&anchor).norm().max(floor);
         let m = projected_lengths[k].max(f64::MIN_POSITIVE);
-        length_sq / (tz * tz * m_o * m)
+        eq30_weight(length_mm, tz, m_o, m)
     })
 }
 

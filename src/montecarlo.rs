@@ -1,0 +1,553 @@
+//! The Monte-Carlo engine: real solvers on seeded noisy projections, per
+//! scenario, beside the first-order and transfer-model predictions.
+//!
+//! * **Common random numbers.** Trial `k` of scenario `s` draws its noise from
+//!   `stream_rng(seed, s, k)` ([`crate::synthetic::stream_rng`]), feature by
+//!   feature, a fixed number of draws each ([`crate::noise`]). Every solver in
+//!   a run, and every layout evaluated on the same grid and seed, sees the
+//!   same draws, so differences between them are not sampling noise.
+//! * **Determinism.** Scenarios run in parallel with rayon; each scenario's
+//!   trials run in order, results are collected in scenario order, and every
+//!   reduction is sequential. The output is bit-identical at any thread count.
+//! * **Hot path.** Buffers are allocated once per scenario; a trial allocates
+//!   nothing beyond what a solver itself needs.
+//! * **Visibility.** Scenarios that break a visibility rule
+//!   ([`crate::scenario::visibility`]) still run when every feature is in
+//!   front of the camera, and carry their [`Visibility`] so reports can count
+//!   them; scenarios with a feature behind the camera cannot be imaged and run
+//!   no trials.
+
+use crate::camera::Camera;
+use crate::error_model::first_order::pose_covariance;
+use crate::error_model::transfer::{self, QuHou, TransferPrediction};
+use crate::noise::NoiseModel;
+use crate::pnp::{parallel::reference_index, Solver};
+use crate::pose::{
+    paper_rotation_error_deg, rotation_error_deg, translation_error_mm, translation_error_percent,
+};
+use crate::scenario::{sphere_images, visibility, Scenario, Visibility};
+use crate::synthetic::stream_rng;
+use nalgebra::{Vector2, Vector3};
+use rayon::prelude::*;
+use serde::Serialize;
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+/// Rotation errors above this count as gross failures (degrees).
+pub const DEFAULT_GROSS_THRESHOLD_DEG: f64 = 10.0;
+
+/// What is measured: a camera and a marker.
+#[derive(Debug, Clone, Copy)]
+pub struct Target<'a> {
+    /// The camera.
+    pub camera: &'a Camera,
+    /// Feature positions in the marker frame, mm.
+    pub object: &'a [Vector3<f64>],
+    /// Sphere diameter, mm (for the image discs).
+    pub sphere_diameter_mm: f64,
+    /// Per-feature σ from the layout file, px (used by the per-point model).
+    pub point_sigma_px: &'a [Option<f64>],
+}
+
+/// How trials run.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct MonteCarloConfig {
+    /// Trials per scenario.
+    pub trials: usize,
+    /// Seed of every noise stream.
+    pub seed: u64,
+    /// Solvers to run on every trial.
+    pub solvers: Vec<Solver>,
+    /// How pixel noise is drawn.
+    pub noise: NoiseModel,
+    /// Rotation error above which a trial is a gross failure, degrees.
+    pub gross_threshold_deg: f64,
+}
+
+/// Statistics of one error over the trials that returned a pose.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+pub struct Summary {
+    /// Number of values.
+    pub count: usize,
+    /// Mean.
+    pub mean: f64,
+    /// Median.
+    pub median: f64,
+    /// 95th percentile (nearest rank).
+    pub p95: f64,
+    /// Root mean square.
+    pub rms: f64,
+    /// Largest value.
+    pub max: f64,
+}
+
+impl Summary {
+    /// Summarises `values` (sorted in place).
+    pub fn of(values: &mut [f64]) -> Summary {
+        if values.is_empty() {
+            return Summary::default();
+        }
+        values.sort_by(f64::total_cmp);
+        let count = values.len();
+        let sum: f64 = values.iter().sum();
+        let sum_sq: f64 = values.iter().map(|v| v * v).sum();
+        let rank = ((0.95 * count as f64).ceil() as usize).clamp(1, count) - 1;
+        Summary {
+            count,
+            mean: sum / count as f64,
+            median: if count % 2 == 1 {
+                values[count / 2]
+            } else {
+                0.5 * (values[count / 2 - 1] + values[count / 2])
+            },
+            p95: values[rank],
+            rms: (sum_sq / count as f64).sqrt(),
+            max: values[count - 1],
+        }
+    }
+}
+
+/// One solver's results on one scenario.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SolverOutcome {
+    /// The solver.
+    pub solver: Solver,
+    /// Geodesic rotation error, degrees.
+    pub rotation_deg: Summary,
+    /// The paper's E_rot (eq. 33), degrees.
+    pub paper_rotation_deg: Summary,
+    /// Translation error, mm.
+    pub translation_mm: Summary,
+    /// Translation error, % of |t|.
+    pub translation_percent: Summary,
+    /// Trials with rotation error above the gross threshold (included in the
+    /// statistics above).
+    pub gross_failures: usize,
+    /// Trials in which the solver returned an error (excluded from the statistics).
+    pub solver_errors: usize,
+    /// The first error message, if any.
+    pub first_error: Option<String>,
+}
+
+/// First-order (Cramér–Rao) prediction for a scenario.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct FirstOrderPrediction {
+    /// RMS geodesic rotation error, degrees.
+    pub rms_rotation_deg: f64,
+    /// RMS rotation about camera x, y, z (pitch, yaw, roll), degrees.
+    pub rms_rotation_per_axis_deg: [f64; 3],
+    /// RMS translation error, mm.
+    pub rms_translation_mm: f64,
+    /// RMS translation error, % of |t|.
+    pub rms_translation_percent: f64,
+}
+
+/// Everything measured and predicted for one scenario.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ScenarioOutcome {
+    /// The scenario.
+    pub scenario: Scenario,
+    /// Which visibility rules it breaks.
+    pub visibility: Visibility,
+    /// The first-order prediction (None when the pose is not observable or a
+    /// feature is behind the camera).
+    pub first_order: Option<FirstOrderPrediction>,
+    /// The paper's transfer-model prediction.
+    pub transfer: Option<TransferPrediction>,
+    /// Qu & Hou's planar prediction of RMS rotation error, degrees.
+    pub qu_hou_rotation_deg: Option<f64>,
+    /// Per-solver results, in the order of the config's solvers (empty when
+    /// a feature is behind the camera).
+    pub solvers: Vec<SolverOutcome>,
+}
+
+/// Why a run could not start.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum MonteCarloError {
+    /// The per-point σ list does not match the features.
+    #[error("{points} features but {sigmas} per-point noise entries")]
+    MismatchedSigmas {
+        /// Features.
+        points: usize,
+        /// σ entries.
+        sigmas: usize,
+    },
+    /// No trials or no solvers.
+    #[error("a Monte-Carlo run needs at least one trial and one solver")]
+    Empty,
+}
+
+/// Runs every scenario. `on_scenario_done` is called (from worker threads)
+/// after each scenario with the number finished so far.
+pub fn run(
+    target: &Target,
+    scenarios: &[Scenario],
+    config: &MonteCarloConfig,
+    on_scenario_done: &(dyn Fn(usize) + Sync),
+) -> Result<Vec<ScenarioOutcome>, MonteCarloError> {
+    if target.point_sigma_px.len() != target.object.len() {
+        return Err(MonteCarloError::MismatchedSigmas {
+            points: target.object.len(),
+            sigmas: target.point_sigma_px.len(),
+        });
+    }
+    if config.trials == 0 || config.solvers.is_empty() {
+        return Err(MonteCarloError::Empty);
+    }
+    let reference = reference_index(target.object);
+    let done = AtomicUsize::new(0);
+    Ok(scenarios
+        .par_iter()
+        .map(|scenario| {
+            let outcome = run_scenario(target, scenario, config, reference);
+            on_scenario_done(done.fetch_add(1, Ordering::Relaxed) + 1);
+            outcome
+        })
+        .collect())
+}
+
+fn run_scenario(
+    target: &Target,
+    scenario: &Scenario,
+    config: &MonteCarloConfig,
+    reference: usize,
+) -> ScenarioOutcome {
+    let camera = target.camera;
+    let truth = scenario.pose();
+    let images = sphere_images(camera, &truth, target.object, target.sphere_diameter_mm);
+    let visibility = visibility(&images, camera);
+    let mut outcome = ScenarioOutcome {
+        scenario: *scenario,
+        visibility,
+        first_order: None,
+        transfer: None,
+        qu_hou_rotation_deg: None,
+        solvers: Vec::new(),
+    };
+    if !outcome.visibility.all_in_front() {
+        return outcome;
+    }
+    let sigmas: Vec<f64> = images
+        .iter()
+        .zip(target.point_sigma_px)
+        .map(|(image, layout_sigma)| {
+            let radius = image.map_or(f64::INFINITY, |i| i.radius_px);
+            config
+                .noise
+                .point_sigma(scenario.sigma_px, *layout_sigma, radius)
+        })
+        .collect();
+    if sigmas.iter().all(|&s| s > 0.0) {
+        outcome.first_order = pose_covariance(camera, &truth, target.object, &sigmas)
+            .ok()
+            .map(|c| {
+                let per_axis = c.rms_rotation_per_axis_deg();
+                FirstOrderPrediction {
+                    rms_rotation_deg: c.rms_rotation_deg(),
+                    rms_rotation_per_axis_deg: [per_axis.x, per_axis.y, per_axis.z],
+                    rms_translation_mm: c.rms_translation_mm(),
+                    rms_translation_percent: c.rms_translation_percent(),
+                }
+            });
+        outcome.transfer = Some(transfer::predict(
+            camera,
+            &truth,
+            target.object,
+            reference,
+            &sigmas,
+        ));
+        let size_mm = target
+            .object
+            .iter()
+            .enumerate()
+            .filter(|&(i, _)| i != reference)
+            .map(|(_, p)| (p - target.object[reference]).norm())
+            .sum::<f64>()
+            / (target.object.len() - 1) as f64;
+        let focal = 0.5 * (camera.fx() + camera.fy());
+        let model = QuHou::new(
+            focal,
+            scenario.depth_mm,
+            size_mm,
+            scenario.tilt_deg.to_radians(),
+            scenario.pan_deg.to_radians(),
+        );
+        let mean_sigma = sigmas.iter().sum::<f64>() / sigmas.len() as f64;
+        outcome.qu_hou_rotation_deg = Some(model.rms_rotation_deg(mean_sigma));
+    }
+
+    let clean: Vec<Vector2<f64>> = images
+        .iter()
+        .map(|image| {
+            let image = image.expect("every feature is in front");
+            Vector2::new(image.centre_px[0], image.centre_px[1])
+        })
+        .collect();
+    let trials = config.trials;
+    let solver_count = config.solvers.len();
+    let mut normalised = vec![Vector2::zeros(); clean.len()];
+    // Errors per solver, per trial: rotation, E_rot, translation mm, %.
+    let mut errors = vec![
+        [
+            Vec::with_capacity(trials),
+            Vec::with_capacity(trials),
+            Vec::with_capacity(trials),
+            Vec::with_capacity(trials)
+        ];
+        solver_count
+    ];
+    let mut solver_errors = vec![0usize; solver_count];
+    let mut first_error: Vec<Option<String>> = vec![None; solver_count];
+    let mut undistort_failures = 0usize;
+    for trial in 0..trials {
+        let mut rng = stream_rng(config.seed, scenario.index as u64, trial as u64);
+        let mut usable = true;
+        for ((pixel, sigma), slot) in clean.iter().zip(&sigmas).zip(normalised.iter_mut()) {
+            let [dx, dy] = config.noise.draw(&mut rng, *sigma);
+            match camera.pixel_to_normalised(&Vector2::new(pixel.x + dx, pixel.y + dy)) {
+                Ok(m) => *slot = m,
+                Err(_) => usable = false,
+            }
+        }
+        if !usable {
+            undistort_failures += 1;
+            continue;
+        }
+        for (index, solver) in config.solvers.iter().enumerate() {
+            match solver.solve_best(target.object, &normalised) {
+                Ok(pose) => {
+                    let slots = &mut errors[index];
+                    slots[0].push(rotation_error_deg(&truth.rotation, &pose.rotation));
+                    slots[1].push(paper_rotation_error_deg(&truth.rotation, &pose.rotation));
+                    slots[2].push(translation_error_mm(&truth.translation, &pose.translation));
+                    slots[3].push(translation_error_percent(
+                        &truth.translation,
+                        &pose.translation,
+                    ));
+                }
+                Err(error) => {
+                    solver_errors[index] += 1;
+                    if first_error[index].is_none() {
+                        first_error[index] = Some(error.to_string());
+                    }
+                }
+            }
+        }
+    }
+    outcome.solvers = config
+        .solvers
+        .iter()
+        .enumerate()
+        .map(|(index, &solver)| {
+            let [rotation, paper, millimetres, percent] = &mut errors[index];
+            let gross_failures = rotation
+                .iter()
+                .filter(|&&e| e > config.gross_threshold_deg)
+                .count();
+            let mut first_error = first_error[index].take();
+            if undistort_failures > 0 && first_error.is_none() {
+                first_error = Some(format!(
+                    "{undistort_failures} trials could not be undistorted"
+                ));
+            }
+            SolverOutcome {
+                solver,
+                rotation_deg: Summary::of(rotation),
+                paper_rotation_deg: Summary::of(paper),
+                translation_mm: Summary::of(millimetres),
+                translation_percent: Summary::of(percent),
+                gross_failures,
+                solver_errors: solver_errors[index] + undistort_failures,
+                first_error,
+            }
+        })
+        .collect();
+    outcome
+}
+
+/// A solver's results pooled over many scenarios.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Pooled {
+    /// The solver.
+    pub solver: Solver,
+    /// Scenarios pooled.
+    pub scenarios: usize,
+    /// Trials that returned a pose.
+    pub trials: usize,
+    /// RMS rotation error over every pooled trial, degrees.
+    pub rms_rotation_deg: f64,
+    /// Mean rotation error, degrees.
+    pub mean_rotation_deg: f64,
+    /// Mean of the per-scenario medians, degrees.
+    pub mean_median_rotation_deg: f64,
+    /// Worst per-scenario RMS rotation error, degrees.
+    pub worst_rms_rotation_deg: f64,
+    /// RMS of the paper's E_rot, degrees.
+    pub rms_paper_rotation_deg: f64,
+    /// RMS translation error, mm.
+    pub rms_translation_mm: f64,
+    /// RMS translation error, %.
+    pub rms_translation_percent: f64,
+    /// Gross failures.
+    pub gross_failures: usize,
+    /// Solver errors.
+    pub solver_errors: usize,
+    /// First-order RMS rotation prediction over the same scenarios, degrees.
+    pub first_order_rms_rotation_deg: Option<f64>,
+    /// First-order RMS translation prediction, mm.
+    pub first_order_rms_translation_mm: Option<f64>,
+    /// Transfer-model RMS rotation prediction, degrees.
+    pub transfer_rms_rotation_deg: Option<f64>,
+    /// Transfer-model RMS translation prediction, mm.
+    pub transfer_rms_translation_mm: Option<f64>,
+}
+
+/// Pools solver `index` of `outcomes` (weighted by trials).
+pub fn pool<'a>(
+    outcomes: impl IntoIterator<Item = &'a ScenarioOutcome>,
+    index: usize,
+) -> Option<Pooled> {
+    let mut pooled: Option<Pooled> = None;
+    let (mut sum_r2, mut sum_r, mut sum_median, mut sum_p2, mut sum_t2, mut sum_tp2) =
+        (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+    let mut models = [(0.0, 0usize); 4];
+    for outcome in outcomes {
+        let Some(result) = outcome.solvers.get(index) else {
+            continue;
+        };
+        let n = result.rotation_deg.count;
+        let entry = pooled.get_or_insert(Pooled {
+            solver: result.solver,
+            scenarios: 0,
+            trials: 0,
+            rms_rotation_deg: 0.0,
+            mean_rotation_deg: 0.0,
+            mean_median_rotation_deg: 0.0,
+            worst_rms_rotation_deg: 0.0,
+            rms_paper_rotation_deg: 0.0,
+            rms_translation_mm: 0.0,
+            rms_translation_percent: 0.0,
+            gross_failures: 0,
+            solver_errors: 0,
+            first_order_rms_rotation_deg: None,
+            first_order_rms_translation_mm: None,
+            transfer_rms_rotation_deg: None,
+            transfer_rms_translation_mm: None,
+        });
+        entry.scenarios += 1;
+        entry.trials += n;
+        entry.gross_failures += result.gross_failures;
+        entry.solver_errors += result.solver_errors;
+        entry.worst_rms_rotation_deg = entry.worst_rms_rotation_deg.max(result.rotation_deg.rms);
+        let nf = n as f64;
+        sum_r2 += nf * result.rotation_deg.rms.powi(2);
+        sum_r += nf * result.rotation_deg.mean;
+        sum_median += result.rotation_deg.median;
+        sum_p2 += nf * result.paper_rotation_deg.rms.powi(2);
+        sum_t2 += nf * result.translation_mm.rms.powi(2);
+        sum_tp2 += nf * result.translation_percent.rms.powi(2);
+        let predictions = [
+            outcome.first_order.map(|f| f.rms_rotation_deg),
+            outcome.first_order.map(|f| f.rms_translation_mm),
+            outcome.transfer.and_then(|t| t.rms_rotation_deg),
+            outcome.transfer.and_then(|t| t.rms_translation_mm),
+        ];
+        for (slot, prediction) in models.iter_mut().zip(predictions) {
+            if let Some(value) = prediction {
+                slot.0 += value * value;
+                slot.1 += 1;
+            }
+        }
+    }
+    let mut pooled = pooled?;
+    let trials = pooled.trials.max(1) as f64;
+    pooled.rms_rotation_deg = (sum_r2 / trials).sqrt();
+    pooled.mean_rotation_deg = sum_r / trials;
+    pooled.mean_median_rotation_deg = sum_median / pooled.scenarios as f64;
+    pooled.rms_paper_rotation_deg = (sum_p2 / trials).sqrt();
+    pooled.rms_translation_mm = (sum_t2 / trials).sqrt();
+    pooled.rms_translation_percent = (sum_tp2 / trials).sqrt();
+    // A model's pooled prediction counts only when it covers every pooled scenario.
+    let model = |(sum, count): (f64, usize)| {
+        (count == pooled.scenarios && count > 0).then(|| (sum / count as f64).sqrt())
+    };
+    pooled.first_order_rms_rotation_deg = model(models[0]);
+    pooled.first_order_rms_translation_mm = model(models[1]);
+    pooled.transfer_rms_rotation_deg = model(models[2]);
+    pooled.transfer_rms_translation_mm = model(models[3]);
+    Some(pooled)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scenario::{Range, ScenarioGrid};
+
+    #[test]
+    fn summary_statistics() {
+        let mut values = vec![3.0, 1.0, 2.0, 4.0];
+        let s = Summary::of(&mut values);
+        assert_eq!((s.count, s.mean, s.median, s.max), (4, 2.5, 2.5, 4.0));
+        assert_eq!(s.p95, 4.0);
+        assert!((s.rms - (30.0f64 / 4.0).sqrt()).abs() < 1e-12);
+        assert_eq!(Summary::of(&mut []), Summary::default());
+    }
+
+    #[test]
+    fn ml_matches_the_first_order_limit_on_a_small_grid() {
+        let camera = Camera::paper();
+        let object = crate::synthetic::biprism_points(50.0);
+        let grid = ScenarioGrid::new(
+            Range::list(&[300.0, 600.0]),
+            Range::single(50.0),
+            Range::single(0.0),
+            Range::list(&[-50.0, 40.0]),
+            Range::single(10.0),
+            Range::single(0.0),
+            Range::single(0.5),
+        )
+        .unwrap();
+        let target = Target {
+            camera: &camera,
+            object: &object,
+            sphere_diameter_mm: 10.0,
+            point_sigma_px: &[None; 7],
+        };
+        let config = MonteCarloConfig {
+            trials: 400,
+            seed: 11,
+            solvers: vec![Solver::Ml, Solver::ParallelWeighted],
+            noise: NoiseModel::default(),
+            gross_threshold_deg: DEFAULT_GROSS_THRESHOLD_DEG,
+        };
+        let outcomes = run(&target, &grid.scenarios(), &config, &|_| {}).unwrap();
+        let ml = pool(&outcomes, 0).unwrap();
+        let predicted = ml.first_order_rms_rotation_deg.unwrap();
+        let ratio = ml.rms_rotation_deg / predicted;
+        assert!((ratio - 1.0).abs() < 0.1, "ml RMS / CRLB = {ratio}");
+        assert_eq!(ml.trials, 4 * 400);
+    }
+
+    #[test]
+    fn rejects_empty_runs() {
+        let camera = Camera::paper();
+        let object = crate::synthetic::biprism_points(50.0);
+        let target = Target {
+            camera: &camera,
+            object: &object,
+            sphere_diameter_mm: 10.0,
+            point_sigma_px: &[None; 3],
+        };
+        let config = MonteCarloConfig {
+            trials: 1,
+            seed: 1,
+            solvers: vec![Solver::Ml],
+            noise: NoiseModel::default(),
+            gross_threshold_deg: 10.0,
+        };
+        assert!(matches!(
+            run(&target, &[], &config, &|_| {}),
+            Err(MonteCarloError::MismatchedSigmas { .. })
+        ));
+    }
+}
