@@ -14,9 +14,12 @@
 pub mod batch;
 pub mod camera;
 pub mod error_model;
+pub mod layout;
 pub mod montecarlo;
 pub mod noise;
 pub mod pnp;
 pub mod pose;
+pub mod report;
 pub mod scenario;
 pub mod synthetic;
+pub mod validate;

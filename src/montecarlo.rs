@@ -392,14 +392,84 @@ pub struct Pooled {
     pub gross_failures: usize,
     /// Solver errors.
     pub solver_errors: usize,
-    /// First-order RMS rotation prediction over the same scenarios, degrees.
-    pub first_order_rms_rotation_deg: Option<f64>,
-    /// First-order RMS translation prediction, mm.
-    pub first_order_rms_translation_mm: Option<f64>,
-    /// Transfer-model RMS rotation prediction, degrees.
-    pub transfer_rms_rotation_deg: Option<f64>,
-    /// Transfer-model RMS translation prediction, mm.
-    pub transfer_rms_translation_mm: Option<f64>,
+    /// The first-order model against the measurement.
+    pub first_order: ModelAgreement,
+    /// The paper's transfer model against the measurement.
+    pub transfer: ModelAgreement,
+}
+
+/// A model's prediction against the measured error, over the scenarios where
+/// the model gives a finite prediction (the transfer model diverges where
+/// every segment is parallel or perpendicular to the optical axis).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+pub struct ModelAgreement {
+    /// Scenarios with a finite prediction.
+    pub scenarios: usize,
+    /// Predicted RMS rotation error over those scenarios, degrees.
+    pub predicted_rms_rotation_deg: Option<f64>,
+    /// Measured RMS rotation error over the same scenarios, degrees.
+    pub measured_rms_rotation_deg: Option<f64>,
+    /// Measured / predicted rotation.
+    pub rotation_ratio: Option<f64>,
+    /// Predicted RMS translation error over the same scenarios, mm.
+    pub predicted_rms_translation_mm: Option<f64>,
+    /// Measured RMS translation error over the same scenarios, mm.
+    pub measured_rms_translation_mm: Option<f64>,
+    /// Measured / predicted translation.
+    pub translation_ratio: Option<f64>,
+}
+
+/// Sums for a [`ModelAgreement`]: trial-weighted squares of measured and
+/// predicted errors over the covered scenarios.
+#[derive(Debug, Clone, Copy, Default)]
+struct AgreementSums {
+    scenarios: usize,
+    trials: f64,
+    measured_rotation: f64,
+    predicted_rotation: f64,
+    measured_translation: f64,
+    predicted_translation: f64,
+}
+
+impl AgreementSums {
+    fn add(&mut self, result: &SolverOutcome, rotation: Option<f64>, translation: Option<f64>) {
+        let (Some(rotation), Some(translation)) = (rotation, translation) else {
+            return;
+        };
+        if !(rotation.is_finite() && translation.is_finite()) || result.rotation_deg.count == 0 {
+            return;
+        }
+        let n = result.rotation_deg.count as f64;
+        self.scenarios += 1;
+        self.trials += n;
+        self.measured_rotation += n * result.rotation_deg.rms.powi(2);
+        self.predicted_rotation += n * rotation * rotation;
+        self.measured_translation += n * result.translation_mm.rms.powi(2);
+        self.predicted_translation += n * translation * translation;
+    }
+
+    fn finish(&self) -> ModelAgreement {
+        if self.scenarios == 0 {
+            return ModelAgreement::default();
+        }
+        let rms = |sum: f64| (sum / self.trials).sqrt();
+        let ratio = |measured: f64, predicted: f64| (predicted > 0.0).then(|| measured / predicted);
+        let (mr, pr, mt, pt) = (
+            rms(self.measured_rotation),
+            rms(self.predicted_rotation),
+            rms(self.measured_translation),
+            rms(self.predicted_translation),
+        );
+        ModelAgreement {
+            scenarios: self.scenarios,
+            predicted_rms_rotation_deg: Some(pr),
+            measured_rms_rotation_deg: Some(mr),
+            rotation_ratio: ratio(mr, pr),
+            predicted_rms_translation_mm: Some(pt),
+            measured_rms_translation_mm: Some(mt),
+            translation_ratio: ratio(mt, pt),
+        }
+    }
 }
 
 /// Pools solver `index` of `outcomes` (weighted by trials).
@@ -410,7 +480,8 @@ pub fn pool<'a>(
     let mut pooled: Option<Pooled> = None;
     let (mut sum_r2, mut sum_r, mut sum_median, mut sum_p2, mut sum_t2, mut sum_tp2) =
         (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
-    let mut models = [(0.0, 0usize); 4];
+    let mut first_order = AgreementSums::default();
+    let mut transfer = AgreementSums::default();
     for outcome in outcomes {
         let Some(result) = outcome.solvers.get(index) else {
             continue;
@@ -429,10 +500,8 @@ pub fn pool<'a>(
             rms_translation_percent: 0.0,
             gross_failures: 0,
             solver_errors: 0,
-            first_order_rms_rotation_deg: None,
-            first_order_rms_translation_mm: None,
-            transfer_rms_rotation_deg: None,
-            transfer_rms_translation_mm: None,
+            first_order: ModelAgreement::default(),
+            transfer: ModelAgreement::default(),
         });
         entry.scenarios += 1;
         entry.trials += n;
@@ -446,18 +515,16 @@ pub fn pool<'a>(
         sum_p2 += nf * result.paper_rotation_deg.rms.powi(2);
         sum_t2 += nf * result.translation_mm.rms.powi(2);
         sum_tp2 += nf * result.translation_percent.rms.powi(2);
-        let predictions = [
+        first_order.add(
+            result,
             outcome.first_order.map(|f| f.rms_rotation_deg),
             outcome.first_order.map(|f| f.rms_translation_mm),
+        );
+        transfer.add(
+            result,
             outcome.transfer.and_then(|t| t.rms_rotation_deg),
             outcome.transfer.and_then(|t| t.rms_translation_mm),
-        ];
-        for (slot, prediction) in models.iter_mut().zip(predictions) {
-            if let Some(value) = prediction {
-                slot.0 += value * value;
-                slot.1 += 1;
-            }
-        }
+        );
     }
     let mut pooled = pooled?;
     let trials = pooled.trials.max(1) as f64;
@@ -467,14 +534,8 @@ pub fn pool<'a>(
     pooled.rms_paper_rotation_deg = (sum_p2 / trials).sqrt();
     pooled.rms_translation_mm = (sum_t2 / trials).sqrt();
     pooled.rms_translation_percent = (sum_tp2 / trials).sqrt();
-    // A model's pooled prediction counts only when it covers every pooled scenario.
-    let model = |(sum, count): (f64, usize)| {
-        (count == pooled.scenarios && count > 0).then(|| (sum / count as f64).sqrt())
-    };
-    pooled.first_order_rms_rotation_deg = model(models[0]);
-    pooled.first_order_rms_translation_mm = model(models[1]);
-    pooled.transfer_rms_rotation_deg = model(models[2]);
-    pooled.transfer_rms_translation_mm = model(models[3]);
+    pooled.first_order = first_order.finish();
+    pooled.transfer = transfer.finish();
     Some(pooled)
 }
 
@@ -522,8 +583,8 @@ mod tests {
         };
         let outcomes = run(&target, &grid.scenarios(), &config, &|_| {}).unwrap();
         let ml = pool(&outcomes, 0).unwrap();
-        let predicted = ml.first_order_rms_rotation_deg.unwrap();
-        let ratio = ml.rms_rotation_deg / predicted;
+        assert_eq!(ml.first_order.scenarios, 4);
+        let ratio = ml.first_order.rotation_ratio.unwrap();
         assert!((ratio - 1.0).abs() < 0.1, "ml RMS / CRLB = {ratio}");
         assert_eq!(ml.trials, 4 * 400);
     }

@@ -1,8 +1,10 @@
 //! Argument parsing and dispatch. Each subcommand lives in its own file and
 //! turns its flags into library configurations before any work starts.
 
+mod common;
 mod progress;
 mod solve;
+mod validate;
 
 use clap::{Args, Parser, Subcommand};
 
@@ -34,6 +36,9 @@ pub struct GlobalOptions {
 enum Command {
     /// PnP on a batch of correspondences (JSON), with any solver.
     Solve(solve::SolveArgs),
+    /// Sensitivity report of a layout: Monte-Carlo error of every solver
+    /// against the first-order and transfer-model predictions.
+    Validate(Box<validate::ValidateArgs>),
 }
 
 /// Parses the command line and runs the chosen subcommand.
@@ -48,5 +53,6 @@ pub fn run() -> anyhow::Result<()> {
     }
     match cli.command {
         Command::Solve(args) => solve::run(args, &cli.global),
+        Command::Validate(args) => validate::run(*args, &cli.global),
     }
 }

@@ -1,0 +1,162 @@
+//! `layout-opt validate`: a layout's sensitivity report.
+
+use super::common::{command_line, CameraArgs, GridArgs};
+use super::{progress, GlobalOptions};
+use anyhow::Context;
+use clap::Args;
+use layout_opt::layout::Layout;
+use layout_opt::montecarlo::{MonteCarloConfig, DEFAULT_GROSS_THRESHOLD_DEG};
+use layout_opt::noise::NoiseModel;
+use layout_opt::pnp::Solver;
+use layout_opt::scenario::ScenarioGrid;
+use layout_opt::validate;
+use std::path::PathBuf;
+use std::time::Instant;
+
+/// Tilt step of the default grid, degrees (the paper's protocol).
+pub const DEFAULT_TILT_STEP_DEG: f64 = 2.0;
+
+/// Flags of `validate`.
+#[derive(Debug, Args)]
+pub struct ValidateArgs {
+    /// Layout file (JSON). Default: the paper's biprism (L = 50 mm, 10 mm spheres).
+    layout: Option<PathBuf>,
+    #[command(flatten)]
+    grid: GridArgs,
+    #[command(flatten)]
+    camera: CameraArgs,
+    /// Solvers: `all` or a comma list of stable names (see `solve --list`).
+    #[arg(long, default_value = "all")]
+    solvers: String,
+    /// Monte-Carlo trials per scenario.
+    #[arg(long, default_value_t = 200)]
+    trials: usize,
+    /// Noise model: isotropic, per-point, size[:REF_PX], each optionally +outliers:RATE[:PX].
+    #[arg(long, default_value = "isotropic")]
+    noise_model: NoiseModel,
+    /// Rotation error counted as a gross failure, degrees.
+    #[arg(long, default_value_t = DEFAULT_GROSS_THRESHOLD_DEG)]
+    gross_threshold: f64,
+    /// Output directory. Default: reports/<layout name>/.
+    #[arg(long, value_name = "DIR")]
+    out: Option<PathBuf>,
+}
+
+/// Parses `all` or a comma list of solver names.
+pub fn parse_solvers(text: &str) -> anyhow::Result<Vec<Solver>> {
+    if text.trim() == "all" {
+        return Ok(Solver::ALL.to_vec());
+    }
+    let mut solvers = Vec::new();
+    for name in text.split(',').map(str::trim).filter(|s| !s.is_empty()) {
+        let solver: Solver = name.parse().map_err(|e: String| anyhow::anyhow!(e))?;
+        if !solvers.contains(&solver) {
+            solvers.push(solver);
+        }
+    }
+    anyhow::ensure!(!solvers.is_empty(), "--solvers names no solver");
+    Ok(solvers)
+}
+
+pub fn run(args: ValidateArgs, global: &GlobalOptions) -> anyhow::Result<()> {
+    let layout = match &args.layout {
+        Some(path) => {
+            Layout::load(path).with_context(|| format!("loading layout {}", path.display()))?
+        }
+        None => Layout::paper_biprism(),
+    };
+    layout
+        .validate()
+        .with_context(|| format!("layout {}", layout.name))?;
+    let camera = args.camera.camera()?;
+    let grid = args
+        .grid
+        .grid(&ScenarioGrid::paper_protocol(DEFAULT_TILT_STEP_DEG))?;
+    anyhow::ensure!(args.trials > 0, "--trials must be at least 1");
+    anyhow::ensure!(
+        args.gross_threshold > 0.0 && args.gross_threshold.is_finite(),
+        "--gross-threshold must be a positive number of degrees"
+    );
+    let config = MonteCarloConfig {
+        trials: args.trials,
+        seed: global.seed,
+        solvers: parse_solvers(&args.solvers)?,
+        noise: args.noise_model,
+        gross_threshold_deg: args.gross_threshold,
+    };
+    let out = args
+        .out
+        .clone()
+        .unwrap_or_else(|| PathBuf::from("reports").join(&layout.name));
+
+    let bar = progress::bar(grid.len() as u64, "validating", global.quiet);
+    let started = Instant::now();
+    let validation = validate::run(&layout, &camera, &grid, &config, &command_line(), &|done| {
+        bar.set_position(done as u64)
+    })?;
+    let seconds = started.elapsed().as_secs_f64();
+    bar.finish_and_clear();
+    validate::write_report(&out, &layout, &validation)?;
+
+    let solves: usize = validation
+        .outcomes
+        .iter()
+        .flat_map(|o| o.solvers.iter())
+        .map(|r| r.rotation_deg.count + r.solver_errors)
+        .sum();
+    let threads = rayon::current_num_threads();
+    let run = serde_json::json!({
+        "wall_seconds": seconds,
+        "threads": threads,
+        "solves": solves,
+        "solves_per_second": solves as f64 / seconds,
+    });
+    std::fs::write(
+        out.join("run.json"),
+        serde_json::to_string_pretty(&run)? + "\n",
+    )
+    .with_context(|| format!("writing {}", out.join("run.json").display()))?;
+
+    let summary = &validation.summary;
+    let v = &summary.visibility;
+    println!(
+        "{}: {} scenarios × {} trials, seed {} ({} visible, {} occluded, {} outside the image, {} behind the camera)",
+        layout.name, v.scenarios, config.trials, config.seed, v.visible, v.occluded, v.outside_image, v.behind_camera
+    );
+    println!(
+        "{:<18} {:>12} {:>12} {:>14} {:>10}",
+        "solver", "RMS rot (°)", "/ 1st order", "RMS trans (mm)", "gross"
+    );
+    for row in &summary.solvers {
+        let p = &row.pooled;
+        println!(
+            "{:<18} {:>12.4} {:>12} {:>14.3} {:>10}",
+            p.solver.name(),
+            p.rms_rotation_deg,
+            row.pooled
+                .first_order
+                .rotation_ratio
+                .map_or("—".into(), |r| format!("{r:.3}")),
+            p.rms_translation_mm,
+            p.gross_failures
+        );
+    }
+    if let Some(first) = summary.solvers.first() {
+        let (f, t) = (&first.pooled.first_order, &first.pooled.transfer);
+        let show = |v: Option<f64>| v.map_or("—".into(), |v| format!("{v:.4}"));
+        println!(
+            "first-order limit: {}° / {} mm over {} scenarios; transfer model: {}° over {} scenarios",
+            show(f.predicted_rms_rotation_deg),
+            show(f.predicted_rms_translation_mm),
+            f.scenarios,
+            show(t.predicted_rms_rotation_deg),
+            t.scenarios
+        );
+    }
+    println!(
+        "{solves} solves in {seconds:.1} s on {threads} threads ({:.0} solves/s); report in {}",
+        solves as f64 / seconds,
+        out.display()
+    );
+    Ok(())
+}

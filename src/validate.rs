@@ -1,0 +1,767 @@
+//! `validate`: a layout's sensitivity report. Monte-Carlo runs of real solvers
+//! over a scenario grid, beside the first-order (Cramér–Rao) and transfer-model
+//! predictions, with visibility counted per scenario.
+//!
+//! Statistics pool the *visible* scenarios (every sphere in front, inside the
+//! image and unoccluded): those are the images a detector would deliver.
+//! Scenarios that break a visibility rule are counted and named in the report
+//! and kept, with their errors, in `scenarios.csv`.
+//!
+//! `summary.json` holds every number of `report.md` and nothing that depends
+//! on the machine (timings go to `run.json`), so the same seed gives the same
+//! file at any thread count.
+
+use crate::camera::Camera;
+use crate::layout::{Layout, LayoutError};
+use crate::montecarlo::{self, MonteCarloConfig, MonteCarloError, Pooled, ScenarioOutcome, Target};
+use crate::pnp::parallel::reference_index;
+use crate::report::{plots, significant, write_text, ReportError, Table};
+use crate::scenario::{Scenario, ScenarioGrid};
+use serde::Serialize;
+use std::fmt::Write as _;
+use std::path::Path;
+
+/// Why a validation could not run.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum ValidateError {
+    /// The layout is unusable.
+    #[error("invalid layout: {0}")]
+    Layout(#[from] LayoutError),
+    /// The Monte-Carlo configuration is unusable.
+    #[error(transparent)]
+    MonteCarlo(#[from] MonteCarloError),
+    /// The report could not be written.
+    #[error(transparent)]
+    Report(#[from] ReportError),
+}
+
+/// Where every number came from.
+#[derive(Debug, Clone, Serialize)]
+pub struct Header {
+    /// The command line that produced the report.
+    pub command: String,
+    /// layout-opt version.
+    pub version: String,
+    /// Seed of every noise stream.
+    pub seed: u64,
+    /// Trials per scenario.
+    pub trials_per_scenario: usize,
+    /// Solvers run on every trial.
+    pub solvers: Vec<String>,
+    /// The noise model.
+    pub noise_model: String,
+    /// Rotation error counted as a gross failure, degrees.
+    pub gross_threshold_deg: f64,
+    /// The camera.
+    pub camera: Camera,
+    /// The layout's name.
+    pub layout: String,
+    /// Sphere diameter, mm.
+    pub sphere_diameter_mm: f64,
+    /// The feature used as paraperspective reference (and as the transfer
+    /// model's segment origin).
+    pub reference_point: String,
+    /// The scenario grid.
+    pub grid: ScenarioGrid,
+}
+
+/// Scenario counts by visibility.
+#[derive(Debug, Clone, Serialize)]
+pub struct VisibilityCounts {
+    /// Scenarios in the grid.
+    pub scenarios: usize,
+    /// Scenarios with every sphere visible (pooled in the statistics).
+    pub visible: usize,
+    /// Scenarios in which some sphere's disc overlaps a nearer one.
+    pub occluded: usize,
+    /// Scenarios in which some sphere leaves the image.
+    pub outside_image: usize,
+    /// Scenarios in which some sphere is behind the camera (no trials run).
+    pub behind_camera: usize,
+    /// Fraction of scenarios that are visible.
+    pub availability: f64,
+    /// Up to a dozen occluded scenarios, described (which sphere hides which).
+    pub occlusion_examples: Vec<String>,
+}
+
+/// One solver pooled over the visible scenarios, with model agreement.
+#[derive(Debug, Clone, Serialize)]
+pub struct SolverRow {
+    /// Pooled statistics and model agreement.
+    #[serde(flatten)]
+    pub pooled: Pooled,
+    /// Median over scenarios of (scenario RMS rotation / its first-order prediction).
+    pub median_scenario_ratio_to_first_order: Option<f64>,
+    /// Median over scenarios of (scenario RMS rotation / its transfer-model prediction).
+    pub median_scenario_ratio_to_transfer: Option<f64>,
+}
+
+/// Error against one grid axis, pooled over the visible scenarios at each value.
+#[derive(Debug, Clone, Serialize)]
+pub struct Curve {
+    /// Axis name (depth, offset-x, ...).
+    pub axis: String,
+    /// Axis unit.
+    pub unit: String,
+    /// The axis values.
+    pub values: Vec<f64>,
+    /// Fraction of scenarios visible at each value.
+    pub availability: Vec<f64>,
+    /// First-order RMS rotation prediction at each value, degrees.
+    pub first_order_rotation_deg: Vec<Option<f64>>,
+    /// Transfer-model RMS rotation prediction at each value, degrees.
+    pub transfer_rotation_deg: Vec<Option<f64>>,
+    /// Per solver: measured RMS rotation and translation at each value.
+    pub solvers: Vec<CurveSolver>,
+}
+
+/// One solver's line on a curve.
+#[derive(Debug, Clone, Serialize)]
+pub struct CurveSolver {
+    /// Stable solver name.
+    pub solver: String,
+    /// RMS rotation error, degrees (None where no scenario is visible).
+    pub rms_rotation_deg: Vec<Option<f64>>,
+    /// RMS translation error, mm.
+    pub rms_translation_mm: Vec<Option<f64>>,
+}
+
+/// Every number of the report.
+#[derive(Debug, Clone, Serialize)]
+pub struct Summary {
+    /// Provenance.
+    pub header: Header,
+    /// Visibility counts.
+    pub visibility: VisibilityCounts,
+    /// Per-solver statistics over the visible scenarios.
+    pub solvers: Vec<SolverRow>,
+    /// Curves along every axis with more than one value.
+    pub curves: Vec<Curve>,
+}
+
+/// A finished validation: the summary and every scenario's outcome.
+#[derive(Debug, Clone)]
+pub struct Validation {
+    /// Pooled results.
+    pub summary: Summary,
+    /// Per-scenario results, in grid order.
+    pub outcomes: Vec<ScenarioOutcome>,
+}
+
+/// Runs the Monte-Carlo validation of `layout`.
+pub fn run(
+    layout: &Layout,
+    camera: &Camera,
+    grid: &ScenarioGrid,
+    config: &MonteCarloConfig,
+    command: &str,
+    on_scenario_done: &(dyn Fn(usize) + Sync),
+) -> Result<Validation, ValidateError> {
+    layout.validate()?;
+    let object = layout.positions();
+    let sigmas: Vec<Option<f64>> = layout.points.iter().map(|p| p.sigma_px).collect();
+    let target = Target {
+        camera,
+        object: &object,
+        sphere_diameter_mm: layout.sphere_diameter_mm,
+        point_sigma_px: &sigmas,
+    };
+    let scenarios = grid.scenarios();
+    let outcomes = montecarlo::run(&target, &scenarios, config, on_scenario_done)?;
+    let header = Header {
+        command: command.to_string(),
+        version: env!("CARGO_PKG_VERSION").to_string(),
+        seed: config.seed,
+        trials_per_scenario: config.trials,
+        solvers: config
+            .solvers
+            .iter()
+            .map(|s| s.name().to_string())
+            .collect(),
+        noise_model: config.noise.describe(),
+        gross_threshold_deg: config.gross_threshold_deg,
+        camera: *camera,
+        layout: layout.name.clone(),
+        sphere_diameter_mm: layout.sphere_diameter_mm,
+        reference_point: layout.points[reference_index(&object)].name.clone(),
+        grid: grid.clone(),
+    };
+    let summary = Summary {
+        header,
+        visibility: visibility_counts(layout, &outcomes),
+        solvers: solver_rows(&outcomes, config.solvers.len()),
+        curves: curves(grid, &outcomes, config),
+    };
+    Ok(Validation { summary, outcomes })
+}
+
+fn visible(outcome: &ScenarioOutcome) -> bool {
+    outcome.visibility.is_visible()
+}
+
+fn describe_scenario(s: &Scenario) -> String {
+    format!(
+        "depth {} mm, offset ({}, {}) mm, tilt {}°, pan {}°, roll {}°, σ {} px",
+        s.depth_mm, s.offset_x_mm, s.offset_y_mm, s.tilt_deg, s.pan_deg, s.roll_deg, s.sigma_px
+    )
+}
+
+fn visibility_counts(layout: &Layout, outcomes: &[ScenarioOutcome]) -> VisibilityCounts {
+    let count = |f: &dyn Fn(&ScenarioOutcome) -> bool| outcomes.iter().filter(|o| f(o)).count();
+    let visible = count(&|o| visible(o));
+    let occlusion_examples = outcomes
+        .iter()
+        .filter(|o| !o.visibility.occluded.is_empty())
+        .take(12)
+        .map(|o| {
+            let pairs: Vec<String> = o
+                .visibility
+                .occluded
+                .iter()
+                .map(|&(hidden, by)| {
+                    format!(
+                        "{} behind {}",
+                        layout.points[hidden].name, layout.points[by].name
+                    )
+                })
+                .collect();
+            format!("{}: {}", describe_scenario(&o.scenario), pairs.join(", "))
+        })
+        .collect();
+    VisibilityCounts {
+        scenarios: outcomes.len(),
+        visible,
+        occluded: count(&|o| !o.visibility.occluded.is_empty()),
+        outside_image: count(&|o| !o.visibility.outside.is_empty()),
+        behind_camera: count(&|o| !o.visibility.behind.is_empty()),
+        availability: visible as f64 / outcomes.len().max(1) as f64,
+        occlusion_examples,
+    }
+}
+
+fn median(values: &mut [f64]) -> Option<f64> {
+    if values.is_empty() {
+        return None;
+    }
+    values.sort_by(f64::total_cmp);
+    let n = values.len();
+    Some(if n % 2 == 1 {
+        values[n / 2]
+    } else {
+        0.5 * (values[n / 2 - 1] + values[n / 2])
+    })
+}
+
+fn solver_rows(outcomes: &[ScenarioOutcome], solver_count: usize) -> Vec<SolverRow> {
+    (0..solver_count)
+        .filter_map(|index| {
+            let pooled = montecarlo::pool(outcomes.iter().filter(|o| visible(o)), index)?;
+            let scenario_ratios = |model: &dyn Fn(&ScenarioOutcome) -> Option<f64>| {
+                let mut ratios: Vec<f64> = outcomes
+                    .iter()
+                    .filter(|o| visible(o))
+                    .filter_map(|o| {
+                        let predicted = model(o).filter(|p| p.is_finite() && *p > 0.0)?;
+                        let measured = o.solvers.get(index)?.rotation_deg;
+                        (measured.count > 0).then(|| measured.rms / predicted)
+                    })
+                    .collect();
+                median(&mut ratios)
+            };
+            Some(SolverRow {
+                median_scenario_ratio_to_first_order: scenario_ratios(&|o| {
+                    o.first_order.map(|f| f.rms_rotation_deg)
+                }),
+                median_scenario_ratio_to_transfer: scenario_ratios(&|o| {
+                    o.transfer.and_then(|t| t.rms_rotation_deg)
+                }),
+                pooled,
+            })
+        })
+        .collect()
+}
+
+fn axis_value(s: &Scenario, axis: &str) -> f64 {
+    match axis {
+        "depth" => s.depth_mm,
+        "offset-x" => s.offset_x_mm,
+        "offset-y" => s.offset_y_mm,
+        "tilt" => s.tilt_deg,
+        "pan" => s.pan_deg,
+        "roll" => s.roll_deg,
+        _ => s.sigma_px,
+    }
+}
+
+fn axis_unit(axis: &str) -> &'static str {
+    match axis {
+        "depth" | "offset-x" | "offset-y" => "mm",
+        "noise" => "px",
+        _ => "deg",
+    }
+}
+
+fn curves(
+    grid: &ScenarioGrid,
+    outcomes: &[ScenarioOutcome],
+    config: &MonteCarloConfig,
+) -> Vec<Curve> {
+    grid.named_ranges()
+        .iter()
+        .filter(|(_, range)| range.values.len() > 1)
+        .map(|(axis, range)| {
+            let groups: Vec<Vec<&ScenarioOutcome>> = range
+                .values
+                .iter()
+                .map(|&value| {
+                    outcomes
+                        .iter()
+                        .filter(|o| axis_value(&o.scenario, axis) == value)
+                        .collect()
+                })
+                .collect();
+            let pooled: Vec<Vec<Option<Pooled>>> = groups
+                .iter()
+                .map(|group| {
+                    (0..config.solvers.len())
+                        .map(|index| {
+                            montecarlo::pool(group.iter().copied().filter(|o| visible(o)), index)
+                        })
+                        .collect()
+                })
+                .collect();
+            let model = |f: &dyn Fn(&ScenarioOutcome) -> Option<f64>| -> Vec<Option<f64>> {
+                groups
+                    .iter()
+                    .map(|group| {
+                        let values: Vec<f64> = group
+                            .iter()
+                            .filter(|o| visible(o))
+                            .filter_map(|o| f(o))
+                            .collect();
+                        (!values.is_empty()).then(|| {
+                            (values.iter().map(|v| v * v).sum::<f64>() / values.len() as f64).sqrt()
+                        })
+                    })
+                    .collect()
+            };
+            Curve {
+                axis: axis.to_string(),
+                unit: axis_unit(axis).to_string(),
+                values: range.values.clone(),
+                availability: groups
+                    .iter()
+                    .map(|g| g.iter().filter(|o| visible(o)).count() as f64 / g.len().max(1) as f64)
+                    .collect(),
+                first_order_rotation_deg: model(&|o| o.first_order.map(|f| f.rms_rotation_deg)),
+                transfer_rotation_deg: model(&|o| o.transfer.and_then(|t| t.rms_rotation_deg)),
+                solvers: config
+                    .solvers
+                    .iter()
+                    .enumerate()
+                    .map(|(index, solver)| CurveSolver {
+                        solver: solver.name().to_string(),
+                        rms_rotation_deg: pooled
+                            .iter()
+                            .map(|p| p[index].as_ref().map(|p| p.rms_rotation_deg))
+                            .collect(),
+                        rms_translation_mm: pooled
+                            .iter()
+                            .map(|p| p[index].as_ref().map(|p| p.rms_translation_mm))
+                            .collect(),
+                    })
+                    .collect(),
+            }
+        })
+        .collect()
+}
+
+/// Writes `report.md`, `summary.json`, `scenarios.csv`, one CSV and SVG per
+/// curve, `predicted_vs_measured.svg` and `marker_views.svg` into `dir`.
+pub fn write_report(
+    dir: &Path,
+    layout: &Layout,
+    validation: &Validation,
+) -> Result<(), ValidateError> {
+    std::fs::create_dir_all(dir).map_err(|e| ReportError::write(dir, e))?;
+    let summary = &validation.summary;
+    let json = serde_json::to_string_pretty(summary)
+        .map_err(|e| ReportError::write(&dir.join("summary.json"), e))?;
+    write_text(&dir.join("summary.json"), &(json + "\n"))?;
+    let scenarios_csv = scenario_table(layout, validation)
+        .csv()
+        .map_err(|e| ReportError::write(&dir.join("scenarios.csv"), e))?;
+    write_text(&dir.join("scenarios.csv"), &scenarios_csv)?;
+    for curve in &summary.curves {
+        write_curve(dir, curve)?;
+    }
+    let scatter: Vec<(String, Vec<(f64, f64)>)> = summary
+        .solvers
+        .iter()
+        .enumerate()
+        .map(|(index, row)| {
+            let points = validation
+                .outcomes
+                .iter()
+                .filter(|o| visible(o))
+                .filter_map(|o| {
+                    Some((
+                        o.first_order?.rms_rotation_deg,
+                        o.solvers.get(index)?.rotation_deg.rms,
+                    ))
+                })
+                .collect();
+            (row.pooled.solver.name().to_string(), points)
+        })
+        .collect();
+    plots::predicted_vs_measured(
+        &dir.join("predicted_vs_measured.svg"),
+        "Per-scenario RMS rotation error: first-order prediction vs Monte-Carlo",
+        &scatter,
+    )?;
+    let named: Vec<(String, nalgebra::Vector3<f64>)> = layout
+        .points
+        .iter()
+        .map(|p| (p.name.clone(), p.position))
+        .collect();
+    plots::orthographic_views(
+        &dir.join("marker_views.svg"),
+        &format!(
+            "{}: three views, spheres to scale ({} mm)",
+            layout.name, layout.sphere_diameter_mm
+        ),
+        &named,
+        layout.sphere_diameter_mm,
+    )?;
+    write_text(&dir.join("report.md"), &markdown(summary))?;
+    Ok(())
+}
+
+fn write_curve(dir: &Path, curve: &Curve) -> Result<(), ValidateError> {
+    let mut table = Table::new(
+        [
+            format!("{} ({})", curve.axis, curve.unit),
+            "availability".into(),
+            "first-order RMS rot (deg)".into(),
+            "transfer RMS rot (deg)".into(),
+        ]
+        .into_iter()
+        .chain(curve.solvers.iter().flat_map(|s| {
+            [
+                format!("{} RMS rot (deg)", s.solver),
+                format!("{} RMS trans (mm)", s.solver),
+            ]
+        })),
+    );
+    for (k, value) in curve.values.iter().enumerate() {
+        let cell = |v: Option<f64>| v.map_or(String::new(), |v| format!("{v:.6e}"));
+        table.row(
+            [
+                value.to_string(),
+                format!("{:.4}", curve.availability[k]),
+                cell(curve.first_order_rotation_deg[k]),
+                cell(curve.transfer_rotation_deg[k]),
+            ]
+            .into_iter()
+            .chain(
+                curve
+                    .solvers
+                    .iter()
+                    .flat_map(|s| [cell(s.rms_rotation_deg[k]), cell(s.rms_translation_mm[k])]),
+            ),
+        );
+    }
+    let path = dir.join(format!("error_vs_{}.csv", curve.axis));
+    write_text(
+        &path,
+        &table.csv().map_err(|e| ReportError::write(&path, e))?,
+    )?;
+    let xy = |values: &[Option<f64>]| -> Vec<(f64, f64)> {
+        curve
+            .values
+            .iter()
+            .zip(values)
+            .filter_map(|(&x, y)| y.map(|y| (x, y)))
+            .collect()
+    };
+    let mut series: Vec<plots::Series> = curve
+        .solvers
+        .iter()
+        .map(|s| plots::Series {
+            name: s.solver.clone(),
+            points: xy(&s.rms_rotation_deg),
+            dashed: false,
+        })
+        .collect();
+    series.push(plots::Series {
+        name: "first-order limit".into(),
+        points: xy(&curve.first_order_rotation_deg),
+        dashed: true,
+    });
+    series.push(plots::Series {
+        name: "transfer model".into(),
+        points: xy(&curve.transfer_rotation_deg),
+        dashed: true,
+    });
+    plots::line_plot(
+        &dir.join(format!("error_vs_{}.svg", curve.axis)),
+        &format!("RMS rotation error vs {} (visible scenarios)", curve.axis),
+        &format!("{} ({})", curve.axis, curve.unit),
+        "RMS rotation error (deg)",
+        &series,
+    )?;
+    Ok(())
+}
+
+fn scenario_table(layout: &Layout, validation: &Validation) -> Table {
+    let mut table = Table::new([
+        "scenario",
+        "depth_mm",
+        "offset_x_mm",
+        "offset_y_mm",
+        "tilt_deg",
+        "pan_deg",
+        "roll_deg",
+        "sigma_px",
+        "visible",
+        "visibility_issues",
+        "first_order_rms_rot_deg",
+        "first_order_rms_trans_mm",
+        "transfer_rms_rot_deg",
+        "qu_hou_rms_rot_deg",
+        "solver",
+        "trials",
+        "rms_rot_deg",
+        "mean_rot_deg",
+        "median_rot_deg",
+        "p95_rot_deg",
+        "rms_erot_deg",
+        "rms_trans_mm",
+        "rms_trans_percent",
+        "gross_failures",
+        "solver_errors",
+    ]);
+    let name = |i: usize| layout.points[i].name.clone();
+    for o in &validation.outcomes {
+        let s = &o.scenario;
+        let v = &o.visibility;
+        let mut issues: Vec<String> = Vec::new();
+        issues.extend(
+            v.behind
+                .iter()
+                .map(|&i| format!("{} behind camera", name(i))),
+        );
+        issues.extend(
+            v.outside
+                .iter()
+                .map(|&i| format!("{} outside image", name(i))),
+        );
+        issues.extend(
+            v.occluded
+                .iter()
+                .map(|&(h, b)| format!("{} behind {}", name(h), name(b))),
+        );
+        let opt = |v: Option<f64>| v.map_or(String::new(), |v| format!("{v:.6e}"));
+        let common = [
+            s.index.to_string(),
+            s.depth_mm.to_string(),
+            s.offset_x_mm.to_string(),
+            s.offset_y_mm.to_string(),
+            s.tilt_deg.to_string(),
+            s.pan_deg.to_string(),
+            s.roll_deg.to_string(),
+            s.sigma_px.to_string(),
+            v.is_visible().to_string(),
+            issues.join("; "),
+            opt(o.first_order.map(|f| f.rms_rotation_deg)),
+            opt(o.first_order.map(|f| f.rms_translation_mm)),
+            opt(o.transfer.and_then(|t| t.rms_rotation_deg)),
+            opt(o.qu_hou_rotation_deg),
+        ];
+        if o.solvers.is_empty() {
+            table.row(
+                common
+                    .iter()
+                    .cloned()
+                    .chain(std::iter::repeat_n(String::new(), 11)),
+            );
+        }
+        for r in &o.solvers {
+            table.row(common.iter().cloned().chain([
+                r.solver.name().to_string(),
+                r.rotation_deg.count.to_string(),
+                format!("{:.6e}", r.rotation_deg.rms),
+                format!("{:.6e}", r.rotation_deg.mean),
+                format!("{:.6e}", r.rotation_deg.median),
+                format!("{:.6e}", r.rotation_deg.p95),
+                format!("{:.6e}", r.paper_rotation_deg.rms),
+                format!("{:.6e}", r.translation_mm.rms),
+                format!("{:.6e}", r.translation_percent.rms),
+                r.gross_failures.to_string(),
+                r.solver_errors.to_string(),
+            ]));
+        }
+    }
+    table
+}
+
+fn range_text(values: &[f64]) -> String {
+    match values {
+        [single] => single.to_string(),
+        [first, .., last] if values.len() > 4 => {
+            format!("{first} … {last} ({} values)", values.len())
+        }
+        _ => values
+            .iter()
+            .map(|v| v.to_string())
+            .collect::<Vec<_>>()
+            .join(", "),
+    }
+}
+
+fn markdown(summary: &Summary) -> String {
+    let h = &summary.header;
+    let v = &summary.visibility;
+    let mut out = String::new();
+    let _ = writeln!(out, "# Sensitivity report: {}\n", h.layout);
+    let _ = writeln!(out, "| | |\n|---|---|");
+    let _ = writeln!(out, "| command | `{}` |", h.command);
+    let _ = writeln!(out, "| layout-opt | {} |", h.version);
+    let _ = writeln!(out, "| seed | {} |", h.seed);
+    let _ = writeln!(out, "| trials per scenario | {} |", h.trials_per_scenario);
+    let _ = writeln!(out, "| solvers | {} |", h.solvers.join(", "));
+    let _ = writeln!(out, "| noise model | {} |", h.noise_model);
+    let _ = writeln!(
+        out,
+        "| camera | fx {} fy {} cx {} cy {}, {}×{} px, distortion {:?} |",
+        h.camera.fx(),
+        h.camera.fy(),
+        h.camera.cx(),
+        h.camera.cy(),
+        h.camera.width(),
+        h.camera.height(),
+        h.camera.distortion()
+    );
+    let _ = writeln!(out, "| spheres | {} mm |", h.sphere_diameter_mm);
+    let _ = writeln!(
+        out,
+        "| reference feature (paraperspective P0, transfer-model segment origin) | {} |",
+        h.reference_point
+    );
+    let _ = writeln!(
+        out,
+        "| gross failure | rotation error > {}° |\n",
+        h.gross_threshold_deg
+    );
+
+    let _ = writeln!(out, "## Scenarios\n");
+    let mut grid = Table::new(["axis", "values"]);
+    for (name, range) in h.grid.named_ranges() {
+        grid.row([
+            format!("{name} ({})", axis_unit(name)),
+            range_text(&range.values),
+        ]);
+    }
+    out.push_str(&grid.markdown());
+    let _ = writeln!(
+        out,
+        "\n{} scenarios: **{} visible** (availability {:.1}%), {} with an occluded sphere, {} with a sphere outside the image (margin 5 px), {} with a sphere behind the camera (no trials).",
+        v.scenarios, v.visible, 100.0 * v.availability, v.occluded, v.outside_image, v.behind_camera
+    );
+    let _ = writeln!(out, "A sphere is occluded when its image disc overlaps the disc of a nearer sphere. Statistics below pool the visible scenarios; `scenarios.csv` has every scenario, visible or not.\n");
+    if !v.occlusion_examples.is_empty() {
+        let _ = writeln!(
+            out,
+            "Occluded scenarios (first {}):\n",
+            v.occlusion_examples.len()
+        );
+        for example in &v.occlusion_examples {
+            let _ = writeln!(out, "- {example}");
+        }
+        out.push('\n');
+    }
+
+    let _ = writeln!(out, "## Accuracy per solver (visible scenarios)\n");
+    let _ = writeln!(out, "Monte-Carlo, {} trials per scenario, seed {}. RMS pools every trial; \"worst\" is the worst scenario's RMS. Translation errors are |t − t_true|.\n", h.trials_per_scenario, h.seed);
+    let mut table = Table::new([
+        "solver",
+        "trials",
+        "RMS rot (°)",
+        "mean rot (°)",
+        "worst scenario RMS rot (°)",
+        "RMS E_rot eq. 33 (°)",
+        "RMS trans (mm)",
+        "RMS trans (%)",
+        "gross",
+        "errors",
+    ]);
+    for row in &summary.solvers {
+        let p = &row.pooled;
+        table.row([
+            format!("`{}`", p.solver.name()),
+            p.trials.to_string(),
+            significant(Some(p.rms_rotation_deg), 3),
+            significant(Some(p.mean_rotation_deg), 3),
+            significant(Some(p.worst_rms_rotation_deg), 3),
+            significant(Some(p.rms_paper_rotation_deg), 3),
+            significant(Some(p.rms_translation_mm), 3),
+            significant(Some(p.rms_translation_percent), 3),
+            p.gross_failures.to_string(),
+            p.solver_errors.to_string(),
+        ]);
+    }
+    out.push_str(&table.markdown());
+
+    let _ = writeln!(out, "\n## Predicted against measured\n");
+    if let Some(first) = summary.solvers.first() {
+        let (f, t) = (&first.pooled.first_order, &first.pooled.transfer);
+        let _ = writeln!(
+            out,
+            "The first-order (Cramér–Rao) model, `(JᵀWJ)⁻¹` at the true pose, predicts an RMS rotation error of **{}°** and RMS translation error of **{} mm** over the {} visible scenarios. The paper's transfer model (eqs. 26–29, aggregated as documented in `error_model::transfer`) predicts **{}°** and **{} mm** over the {} of them where it is finite (it diverges where every segment through the reference point is parallel or perpendicular to the optical axis).\n",
+            significant(f.predicted_rms_rotation_deg, 3), significant(f.predicted_rms_translation_mm, 3), f.scenarios,
+            significant(t.predicted_rms_rotation_deg, 3), significant(t.predicted_rms_translation_mm, 3), t.scenarios
+        );
+    }
+    let _ = writeln!(out, "Ratios are measured / predicted over the scenarios each model covers; 1.00 means the model is exact, above 1 the solver does worse than the model predicts.\n");
+    let mut agreement = Table::new([
+        "solver",
+        "rot / first-order",
+        "median scenario rot / first-order",
+        "trans / first-order",
+        "rot / transfer",
+        "median scenario rot / transfer",
+        "trans / transfer",
+    ]);
+    for row in &summary.solvers {
+        let (f, t) = (&row.pooled.first_order, &row.pooled.transfer);
+        agreement.row([
+            format!("`{}`", row.pooled.solver.name()),
+            significant(f.rotation_ratio, 3),
+            significant(row.median_scenario_ratio_to_first_order, 3),
+            significant(f.translation_ratio, 3),
+            significant(t.rotation_ratio, 3),
+            significant(row.median_scenario_ratio_to_transfer, 3),
+            significant(t.translation_ratio, 3),
+        ]);
+    }
+    out.push_str(&agreement.markdown());
+    let _ = writeln!(
+        out,
+        "\n![predicted vs measured](predicted_vs_measured.svg)\n"
+    );
+
+    if !summary.curves.is_empty() {
+        let _ = writeln!(out, "## Error along each axis\n");
+        let _ = writeln!(out, "Each point pools the visible scenarios at that value; dashed lines are the model predictions. CSV beside each plot.\n");
+        for curve in &summary.curves {
+            let _ = writeln!(
+                out,
+                "### {}\n\n![error vs {}](error_vs_{}.svg)\n\n[error_vs_{}.csv](error_vs_{}.csv)\n",
+                curve.axis, curve.axis, curve.axis, curve.axis, curve.axis
+            );
+        }
+    }
+    let _ = writeln!(out, "## Marker\n\n![three views](marker_views.svg)\n");
+    out
+}
