@@ -1,0 +1,793 @@
+//! The layout file (DESIGN.md, "Layout file", contract): named feature
+//! points in millimetres, the diameter of the spheres that mark them, and
+//! optional `family` and `provenance` records that are kept verbatim.
+//!
+//! ```json
+//! { "name": "biprism-50", "units": "mm",
+//!   "points": [ {"name": "O0", "position": [0,0,0]}, {"name": "P1", "position": [0,0,50]} ],
+//!   "sphere_diameter_mm": 10,
+//!   "family": {"kind": "biprism"}, "provenance": {"seed": 7} }
+//! ```
+//!
+//! * `family` and `provenance` are optional and round-trip as raw JSON.
+//! * Each point may carry `sigma_px` (its own pixel noise) and `fixed`
+//!   (held in place by a search). Unknown fields are ignored.
+//! * `units` must be `"mm"` when given; `name` defaults to the file stem,
+//!   `sphere_diameter_mm` to [`DEFAULT_SPHERE_DIAMETER_MM`].
+//!
+//! Parsing ([`Layout::from_json`], [`Layout::load`]) checks only the file's
+//! structure and units; [`Layout::validate`] checks the geometry (enough
+//! points, finite, distinct, noncoplanar, spheres apart). A layout can also
+//! be imported from an OBJ point set or an OBJ of spheres
+//! ([`Layout::from_obj`]).
+
+use crate::pnp::{Spread, DUPLICATE_TOLERANCE, PLANARITY_TOLERANCE};
+use nalgebra::Vector3;
+use serde::{Deserialize, Serialize};
+use serde_json::Value;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+/// The only length unit layout files use.
+pub const LAYOUT_UNITS: &str = "mm";
+/// Sphere diameter when a file does not give one (the paper's markers), mm.
+pub const DEFAULT_SPHERE_DIAMETER_MM: f64 = 10.0;
+/// Arm length of the paper's biprism (its Fig. 6), mm.
+pub const PAPER_ARM_MM: f64 = 50.0;
+/// Fewest feature points a layout may have (PnP needs four).
+pub const MIN_POINTS: usize = 4;
+/// Objects of an OBJ file count as spheres when the distances of their
+/// vertices from their centroid vary by at most this fraction of the mean.
+pub const OBJ_SPHERE_TOLERANCE: f64 = 0.05;
+/// Fewest vertices an OBJ object needs to be read as a sphere.
+pub const OBJ_SPHERE_MIN_VERTICES: usize = 12;
+
+/// Why a layout could not be read or is not usable.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum LayoutError {
+    /// The file could not be read or written.
+    #[error("cannot {action} layout file {path}: {source}")]
+    Io {
+        /// "read" or "write".
+        action: &'static str,
+        /// The file.
+        path: PathBuf,
+        /// The cause.
+        source: std::io::Error,
+    },
+    /// The text is not a layout (bad JSON or missing fields).
+    #[error("malformed layout: {0}")]
+    Malformed(String),
+    /// An OBJ file could not be parsed.
+    #[error("cannot read OBJ layout {path}: {message}")]
+    Obj {
+        /// The file.
+        path: PathBuf,
+        /// What went wrong.
+        message: String,
+    },
+    /// The file uses a unit other than millimetres.
+    #[error("layout units must be \"mm\", got \"{0}\"")]
+    Units(String),
+    /// Fewer than [`MIN_POINTS`] points.
+    #[error("a layout needs at least {MIN_POINTS} points, got {0}")]
+    TooFewPoints(usize),
+    /// A coordinate or a point's noise is NaN or infinite.
+    #[error("point {name} has a non-finite {field}")]
+    NonFinite {
+        /// The point's name.
+        name: String,
+        /// "position" or "sigma_px".
+        field: &'static str,
+    },
+    /// A point's noise is zero or negative.
+    #[error("point {name} has sigma_px {sigma_px}; it must be positive")]
+    NonPositiveSigma {
+        /// The point's name.
+        name: String,
+        /// The value given.
+        sigma_px: f64,
+    },
+    /// Two points share a name.
+    #[error("two points are named {0}; names must be unique")]
+    DuplicateName(String),
+    /// Two points coincide.
+    #[error("points {first} and {second} coincide")]
+    DuplicatePoints {
+        /// Name of the first point.
+        first: String,
+        /// Name of the second point.
+        second: String,
+    },
+    /// All points lie on one line.
+    #[error("the points are collinear; a marker needs a 3D spread")]
+    Collinear,
+    /// All points lie in one plane.
+    #[error("the points are coplanar; a marker needs noncoplanar points")]
+    Coplanar,
+    /// The sphere diameter is zero, negative or not finite.
+    #[error("sphere_diameter_mm must be positive and finite, got {0}")]
+    NonPositiveDiameter(f64),
+    /// Two spheres intersect: their centres are closer than one diameter.
+    #[error("spheres {first} and {second} overlap: centres {distance_mm:.3} mm apart, less than the sphere diameter {diameter_mm} mm")]
+    SpheresOverlap {
+        /// Name of the first point.
+        first: String,
+        /// Name of the second point.
+        second: String,
+        /// Distance between the centres, mm.
+        distance_mm: f64,
+        /// Sphere diameter, mm.
+        diameter_mm: f64,
+    },
+}
+
+/// One feature point: the centre of a sphere on the marker.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct LayoutPoint {
+    /// Name, unique within the layout (e.g. "O0", "P1").
+    pub name: String,
+    /// Position in the marker frame, mm.
+    #[serde(with = "vector3_as_array")]
+    pub position: Vector3<f64>,
+    /// This point's own pixel noise (σ, px), when it differs from the rest.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sigma_px: Option<f64>,
+    /// Whether a search must leave this point where it is.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub fixed: bool,
+}
+
+impl LayoutPoint {
+    /// A free point with no noise of its own.
+    pub fn new(name: impl Into<String>, position: Vector3<f64>) -> LayoutPoint {
+        LayoutPoint {
+            name: name.into(),
+            position,
+            sigma_px: None,
+            fixed: false,
+        }
+    }
+}
+
+/// A marker layout: feature points, the sphere that marks each of them,
+/// and where the layout came from.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Layout {
+    /// Name of the layout (used for output file names).
+    pub name: String,
+    /// The feature points, in file order.
+    pub points: Vec<LayoutPoint>,
+    /// Diameter of every sphere, mm.
+    pub sphere_diameter_mm: f64,
+    /// The family and parameters that generated the layout, verbatim.
+    pub family: Option<Value>,
+    /// How the layout was made (command, seed, objective...), verbatim.
+    pub provenance: Option<Value>,
+}
+
+/// The file form of a layout: optional fields get their defaults here.
+#[derive(Debug, Deserialize, Serialize)]
+struct LayoutFile {
+    #[serde(default)]
+    name: Option<String>,
+    #[serde(default)]
+    units: Option<String>,
+    points: Vec<LayoutPoint>,
+    #[serde(default)]
+    sphere_diameter_mm: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    family: Option<Value>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    provenance: Option<Value>,
+}
+
+/// How to read a layout from an OBJ file ([`Layout::from_obj`]).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct ObjImport {
+    /// The sphere diameter, mm. `None`: measured from the spheres when the
+    /// OBJ holds spheres, else [`DEFAULT_SPHERE_DIAMETER_MM`].
+    pub sphere_diameter_mm: Option<f64>,
+    /// The layout's name. `None`: the file stem.
+    pub name: Option<String>,
+}
+
+impl Layout {
+    /// The paper's biprism (its Fig. 6): O0 at the origin and P1..P6 at
+    /// ±[`PAPER_ARM_MM`] on the axes, in the order and with the names of
+    /// [`crate::synthetic::biprism`], with 10 mm spheres.
+    pub fn paper_biprism() -> Layout {
+        Layout {
+            name: "biprism-paper".to_string(),
+            points: crate::synthetic::biprism(PAPER_ARM_MM)
+                .into_iter()
+                .map(|(name, position)| LayoutPoint::new(name, position))
+                .collect(),
+            sphere_diameter_mm: DEFAULT_SPHERE_DIAMETER_MM,
+            family: Some(serde_json::json!({
+                "kind": "biprism",
+                "parameters": {"arm_mm": vec![PAPER_ARM_MM; 6], "centre": true}
+            })),
+            provenance: Some(serde_json::json!({
+                "source": "Hu, Li & Tan, Fig. 6 (the paper's biprism)"
+            })),
+        }
+    }
+
+    /// The feature positions, mm, in file order.
+    pub fn positions(&self) -> Vec<Vector3<f64>> {
+        self.points.iter().map(|p| p.position).collect()
+    }
+
+    /// Sphere radius, mm.
+    pub fn sphere_radius_mm(&self) -> f64 {
+        0.5 * self.sphere_diameter_mm
+    }
+
+    /// Parses a layout from JSON text. Checks the structure and the units
+    /// only; call [`Layout::validate`] for the geometry. A missing `name`
+    /// becomes "custom".
+    pub fn from_json(text: &str) -> Result<Layout, LayoutError> {
+        Layout::parse(text, "custom")
+    }
+
+    fn parse(text: &str, default_name: &str) -> Result<Layout, LayoutError> {
+        let file: LayoutFile =
+            serde_json::from_str(text).map_err(|e| LayoutError::Malformed(e.to_string()))?;
+        if let Some(units) = &file.units {
+            if units != LAYOUT_UNITS {
+                return Err(LayoutError::Units(units.clone()));
+            }
+        }
+        Ok(Layout {
+            name: file.name.unwrap_or_else(|| default_name.to_string()),
+            points: file.points,
+            sphere_diameter_mm: file
+                .sphere_diameter_mm
+                .unwrap_or(DEFAULT_SPHERE_DIAMETER_MM),
+            family: file.family,
+            provenance: file.provenance,
+        })
+    }
+
+    /// Reads a layout file (JSON). A missing `name` becomes the file stem.
+    /// Checks the structure and units only, like [`Layout::from_json`].
+    pub fn load(path: &Path) -> Result<Layout, LayoutError> {
+        let text = std::fs::read_to_string(path).map_err(|source| LayoutError::Io {
+            action: "read",
+            path: path.to_path_buf(),
+            source,
+        })?;
+        Layout::parse(&text, &file_stem(path))
+    }
+
+    /// The layout as pretty JSON in the file format.
+    pub fn to_json(&self) -> String {
+        let file = LayoutFile {
+            name: Some(self.name.clone()),
+            units: Some(LAYOUT_UNITS.to_string()),
+            points: self.points.clone(),
+            sphere_diameter_mm: Some(self.sphere_diameter_mm),
+            family: self.family.clone(),
+            provenance: self.provenance.clone(),
+        };
+        serde_json::to_string_pretty(&file).expect("a layout always serialises") + "\n"
+    }
+
+    /// Writes the layout so that readers never see a partial file: the JSON
+    /// goes to a temporary file in the same directory, is flushed to disk,
+    /// and is then renamed over `path`.
+    pub fn save_atomic(&self, path: &Path) -> Result<(), LayoutError> {
+        write_atomic(path, self.to_json().as_bytes()).map_err(|source| LayoutError::Io {
+            action: "write",
+            path: path.to_path_buf(),
+            source,
+        })
+    }
+
+    /// Checks the geometry: at least [`MIN_POINTS`] points with unique
+    /// names, finite coordinates (and positive `sigma_px` where given), no
+    /// duplicates, not collinear or coplanar (relative to the spread, with
+    /// [`PLANARITY_TOLERANCE`] as the PnP solvers use), a positive sphere
+    /// diameter, and no two spheres overlapping (centres closer than one
+    /// diameter).
+    pub fn validate(&self) -> Result<(), LayoutError> {
+        if self.points.len() < MIN_POINTS {
+            return Err(LayoutError::TooFewPoints(self.points.len()));
+        }
+        for point in &self.points {
+            if !point.position.iter().all(|v| v.is_finite()) {
+                return Err(LayoutError::NonFinite {
+                    name: point.name.clone(),
+                    field: "position",
+                });
+            }
+            if let Some(sigma_px) = point.sigma_px {
+                if !sigma_px.is_finite() {
+                    return Err(LayoutError::NonFinite {
+                        name: point.name.clone(),
+                        field: "sigma_px",
+                    });
+                }
+                if sigma_px <= 0.0 {
+                    return Err(LayoutError::NonPositiveSigma {
+                        name: point.name.clone(),
+                        sigma_px,
+                    });
+                }
+            }
+        }
+        let mut names: Vec<&str> = self.points.iter().map(|p| p.name.as_str()).collect();
+        names.sort_unstable();
+        if let Some(pair) = names.windows(2).find(|pair| pair[0] == pair[1]) {
+            return Err(LayoutError::DuplicateName(pair[0].to_string()));
+        }
+        if !(self.sphere_diameter_mm.is_finite() && self.sphere_diameter_mm > 0.0) {
+            return Err(LayoutError::NonPositiveDiameter(self.sphere_diameter_mm));
+        }
+        let positions = self.positions();
+        let spread = Spread::of(&positions);
+        let scale = spread.extents[0];
+        let duplicate_distance = DUPLICATE_TOLERANCE * scale;
+        for (i, a) in self.points.iter().enumerate() {
+            for b in &self.points[i + 1..] {
+                if (a.position - b.position).norm() <= duplicate_distance {
+                    return Err(LayoutError::DuplicatePoints {
+                        first: a.name.clone(),
+                        second: b.name.clone(),
+                    });
+                }
+            }
+        }
+        if spread.extents[1] <= PLANARITY_TOLERANCE * scale {
+            return Err(LayoutError::Collinear);
+        }
+        if spread.extents[2] <= PLANARITY_TOLERANCE * scale {
+            return Err(LayoutError::Coplanar);
+        }
+        for (i, a) in self.points.iter().enumerate() {
+            for b in &self.points[i + 1..] {
+                let distance_mm = (a.position - b.position).norm();
+                if distance_mm < self.sphere_diameter_mm {
+                    return Err(LayoutError::SpheresOverlap {
+                        first: a.name.clone(),
+                        second: b.name.clone(),
+                        distance_mm,
+                        diameter_mm: self.sphere_diameter_mm,
+                    });
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Imports a layout from an OBJ file with `tobj`.
+    ///
+    /// * When the file holds at least [`MIN_POINTS`] objects with faces and
+    ///   every one of them is a sphere (its vertices lie within
+    ///   [`OBJ_SPHERE_TOLERANCE`] of one distance from their centroid), each
+    ///   object becomes a feature point at its vertex centroid, named after
+    ///   the object; the diameter is measured unless `options` gives one.
+    /// * Otherwise every distinct vertex (`v` line) becomes a feature point
+    ///   `V1, V2, ...` in file order.
+    ///
+    /// Coordinates are taken as millimetres. The result is not validated.
+    pub fn from_obj(path: &Path, options: &ObjImport) -> Result<Layout, LayoutError> {
+        let obj_error = |message: String| LayoutError::Obj {
+            path: path.to_path_buf(),
+            message,
+        };
+        let text = std::fs::read_to_string(path).map_err(|source| LayoutError::Io {
+            action: "read",
+            path: path.to_path_buf(),
+            source,
+        })?;
+        let load_options = tobj::LoadOptions {
+            single_index: true,
+            triangulate: false,
+            ignore_points: false,
+            ignore_lines: false,
+        };
+        let load = |text: &str| {
+            tobj::load_obj_buf(&mut text.as_bytes(), &load_options, |_| {
+                Ok(Default::default())
+            })
+            .map(|(models, _)| models)
+            .map_err(|e| obj_error(e.to_string()))
+        };
+        let mut models = load(&text)?;
+        if models.iter().all(|m| m.mesh.positions.is_empty()) {
+            // A bare point set: tobj keeps only the vertices that elements
+            // use (and skips `p` elements), so give each `v` a one-vertex
+            // element, which tobj reads as a point.
+            let count = text
+                .lines()
+                .filter(|line| line.split_whitespace().next() == Some("v"))
+                .count();
+            if count == 0 {
+                return Err(obj_error("it has no vertices".to_string()));
+            }
+            let mut with_points = text.clone();
+            with_points.push_str("\no points\n");
+            for i in 1..=count {
+                with_points.push_str(&format!("l {i}\n"));
+            }
+            models = load(&with_points)?;
+        }
+        let name = options.name.clone().unwrap_or_else(|| file_stem(path));
+        let spheres: Vec<(String, Vector3<f64>, f64)> = models
+            .iter()
+            .filter(|m| has_faces(m))
+            .filter_map(|m| obj_sphere(m).map(|(centre, radius)| (m.name.clone(), centre, radius)))
+            .collect();
+        let faced = models.iter().filter(|m| has_faces(m)).count();
+        let (points, diameter) = if faced >= MIN_POINTS && spheres.len() == faced {
+            let mean_radius =
+                spheres.iter().map(|(_, _, r)| r).sum::<f64>() / spheres.len() as f64;
+            let points = spheres
+                .into_iter()
+                .map(|(name, centre, _)| LayoutPoint::new(name, centre))
+                .collect();
+            (
+                points,
+                options.sphere_diameter_mm.unwrap_or(2.0 * mean_radius),
+            )
+        } else {
+            let mut seen: Vec<Vector3<f64>> = Vec::new();
+            for model in &models {
+                for chunk in model.mesh.positions.chunks_exact(3) {
+                    let p = Vector3::new(chunk[0] as f64, chunk[1] as f64, chunk[2] as f64);
+                    if !seen.contains(&p) {
+                        seen.push(p);
+                    }
+                }
+            }
+            let points = seen
+                .into_iter()
+                .enumerate()
+                .map(|(i, p)| LayoutPoint::new(format!("V{}", i + 1), p))
+                .collect();
+            (
+                points,
+                options
+                    .sphere_diameter_mm
+                    .unwrap_or(DEFAULT_SPHERE_DIAMETER_MM),
+            )
+        };
+        Ok(Layout {
+            name,
+            points,
+            sphere_diameter_mm: diameter,
+            family: None,
+            provenance: Some(serde_json::json!({"imported_from": path.display().to_string()})),
+        })
+    }
+}
+
+/// Whether an OBJ object has polygons (tobj leaves `face_arities` empty
+/// when every element is a triangle).
+fn has_faces(model: &tobj::Model) -> bool {
+    let arities = &model.mesh.face_arities;
+    if arities.is_empty() {
+        model.mesh.indices.len() >= 3
+    } else {
+        arities.iter().any(|&a| a >= 3)
+    }
+}
+
+/// The centre and radius of an OBJ object if it is a sphere: the centroid of
+/// its distinct vertices, and their mean distance from it when that
+/// distance varies by at most [`OBJ_SPHERE_TOLERANCE`].
+fn obj_sphere(model: &tobj::Model) -> Option<(Vector3<f64>, f64)> {
+    let mut vertices: Vec<Vector3<f64>> = Vec::new();
+    for chunk in model.mesh.positions.chunks_exact(3) {
+        let p = Vector3::new(chunk[0] as f64, chunk[1] as f64, chunk[2] as f64);
+        if !vertices.contains(&p) {
+            vertices.push(p);
+        }
+    }
+    if vertices.len() < OBJ_SPHERE_MIN_VERTICES {
+        return None;
+    }
+    let centre = vertices.iter().sum::<Vector3<f64>>() / vertices.len() as f64;
+    let distances: Vec<f64> = vertices.iter().map(|v| (v - centre).norm()).collect();
+    let mean = distances.iter().sum::<f64>() / distances.len() as f64;
+    let (min, max) = distances
+        .iter()
+        .fold((f64::INFINITY, 0.0f64), |(lo, hi), &d| (lo.min(d), hi.max(d)));
+    (mean > 0.0 && max - min <= OBJ_SPHERE_TOLERANCE * mean).then_some((centre, mean))
+}
+
+fn file_stem(path: &Path) -> String {
+    path.file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "custom".to_string())
+}
+
+/// Writes `bytes` to `path` atomically: a temporary file in the same
+/// directory, flushed to disk, then renamed over `path`.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    let dir = match path.parent() {
+        Some(dir) if !dir.as_os_str().is_empty() => dir.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    let file_name = path
+        .file_name()
+        .ok_or_else(|| std::io::Error::new(std::io::ErrorKind::InvalidInput, "no file name"))?;
+    let temp = dir.join(format!(
+        ".{}.{}.tmp",
+        file_name.to_string_lossy(),
+        std::process::id()
+    ));
+    let result = (|| {
+        let mut file = std::fs::File::create(&temp)?;
+        file.write_all(bytes)?;
+        file.sync_all()?;
+        drop(file);
+        std::fs::rename(&temp, path)?;
+        // Make the rename itself durable where directories can be synced.
+        if let Ok(dir) = std::fs::File::open(&dir) {
+            let _ = dir.sync_all();
+        }
+        Ok(())
+    })();
+    if result.is_err() {
+        let _ = std::fs::remove_file(&temp);
+    }
+    result
+}
+
+/// Serialises a `Vector3<f64>` as a plain `[x, y, z]` array.
+mod vector3_as_array {
+    use nalgebra::Vector3;
+    use serde::{Deserialize, Deserializer, Serialize, Serializer};
+
+    pub fn serialize<S: Serializer>(v: &Vector3<f64>, s: S) -> Result<S::Ok, S::Error> {
+        [v.x, v.y, v.z].serialize(s)
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Vector3<f64>, D::Error> {
+        let [x, y, z] = <[f64; 3]>::deserialize(d)?;
+        Ok(Vector3::new(x, y, z))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn tetra() -> Layout {
+        Layout {
+            name: "t".into(),
+            points: vec![
+                LayoutPoint::new("A", Vector3::new(0.0, 0.0, 0.0)),
+                LayoutPoint::new("B", Vector3::new(40.0, 0.0, 0.0)),
+                LayoutPoint::new("C", Vector3::new(0.0, 40.0, 0.0)),
+                LayoutPoint::new("D", Vector3::new(0.0, 0.0, 40.0)),
+            ],
+            sphere_diameter_mm: 10.0,
+            family: None,
+            provenance: None,
+        }
+    }
+
+    #[test]
+    fn paper_biprism_is_valid_and_matches_synthetic() {
+        let layout = Layout::paper_biprism();
+        layout.validate().unwrap();
+        assert_eq!(
+            layout.positions(),
+            crate::synthetic::biprism_points(PAPER_ARM_MM)
+        );
+        assert_eq!(layout.points[0].name, "O0");
+    }
+
+    #[test]
+    fn json_round_trip_keeps_everything() {
+        let text = r#"{"name": "x", "units": "mm", "points": [
+            {"name": "A", "position": [0,0,0], "sigma_px": 0.3, "colour": "red"},
+            {"name": "B", "position": [40,0,0], "fixed": true},
+            {"name": "C", "position": [0,40,0]},
+            {"name": "D", "position": [0,0,40]}],
+            "sphere_diameter_mm": 8, "family": {"kind": "custom", "n": [1,2]},
+            "provenance": {"seed": 7}, "comment": "ignored"}"#;
+        let layout = Layout::from_json(text).unwrap();
+        assert_eq!(layout.points[0].sigma_px, Some(0.3));
+        assert!(layout.points[1].fixed);
+        assert_eq!(layout.sphere_diameter_mm, 8.0);
+        let again = Layout::from_json(&layout.to_json()).unwrap();
+        assert_eq!(again, layout);
+        assert!(layout.to_json().contains("\"units\": \"mm\""));
+    }
+
+    #[test]
+    fn minimal_file_needs_only_points() {
+        let layout = Layout::from_json(
+            r#"{"points": [{"name":"A","position":[0,0,0]},{"name":"B","position":[40,0,0]},
+            {"name":"C","position":[0,40,0]},{"name":"D","position":[0,0,40]}]}"#,
+        )
+        .unwrap();
+        assert_eq!(layout.name, "custom");
+        assert_eq!(layout.sphere_diameter_mm, DEFAULT_SPHERE_DIAMETER_MM);
+        layout.validate().unwrap();
+    }
+
+    #[test]
+    fn error_messages() {
+        let e = Layout::from_json(r#"{"units": "inch", "points": []}"#).unwrap_err();
+        assert_eq!(e.to_string(), "layout units must be \"mm\", got \"inch\"");
+        let e = Layout::from_json("{").unwrap_err();
+        assert!(e.to_string().starts_with("malformed layout: "), "{e}");
+
+        let mut layout = tetra();
+        layout.points.pop();
+        assert_eq!(
+            layout.validate().unwrap_err().to_string(),
+            "a layout needs at least 4 points, got 3"
+        );
+
+        let mut layout = tetra();
+        layout.points[2].position.y = f64::NAN;
+        assert_eq!(
+            layout.validate().unwrap_err().to_string(),
+            "point C has a non-finite position"
+        );
+
+        let mut layout = tetra();
+        layout.points[1].sigma_px = Some(0.0);
+        assert_eq!(
+            layout.validate().unwrap_err().to_string(),
+            "point B has sigma_px 0; it must be positive"
+        );
+
+        let mut layout = tetra();
+        layout.points[3].name = "A".into();
+        assert_eq!(
+            layout.validate().unwrap_err().to_string(),
+            "two points are named A; names must be unique"
+        );
+
+        let mut layout = tetra();
+        layout.points[3].position = layout.points[1].position;
+        assert_eq!(
+            layout.validate().unwrap_err().to_string(),
+            "points B and D coincide"
+        );
+
+        let mut layout = tetra();
+        layout.points[3].position = Vector3::new(40.0, 40.0, 0.0);
+        assert_eq!(
+            layout.validate().unwrap_err().to_string(),
+            "the points are coplanar; a marker needs noncoplanar points"
+        );
+
+        let mut layout = tetra();
+        for (i, p) in layout.points.iter_mut().enumerate() {
+            p.position = Vector3::new(20.0 * i as f64, 0.0, 0.0);
+        }
+        assert_eq!(
+            layout.validate().unwrap_err().to_string(),
+            "the points are collinear; a marker needs a 3D spread"
+        );
+
+        let mut layout = tetra();
+        layout.sphere_diameter_mm = 0.0;
+        assert_eq!(
+            layout.validate().unwrap_err().to_string(),
+            "sphere_diameter_mm must be positive and finite, got 0"
+        );
+
+        let mut layout = tetra();
+        layout.points[1].position.x = 9.0;
+        assert_eq!(
+            layout.validate().unwrap_err().to_string(),
+            "spheres A and B overlap: centres 9.000 mm apart, less than the sphere diameter 10 mm"
+        );
+    }
+
+    #[test]
+    fn save_atomic_then_load() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("m.json");
+        let layout = Layout::paper_biprism();
+        layout.save_atomic(&path).unwrap();
+        layout.save_atomic(&path).unwrap();
+        assert_eq!(Layout::load(&path).unwrap(), layout);
+        let leftovers: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
+        assert_eq!(leftovers.len(), 1, "no temporary file is left behind");
+    }
+
+    const ICOSAHEDRON_FACES: [[usize; 3]; 20] = [
+        [0, 11, 5],
+        [0, 5, 1],
+        [0, 1, 7],
+        [0, 7, 10],
+        [0, 10, 11],
+        [1, 5, 9],
+        [5, 11, 4],
+        [11, 10, 2],
+        [10, 7, 6],
+        [7, 1, 8],
+        [3, 9, 4],
+        [3, 4, 2],
+        [3, 2, 6],
+        [3, 6, 8],
+        [3, 8, 9],
+        [4, 9, 5],
+        [2, 4, 11],
+        [6, 2, 10],
+        [8, 6, 7],
+        [9, 8, 1],
+    ];
+
+    #[test]
+    fn obj_point_set_and_spheres() {
+        let dir = tempfile::tempdir().unwrap();
+        let points = dir.path().join("points.obj");
+        std::fs::write(
+            &points,
+            "# four points\nv 0 0 0\nv 40 0 0\nv 0 40 0\nv 0 0 40\n",
+        )
+        .unwrap();
+        let layout = Layout::from_obj(&points, &ObjImport::default()).unwrap();
+        assert_eq!(layout.name, "points");
+        assert_eq!(layout.points.len(), 4);
+        assert_eq!(layout.points[3].name, "V4");
+        assert_eq!(layout.points[1].position, Vector3::new(40.0, 0.0, 0.0));
+        layout.validate().unwrap();
+
+        // Four "spheres" (icosahedra of radius 4) as separate objects.
+        let mut text = String::new();
+        let mut base = 0;
+        let phi = (1.0 + 5f64.sqrt()) / 2.0;
+        let ico: Vec<[f64; 3]> = [
+            [-1.0, phi, 0.0],
+            [1.0, phi, 0.0],
+            [-1.0, -phi, 0.0],
+            [1.0, -phi, 0.0],
+            [0.0, -1.0, phi],
+            [0.0, 1.0, phi],
+            [0.0, -1.0, -phi],
+            [0.0, 1.0, -phi],
+            [phi, 0.0, -1.0],
+            [phi, 0.0, 1.0],
+            [-phi, 0.0, -1.0],
+            [-phi, 0.0, 1.0],
+        ]
+        .to_vec();
+        let scale = 4.0 / (1.0 + phi * phi).sqrt();
+        for (name, centre) in [
+            ("A", [0.0, 0.0, 0.0]),
+            ("B", [40.0, 0.0, 0.0]),
+            ("C", [0.0, 40.0, 0.0]),
+            ("D", [0.0, 0.0, 40.0]),
+        ] {
+            text += &format!("o {name}\n");
+            for v in &ico {
+                text += &format!(
+                    "v {} {} {}\n",
+                    centre[0] + scale * v[0],
+                    centre[1] + scale * v[1],
+                    centre[2] + scale * v[2]
+                );
+            }
+            for face in ICOSAHEDRON_FACES {
+                text += &format!(
+                    "f {} {} {}\n",
+                    base + face[0] + 1,
+                    base + face[1] + 1,
+                    base + face[2] + 1
+                );
+            }
+            base += 12;
+        }
+        let spheres = dir.path().join("spheres.obj");
+        std::fs::write(&spheres, text).unwrap();
+        let layout = Layout::from_obj(&spheres, &ObjImport::default()).unwrap();
+        assert_eq!(layout.points.len(), 4);
+        assert_eq!(layout.points[1].name, "B");
+        assert!((layout.points[1].position - Vector3::new(40.0, 0.0, 0.0)).norm() < 1e-5);
+        assert!((layout.sphere_diameter_mm - 8.0).abs() < 1e-5);
+    }
+}
