@@ -398,8 +398,9 @@ impl Layout {
         };
         let mut models = load(&text)?;
         if models.iter().all(|m| m.mesh.positions.is_empty()) {
-            // A bare point set: tobj keeps only vertices that elements use,
-            // so list every `v` in one point element.
+            // A bare point set: tobj keeps only the vertices that elements
+            // use (and skips `p` elements), so give each `v` a one-vertex
+            // element, which tobj reads as a point.
             let count = text
                 .lines()
                 .filter(|line| line.split_whitespace().next() == Some("v"))
@@ -407,21 +408,23 @@ impl Layout {
             if count == 0 {
                 return Err(obj_error("it has no vertices".to_string()));
             }
-            let indices: Vec<String> = (1..=count).map(|i| i.to_string()).collect();
-            models = load(&format!("{text}\np {}\n", indices.join(" ")))?;
+            let mut with_points = text.clone();
+            with_points.push_str("\no points\n");
+            for i in 1..=count {
+                with_points.push_str(&format!("l {i}\n"));
+            }
+            models = load(&with_points)?;
         }
         let name = options.name.clone().unwrap_or_else(|| file_stem(path));
         let spheres: Vec<(String, Vector3<f64>, f64)> = models
             .iter()
-            .filter(|m| !m.mesh.face_arities.iter().all(|&a| a < 3))
+            .filter(|m| has_faces(m))
             .filter_map(|m| obj_sphere(m).map(|(centre, radius)| (m.name.clone(), centre, radius)))
             .collect();
-        let faced = models
-            .iter()
-            .filter(|m| !m.mesh.face_arities.iter().all(|&a| a < 3))
-            .count();
+        let faced = models.iter().filter(|m| has_faces(m)).count();
         let (points, diameter) = if faced >= MIN_POINTS && spheres.len() == faced {
-            let mean_radius = spheres.iter().map(|(_, _, r)| r).sum::<f64>() / spheres.len() as f64;
+            let mean_radius =
+                spheres.iter().map(|(_, _, r)| r).sum::<f64>() / spheres.len() as f64;
             let points = spheres
                 .into_iter()
                 .map(|(name, centre, _)| LayoutPoint::new(name, centre))
@@ -462,6 +465,17 @@ impl Layout {
     }
 }
 
+/// Whether an OBJ object has polygons (tobj leaves `face_arities` empty
+/// when every element is a triangle).
+fn has_faces(model: &tobj::Model) -> bool {
+    let arities = &model.mesh.face_arities;
+    if arities.is_empty() {
+        model.mesh.indices.len() >= 3
+    } else {
+        arities.iter().any(|&a| a >= 3)
+    }
+}
+
 /// The centre and radius of an OBJ object if it is a sphere: the centroid of
 /// its distinct vertices, and their mean distance from it when that
 /// distance varies by at most [`OBJ_SPHERE_TOLERANCE`].
@@ -481,9 +495,7 @@ fn obj_sphere(model: &tobj::Model) -> Option<(Vector3<f64>, f64)> {
     let mean = distances.iter().sum::<f64>() / distances.len() as f64;
     let (min, max) = distances
         .iter()
-        .fold((f64::INFINITY, 0.0f64), |(lo, hi), &d| {
-            (lo.min(d), hi.max(d))
-        });
+        .fold((f64::INFINITY, 0.0f64), |(lo, hi), &d| (lo.min(d), hi.max(d)));
     (mean > 0.0 && max - min <= OBJ_SPHERE_TOLERANCE * mean).then_some((centre, mean))
 }
 
