@@ -14,6 +14,7 @@
 pub mod batch;
 pub mod camera;
 pub mod error_model;
+pub mod family;
 pub mod layout;
 pub mod montecarlo;
 pub mod noise;
@@ -21,5 +22,6 @@ pub mod pnp;
 pub mod pose;
 pub mod report;
 pub mod scenario;
+pub mod search;
 pub mod synthetic;
 pub mod validate;

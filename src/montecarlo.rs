@@ -25,7 +25,7 @@ use crate::pnp::{parallel::reference_index, Solver};
 use crate::pose::{
     paper_rotation_error_deg, rotation_error_deg, translation_error_mm, translation_error_percent,
 };
-use crate::scenario::{sphere_images, visibility, Scenario, Visibility};
+use crate::scenario::{sphere_images, visibility, Scenario, SphereImage, Visibility};
 use crate::synthetic::stream_rng;
 use nalgebra::{Vector2, Vector3};
 use rayon::prelude::*;
@@ -206,6 +206,24 @@ pub fn run(
         .collect())
 }
 
+/// Each feature's σ (px) in a scenario of noise `sigma_px` under `noise`,
+/// from the layout's per-point σ and the features' image discs.
+pub fn point_sigmas(
+    noise: &NoiseModel,
+    sigma_px: f64,
+    images: &[Option<SphereImage>],
+    point_sigma_px: &[Option<f64>],
+) -> Vec<f64> {
+    images
+        .iter()
+        .zip(point_sigma_px)
+        .map(|(image, layout_sigma)| {
+            let radius = image.map_or(f64::INFINITY, |i| i.radius_px);
+            noise.point_sigma(sigma_px, *layout_sigma, radius)
+        })
+        .collect()
+}
+
 fn run_scenario(
     target: &Target,
     scenario: &Scenario,
@@ -227,16 +245,12 @@ fn run_scenario(
     if !outcome.visibility.all_in_front() {
         return outcome;
     }
-    let sigmas: Vec<f64> = images
-        .iter()
-        .zip(target.point_sigma_px)
-        .map(|(image, layout_sigma)| {
-            let radius = image.map_or(f64::INFINITY, |i| i.radius_px);
-            config
-                .noise
-                .point_sigma(scenario.sigma_px, *layout_sigma, radius)
-        })
-        .collect();
+    let sigmas = point_sigmas(
+        &config.noise,
+        scenario.sigma_px,
+        &images,
+        target.point_sigma_px,
+    );
     if sigmas.iter().all(|&s| s > 0.0) {
         outcome.first_order = pose_covariance(camera, &truth, target.object, &sigmas)
             .ok()

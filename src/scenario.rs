@@ -429,10 +429,64 @@ pub fn visibility(images: &[Option<SphereImage>], camera: &Camera) -> Visibility
     result
 }
 
+/// The smallest visibility margin of a scenario, px: the least distance by
+/// which a sphere's disc stays inside the image (with
+/// [`VISIBILITY_MARGIN_PX`]) or two discs stay apart. Non-negative exactly
+/// when [`visibility`] finds nothing wrong (up to ties at zero);
+/// `−∞` when a sphere is behind the camera.
+pub fn visibility_margin_px(images: &[Option<SphereImage>], camera: &Camera) -> f64 {
+    let mut margin = f64::INFINITY;
+    let (width, height) = (camera.width() as f64, camera.height() as f64);
+    for (i, image) in images.iter().enumerate() {
+        let Some(a) = image else {
+            return f64::NEG_INFINITY;
+        };
+        let [x, y] = a.centre_px;
+        let edge = VISIBILITY_MARGIN_PX + a.radius_px;
+        margin = margin
+            .min(x - edge)
+            .min(y - edge)
+            .min(width - edge - x)
+            .min(height - edge - y);
+        for b in images[i + 1..].iter().flatten() {
+            let gap = ((x - b.centre_px[0]).powi(2) + (y - b.centre_px[1]).powi(2)).sqrt();
+            margin = margin.min(gap - a.radius_px - b.radius_px);
+        }
+    }
+    margin
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use approx::assert_relative_eq;
+
+    #[test]
+    fn margin_agrees_with_the_rules() {
+        let camera = Camera::paper();
+        let object = crate::synthetic::biprism_points(50.0);
+        for tilt in (-90..=90).step_by(5) {
+            for (depth, offset) in [(200.0, 0.0), (500.0, 60.0), (900.0, 0.0), (400.0, 150.0)] {
+                let s = Scenario {
+                    index: 0,
+                    depth_mm: depth,
+                    offset_x_mm: offset,
+                    offset_y_mm: 0.0,
+                    tilt_deg: tilt as f64,
+                    pan_deg: 10.0,
+                    roll_deg: 0.0,
+                    sigma_px: 0.5,
+                };
+                let images = sphere_images(&camera, &s.pose(), &object, 10.0);
+                let margin = visibility_margin_px(&images, &camera);
+                assert_eq!(
+                    margin >= 0.0,
+                    visibility(&images, &camera).is_visible(),
+                    "tilt {tilt} depth {depth}: {margin}"
+                );
+            }
+        }
+    }
 
     #[test]
     fn ranges_parse() {

@@ -3,6 +3,7 @@
 
 mod common;
 mod progress;
+mod search;
 mod solve;
 mod validate;
 
@@ -39,6 +40,8 @@ enum Command {
     /// Sensitivity report of a layout: Monte-Carlo error of every solver
     /// against the first-order and transfer-model predictions.
     Validate(Box<validate::ValidateArgs>),
+    /// Optimise a layout family over a scenario grid with argmin.
+    Search(Box<search::SearchArgs>),
 }
 
 /// Parses the command line and runs the chosen subcommand.
@@ -54,5 +57,6 @@ pub fn run() -> anyhow::Result<()> {
     match cli.command {
         Command::Solve(args) => solve::run(args, &cli.global),
         Command::Validate(args) => validate::run(*args, &cli.global),
+        Command::Search(args) => search::run(*args, &cli.global),
     }
 }

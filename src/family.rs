@@ -1,0 +1,827 @@
+//! Layout families: parameterisations that map a parameter vector to marker
+//! points, with bounds, a natural start, and fabrication constraints.
+//!
+//! * `biprism`: the paper's bipyramid (Fig. 6) generalised. Six arms from the
+//!   centre along ±z, ±x, −z... in the paper's order (P1 = +z, P2 = +x,
+//!   P3 = −z, P4 = −x, P5 = +y, P6 = −y), each with its own length and,
+//!   optionally, a tilt of its direction by two angles (about the two axes
+//!   perpendicular to its nominal axis, each within ±[`MAX_ARM_TILT_DEG`]);
+//!   the centre point O0 is optional. With all arms at L = 50 mm and no tilt
+//!   it is the paper's biprism.
+//! * `tetrahedron`: four free vertices, plus optionally a centre point at
+//!   their centroid.
+//! * `custom`: N free points, or a layout file whose points marked `fixed`
+//!   stay where they are while the others move.
+//!
+//! The **envelope** is a box centred on the marker origin that bounds the
+//! sphere *centres* (as the paper's "100 mm" biprism has centres at ±50 mm).
+
+use crate::layout::{Layout, LayoutPoint};
+use nalgebra::{Rotation3, Vector3};
+use serde::Serialize;
+
+/// Largest tilt of a biprism arm from its nominal axis, per angle, degrees.
+pub const MAX_ARM_TILT_DEG: f64 = 60.0;
+
+/// Biprism arms of the spread start differ in length by this much, mm.
+pub const SPREAD_STAGGER_MM: f64 = 1.5;
+
+/// Why a family or constraint set cannot be built.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum FamilyError {
+    /// The envelope is not a usable box.
+    #[error("the envelope must be positive and finite in every axis, got {0:?} mm")]
+    BadEnvelope([f64; 3]),
+    /// The envelope cannot hold even one sphere.
+    #[error("the envelope {envelope:?} mm is smaller than one sphere of {diameter_mm} mm")]
+    EnvelopeTooSmall {
+        /// Envelope, mm.
+        envelope: [f64; 3],
+        /// Sphere diameter, mm.
+        diameter_mm: f64,
+    },
+    /// Too few points for PnP.
+    #[error("a layout needs at least 4 points, got {0}")]
+    TooFewPoints(usize),
+    /// A custom family's start file has no free point.
+    #[error("every point of the start layout is fixed: nothing to optimise")]
+    NothingFree,
+    /// The envelope string could not be parsed.
+    #[error("cannot parse envelope '{0}': give one size (a cube) or X,Y,Z in mm")]
+    ParseEnvelope(String),
+}
+
+/// The box that bounds the sphere centres, centred on the marker origin.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Envelope {
+    /// Full size along x, y, z, mm.
+    pub size_mm: [f64; 3],
+}
+
+impl Envelope {
+    /// A box of the given size (mm), checked to be positive and finite.
+    pub fn new(size_mm: [f64; 3]) -> Result<Self, FamilyError> {
+        if size_mm.iter().all(|s| s.is_finite() && *s > 0.0) {
+            Ok(Self { size_mm })
+        } else {
+            Err(FamilyError::BadEnvelope(size_mm))
+        }
+    }
+
+    /// Half sizes, mm.
+    pub fn half(&self) -> Vector3<f64> {
+        Vector3::new(self.size_mm[0], self.size_mm[1], self.size_mm[2]) * 0.5
+    }
+
+    /// How far `p` lies outside the box, mm (0 inside).
+    pub fn excess_mm(&self, p: &Vector3<f64>) -> f64 {
+        let half = self.half();
+        (0..3).map(|k| (p[k].abs() - half[k]).max(0.0)).sum()
+    }
+}
+
+impl std::str::FromStr for Envelope {
+    type Err = FamilyError;
+    fn from_str(text: &str) -> Result<Self, Self::Err> {
+        let values: Vec<f64> = text
+            .split(',')
+            .map(|v| v.trim().parse::<f64>())
+            .collect::<Result<_, _>>()
+            .map_err(|_| FamilyError::ParseEnvelope(text.to_string()))?;
+        match values.as_slice() {
+            [cube] => Envelope::new([*cube; 3]),
+            [x, y, z] => Envelope::new([*x, *y, *z]),
+            _ => Err(FamilyError::ParseEnvelope(text.to_string())),
+        }
+    }
+}
+
+/// Which family, with its options.
+#[derive(Debug, Clone, PartialEq)]
+pub enum FamilyKind {
+    /// Six arms (optionally tilted) and an optional centre point.
+    Biprism {
+        /// Include the centre point O0.
+        centre: bool,
+        /// Let each arm tilt off its axis.
+        tilts: bool,
+    },
+    /// Four free vertices and an optional centre point.
+    Tetrahedron {
+        /// Include a point at the vertices' centroid.
+        centre: bool,
+    },
+    /// Free points: `count` of them, or the points of a start layout with
+    /// some fixed.
+    Custom {
+        /// Number of points (ignored when `start` is given).
+        count: usize,
+        /// A start layout whose `fixed` points stay put.
+        start: Option<Layout>,
+    },
+}
+
+/// A family in an envelope: the map from parameters to points.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Family {
+    kind: FamilyKind,
+    envelope: Envelope,
+    sphere_diameter_mm: f64,
+}
+
+/// The paper's arm directions, in its point order P1…P6.
+const ARM_AXES: [[f64; 3]; 6] = [
+    [0.0, 0.0, 1.0],
+    [1.0, 0.0, 0.0],
+    [0.0, 0.0, -1.0],
+    [-1.0, 0.0, 0.0],
+    [0.0, 1.0, 0.0],
+    [0.0, -1.0, 0.0],
+];
+
+impl Family {
+    /// A family of `kind` within `envelope`, for spheres of `sphere_diameter_mm`.
+    pub fn new(
+        kind: FamilyKind,
+        envelope: Envelope,
+        sphere_diameter_mm: f64,
+    ) -> Result<Self, FamilyError> {
+        let smallest = envelope
+            .size_mm
+            .iter()
+            .copied()
+            .fold(f64::INFINITY, f64::min);
+        if smallest < sphere_diameter_mm {
+            return Err(FamilyError::EnvelopeTooSmall {
+                envelope: envelope.size_mm,
+                diameter_mm: sphere_diameter_mm,
+            });
+        }
+        if let FamilyKind::Custom { count, start } = &kind {
+            match start {
+                Some(layout) => {
+                    if layout.points.len() < 4 {
+                        return Err(FamilyError::TooFewPoints(layout.points.len()));
+                    }
+                    if layout.points.iter().all(|p| p.fixed) {
+                        return Err(FamilyError::NothingFree);
+                    }
+                }
+                None if *count < 4 => return Err(FamilyError::TooFewPoints(*count)),
+                None => {}
+            }
+        }
+        Ok(Self {
+            kind,
+            envelope,
+            sphere_diameter_mm,
+        })
+    }
+
+    /// The family's kind.
+    pub fn kind(&self) -> &FamilyKind {
+        &self.kind
+    }
+
+    /// The envelope.
+    pub fn envelope(&self) -> Envelope {
+        self.envelope
+    }
+
+    /// Short name: biprism, tetrahedron or custom.
+    pub fn name(&self) -> &'static str {
+        match self.kind {
+            FamilyKind::Biprism { .. } => "biprism",
+            FamilyKind::Tetrahedron { .. } => "tetrahedron",
+            FamilyKind::Custom { .. } => "custom",
+        }
+    }
+
+    /// Number of parameters.
+    pub fn dimension(&self) -> usize {
+        match &self.kind {
+            FamilyKind::Biprism { tilts, .. } => 6 + if *tilts { 12 } else { 0 },
+            FamilyKind::Tetrahedron { .. } => 12,
+            FamilyKind::Custom {
+                start: Some(layout),
+                ..
+            } => 3 * layout.points.iter().filter(|p| !p.fixed).count(),
+            FamilyKind::Custom { count, .. } => 3 * count,
+        }
+    }
+
+    /// Number of points a parameter vector maps to.
+    pub fn point_count(&self) -> usize {
+        match &self.kind {
+            FamilyKind::Biprism { centre, .. } => 6 + usize::from(*centre),
+            FamilyKind::Tetrahedron { centre } => 4 + usize::from(*centre),
+            FamilyKind::Custom {
+                start: Some(layout),
+                ..
+            } => layout.points.len(),
+            FamilyKind::Custom { count, .. } => *count,
+        }
+    }
+
+    /// Lower and upper bounds of every parameter (arm lengths in mm, tilts in
+    /// degrees, coordinates in mm).
+    pub fn bounds(&self) -> (Vec<f64>, Vec<f64>) {
+        let half = self.envelope.half();
+        let mut lower = Vec::with_capacity(self.dimension());
+        let mut upper = Vec::with_capacity(self.dimension());
+        match &self.kind {
+            FamilyKind::Biprism { tilts, .. } => {
+                // An arm reaches at most the envelope's corner; the box itself
+                // is enforced as a constraint.
+                let longest = half.norm();
+                for _ in 0..6 {
+                    lower.push(self.sphere_diameter_mm);
+                    upper.push(longest);
+                }
+                if *tilts {
+                    for _ in 0..12 {
+                        lower.push(-MAX_ARM_TILT_DEG);
+                        upper.push(MAX_ARM_TILT_DEG);
+                    }
+                }
+            }
+            FamilyKind::Tetrahedron { .. } | FamilyKind::Custom { .. } => {
+                for _ in 0..self.dimension() / 3 {
+                    for k in 0..3 {
+                        lower.push(-half[k]);
+                        upper.push(half[k]);
+                    }
+                }
+            }
+        }
+        (lower, upper)
+    }
+
+    /// Clamps a parameter vector into the bounds.
+    pub fn clamp(&self, params: &[f64]) -> Vec<f64> {
+        let (lower, upper) = self.bounds();
+        params
+            .iter()
+            .zip(lower.iter().zip(&upper))
+            .map(|(p, (lo, hi))| {
+                if p.is_finite() {
+                    p.clamp(*lo, *hi)
+                } else {
+                    0.5 * (lo + hi)
+                }
+            })
+            .collect()
+    }
+
+    /// The natural start: the paper's biprism scaled to the envelope
+    /// (biprism), a regular tetrahedron inscribed in it (tetrahedron), the
+    /// start file's free points or points spread on the envelope's corners
+    /// and face centres (custom).
+    pub fn initial(&self) -> Vec<f64> {
+        let half = self.envelope.half();
+        match &self.kind {
+            FamilyKind::Biprism { tilts, .. } => {
+                let mut params: Vec<f64> = ARM_AXES
+                    .iter()
+                    .map(|axis| {
+                        let axis = Vector3::new(axis[0], axis[1], axis[2]);
+                        (0..3)
+                            .filter(|&k| axis[k] != 0.0)
+                            .map(|k| half[k])
+                            .fold(f64::INFINITY, f64::min)
+                    })
+                    .collect();
+                if *tilts {
+                    params.extend([0.0; 12]);
+                }
+                params
+            }
+            FamilyKind::Tetrahedron { .. } => {
+                let signs = [
+                    [1.0, 1.0, 1.0],
+                    [1.0, -1.0, -1.0],
+                    [-1.0, 1.0, -1.0],
+                    [-1.0, -1.0, 1.0],
+                ];
+                signs
+                    .iter()
+                    .flat_map(|s| (0..3).map(move |k| s[k] * half[k]))
+                    .collect()
+            }
+            FamilyKind::Custom {
+                start: Some(layout),
+                ..
+            } => layout
+                .points
+                .iter()
+                .filter(|p| !p.fixed)
+                .flat_map(|p| [p.position.x, p.position.y, p.position.z])
+                .collect(),
+            FamilyKind::Custom { count, .. } => {
+                // Corners first (alternating like a tetrahedron, then the
+                // rest), then face centres: well spread and noncoplanar.
+                let corners = [
+                    [1.0, 1.0, 1.0],
+                    [1.0, -1.0, -1.0],
+                    [-1.0, 1.0, -1.0],
+                    [-1.0, -1.0, 1.0],
+                    [-1.0, -1.0, -1.0],
+                    [-1.0, 1.0, 1.0],
+                    [1.0, -1.0, 1.0],
+                    [1.0, 1.0, -1.0],
+                    [1.0, 0.0, 0.0],
+                    [-1.0, 0.0, 0.0],
+                    [0.0, 1.0, 0.0],
+                    [0.0, -1.0, 0.0],
+                    [0.0, 0.0, 1.0],
+                    [0.0, 0.0, -1.0],
+                ];
+                (0..*count)
+                    .flat_map(|i| {
+                        let c = corners[i % corners.len()];
+                        let shrink = 0.9f64.powi((i / corners.len()) as i32 + 1);
+                        (0..3)
+                            .map(move |k| c[k] * half[k] * shrink)
+                            .collect::<Vec<_>>()
+                    })
+                    .collect()
+            }
+        }
+    }
+
+    /// A second, maximum-spread start: biprism arms pointed at alternating
+    /// corners of the envelope (each arm at the corner nearest its own axis,
+    /// alternating so that no two arms share a corner), custom points on the
+    /// corners at full size; the natural start for the other families (a
+    /// regular tetrahedron already spans the box).
+    pub fn spread(&self) -> Vec<f64> {
+        match &self.kind {
+            FamilyKind::Biprism { tilts: true, .. } => {
+                let half = self.envelope.half();
+                let mut params = vec![half.norm(); 6];
+                // Corner directions for P1..P6 (+z, +x, −z, −x, +y, −y): six of
+                // the eight corners, two per axis pair, none shared.
+                let corners = [
+                    [1.0, 1.0, 1.0],
+                    [1.0, -1.0, -1.0],
+                    [-1.0, 1.0, -1.0],
+                    [-1.0, -1.0, 1.0],
+                    [1.0, 1.0, -1.0],
+                    [-1.0, -1.0, -1.0],
+                ];
+                for (arm, corner) in corners.iter().enumerate() {
+                    let target =
+                        Vector3::new(corner[0] * half.x, corner[1] * half.y, corner[2] * half.z);
+                    let axis = Vector3::new(ARM_AXES[arm][0], ARM_AXES[arm][1], ARM_AXES[arm][2]);
+                    let (a, b) = perpendicular_axes(&axis);
+                    // The two tilt angles that point the arm at the corner, to
+                    // the nearest degree (a start point: the search refines it).
+                    let direction = target.normalize();
+                    let mut best = (f64::INFINITY, 0.0, 0.0);
+                    for i in -60..=60 {
+                        for j in -60..=60 {
+                            let (first, second) = (i as f64, j as f64);
+                            let d = Rotation3::from_scaled_axis(b * second.to_radians())
+                                * Rotation3::from_scaled_axis(a * first.to_radians())
+                                * axis;
+                            let error = (d - direction).norm();
+                            if error < best.0 {
+                                best = (error, first, second);
+                            }
+                        }
+                    }
+                    // Staggered lengths keep the pairwise distances distinct
+                    // (identifiable spheres), so the start is feasible.
+                    params[arm] = target.norm() - SPREAD_STAGGER_MM * arm as f64;
+                    params.extend([best.1, best.2]);
+                }
+                params
+            }
+            FamilyKind::Custom { count, start: None } => {
+                let half = self.envelope.half();
+                let corners = [
+                    [1.0, 1.0, 1.0],
+                    [1.0, -1.0, -1.0],
+                    [-1.0, 1.0, -1.0],
+                    [-1.0, -1.0, 1.0],
+                    [-1.0, -1.0, -1.0],
+                    [-1.0, 1.0, 1.0],
+                    [1.0, -1.0, 1.0],
+                    [1.0, 1.0, -1.0],
+                ];
+                let mut params = self.initial();
+                for (i, corner) in corners.iter().enumerate().take(*count) {
+                    for k in 0..3 {
+                        params[3 * i + k] = corner[k] * half[k];
+                    }
+                }
+                params
+            }
+            _ => self.initial(),
+        }
+    }
+
+    /// Point names, in point order.
+    pub fn names(&self) -> Vec<String> {
+        match &self.kind {
+            FamilyKind::Biprism { centre, .. } => {
+                let mut names: Vec<String> = Vec::new();
+                if *centre {
+                    names.push("O0".into());
+                }
+                names.extend((1..=6).map(|i| format!("P{i}")));
+                names
+            }
+            FamilyKind::Tetrahedron { centre } => {
+                let mut names: Vec<String> = (1..=4).map(|i| format!("V{i}")).collect();
+                if *centre {
+                    names.push("C".into());
+                }
+                names
+            }
+            FamilyKind::Custom {
+                start: Some(layout),
+                ..
+            } => layout.points.iter().map(|p| p.name.clone()).collect(),
+            FamilyKind::Custom { count, .. } => (1..=*count).map(|i| format!("Q{i}")).collect(),
+        }
+    }
+
+    /// The points of a parameter vector (clamped into bounds first).
+    pub fn points(&self, params: &[f64]) -> Vec<Vector3<f64>> {
+        let params = self.clamp(params);
+        match &self.kind {
+            FamilyKind::Biprism { centre, tilts } => {
+                let mut points = Vec::with_capacity(7);
+                if *centre {
+                    points.push(Vector3::zeros());
+                }
+                for (arm, axis) in ARM_AXES.iter().enumerate() {
+                    let axis = Vector3::new(axis[0], axis[1], axis[2]);
+                    let direction = if *tilts {
+                        let (a, b) = perpendicular_axes(&axis);
+                        let first = params[6 + 2 * arm].to_radians();
+                        let second = params[7 + 2 * arm].to_radians();
+                        Rotation3::from_scaled_axis(b * second)
+                            * Rotation3::from_scaled_axis(a * first)
+                            * axis
+                    } else {
+                        axis
+                    };
+                    points.push(direction * params[arm]);
+                }
+                points
+            }
+            FamilyKind::Tetrahedron { centre } => {
+                let mut points: Vec<Vector3<f64>> = params
+                    .chunks(3)
+                    .map(|c| Vector3::new(c[0], c[1], c[2]))
+                    .collect();
+                if *centre {
+                    points.push(points.iter().sum::<Vector3<f64>>() / 4.0);
+                }
+                points
+            }
+            FamilyKind::Custom {
+                start: Some(layout),
+                ..
+            } => {
+                let mut free = params.chunks(3);
+                layout
+                    .points
+                    .iter()
+                    .map(|p| {
+                        if p.fixed {
+                            p.position
+                        } else {
+                            let c = free.next().expect("one chunk per free point");
+                            Vector3::new(c[0], c[1], c[2])
+                        }
+                    })
+                    .collect()
+            }
+            FamilyKind::Custom { .. } => params
+                .chunks(3)
+                .map(|c| Vector3::new(c[0], c[1], c[2]))
+                .collect(),
+        }
+    }
+
+    /// The family record stored in a layout file.
+    pub fn record(&self, params: &[f64]) -> serde_json::Value {
+        let params = self.clamp(params);
+        match &self.kind {
+            FamilyKind::Biprism { centre, tilts } => serde_json::json!({
+                "kind": "biprism",
+                "parameters": {
+                    "arm_mm": &params[..6],
+                    "arm_tilt_deg": if *tilts { serde_json::json!(params[6..].chunks(2).collect::<Vec<_>>()) } else { serde_json::Value::Null },
+                    "centre": centre,
+                },
+                "envelope_mm": self.envelope.size_mm,
+            }),
+            FamilyKind::Tetrahedron { centre } => serde_json::json!({
+                "kind": "tetrahedron",
+                "parameters": {"vertices_mm": params.chunks(3).collect::<Vec<_>>(), "centre": centre},
+                "envelope_mm": self.envelope.size_mm,
+            }),
+            FamilyKind::Custom { .. } => serde_json::json!({
+                "kind": "custom",
+                "parameters": {"free_points_mm": params.chunks(3).collect::<Vec<_>>()},
+                "envelope_mm": self.envelope.size_mm,
+            }),
+        }
+    }
+
+    /// The layout of a parameter vector.
+    pub fn layout(&self, name: &str, params: &[f64]) -> Layout {
+        let fixed: Vec<bool> = match &self.kind {
+            FamilyKind::Custom {
+                start: Some(layout),
+                ..
+            } => layout.points.iter().map(|p| p.fixed).collect(),
+            _ => vec![false; self.point_count()],
+        };
+        let sigmas: Vec<Option<f64>> = match &self.kind {
+            FamilyKind::Custom {
+                start: Some(layout),
+                ..
+            } => layout.points.iter().map(|p| p.sigma_px).collect(),
+            _ => vec![None; self.point_count()],
+        };
+        Layout {
+            name: name.to_string(),
+            points: self
+                .names()
+                .into_iter()
+                .zip(self.points(params))
+                .zip(fixed.into_iter().zip(sigmas))
+                .map(|((name, position), (fixed, sigma_px))| LayoutPoint {
+                    name,
+                    position,
+                    sigma_px,
+                    fixed,
+                })
+                .collect(),
+            sphere_diameter_mm: self.sphere_diameter_mm,
+            family: Some(self.record(params)),
+            provenance: None,
+        }
+    }
+}
+
+/// Two unit axes perpendicular to a coordinate axis, in a fixed order.
+fn perpendicular_axes(axis: &Vector3<f64>) -> (Vector3<f64>, Vector3<f64>) {
+    if axis.x != 0.0 {
+        (Vector3::y(), Vector3::z())
+    } else if axis.y != 0.0 {
+        (Vector3::z(), Vector3::x())
+    } else {
+        (Vector3::x(), Vector3::y())
+    }
+}
+
+/// Fabrication constraints on a layout.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Constraints {
+    /// The box bounding the sphere centres.
+    pub envelope: Envelope,
+    /// Sphere diameter, mm.
+    pub sphere_diameter_mm: f64,
+    /// Smallest gap between two sphere surfaces, mm.
+    pub min_gap_mm: f64,
+    /// Smallest difference between any two pairwise centre distances, mm, so
+    /// that spheres can be told apart without labels (0 disables).
+    pub min_distance_diff_mm: f64,
+}
+
+/// How far a layout is from meeting each constraint (0 = met), mm.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+pub struct Violations {
+    /// Total distance of sphere centres outside the envelope, mm.
+    pub envelope_mm: f64,
+    /// Total shortfall of sphere-surface gaps below the minimum, mm.
+    pub gap_mm: f64,
+    /// Total shortfall of distance differences below the minimum, mm.
+    pub distance_diff_mm: f64,
+    /// Smallest sphere-surface gap, mm.
+    pub smallest_gap_mm: f64,
+    /// Smallest difference between two pairwise distances, mm.
+    pub smallest_distance_diff_mm: f64,
+}
+
+impl Violations {
+    /// Every constraint is met.
+    pub fn feasible(&self) -> bool {
+        self.total() <= 1e-9
+    }
+
+    /// Sum of all violations, mm.
+    pub fn total(&self) -> f64 {
+        self.envelope_mm + self.gap_mm + self.distance_diff_mm
+    }
+
+    /// The unmet constraints, in words.
+    pub fn describe(&self, constraints: &Constraints) -> Vec<String> {
+        let mut out = Vec::new();
+        if self.envelope_mm > 1e-9 {
+            out.push(format!(
+                "sphere centres outside the {:?} mm envelope by {:.2} mm in total",
+                constraints.envelope.size_mm, self.envelope_mm
+            ));
+        }
+        if self.gap_mm > 1e-9 {
+            out.push(format!(
+                "smallest gap between spheres {:.2} mm < {} mm",
+                self.smallest_gap_mm, constraints.min_gap_mm
+            ));
+        }
+        if self.distance_diff_mm > 1e-9 {
+            out.push(format!(
+                "pairwise distances differ by as little as {:.2} mm < {} mm (spheres not identifiable)",
+                self.smallest_distance_diff_mm, constraints.min_distance_diff_mm
+            ));
+        }
+        out
+    }
+}
+
+impl Constraints {
+    /// Measures the violations of `points`.
+    pub fn violations(&self, points: &[Vector3<f64>]) -> Violations {
+        let mut v = Violations {
+            smallest_gap_mm: f64::INFINITY,
+            smallest_distance_diff_mm: f64::INFINITY,
+            ..Violations::default()
+        };
+        v.envelope_mm = points.iter().map(|p| self.envelope.excess_mm(p)).sum();
+        let mut distances = Vec::with_capacity(points.len() * (points.len() - 1) / 2);
+        for (i, a) in points.iter().enumerate() {
+            for b in &points[i + 1..] {
+                let d = (a - b).norm();
+                distances.push(d);
+                let gap = d - self.sphere_diameter_mm;
+                v.smallest_gap_mm = v.smallest_gap_mm.min(gap);
+                v.gap_mm += (self.min_gap_mm - gap).max(0.0);
+            }
+        }
+        distances.sort_by(f64::total_cmp);
+        for pair in distances.windows(2) {
+            let diff = pair[1] - pair[0];
+            v.smallest_distance_diff_mm = v.smallest_distance_diff_mm.min(diff);
+            if self.min_distance_diff_mm > 0.0 {
+                v.distance_diff_mm += (self.min_distance_diff_mm - diff).max(0.0);
+            }
+        }
+        v
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use approx::assert_relative_eq;
+
+    fn cube(size: f64) -> Envelope {
+        Envelope::new([size; 3]).unwrap()
+    }
+
+    #[test]
+    fn biprism_start_is_the_papers_biprism() {
+        let family = Family::new(
+            FamilyKind::Biprism {
+                centre: true,
+                tilts: true,
+            },
+            cube(100.0),
+            10.0,
+        )
+        .unwrap();
+        let points = family.points(&family.initial());
+        let paper = crate::synthetic::biprism_points(50.0);
+        for (a, b) in points.iter().zip(&paper) {
+            assert_relative_eq!(a, b, epsilon = 1e-12);
+        }
+        assert_eq!(family.names()[0], "O0");
+        assert_eq!(family.dimension(), 18);
+    }
+
+    #[test]
+    fn spread_start_points_arms_at_corners() {
+        let family = Family::new(
+            FamilyKind::Biprism {
+                centre: true,
+                tilts: true,
+            },
+            cube(100.0),
+            10.0,
+        )
+        .unwrap();
+        let points = family.points(&family.spread());
+        for p in &points[1..] {
+            for k in 0..3 {
+                assert!((p[k].abs() - 50.0).abs() < 6.0, "{p:?}");
+            }
+        }
+        let custom = Family::new(
+            FamilyKind::Custom {
+                count: 7,
+                start: None,
+            },
+            cube(100.0),
+            10.0,
+        )
+        .unwrap();
+        assert!(custom
+            .points(&custom.spread())
+            .iter()
+            .all(|p| p.abs() == Vector3::new(50.0, 50.0, 50.0)));
+    }
+
+    #[test]
+    fn tilts_move_arms_off_their_axes() {
+        let family = Family::new(
+            FamilyKind::Biprism {
+                centre: false,
+                tilts: true,
+            },
+            cube(100.0),
+            10.0,
+        )
+        .unwrap();
+        let mut params = family.initial();
+        params[6] = 30.0;
+        let points = family.points(&params);
+        assert_relative_eq!(points[0].norm(), 50.0, epsilon = 1e-12);
+        assert!((points[0].z - 50.0 * 30f64.to_radians().cos()).abs() < 1e-9);
+    }
+
+    #[test]
+    fn tetrahedron_and_custom_starts_fit_the_envelope() {
+        let constraints = Constraints {
+            envelope: cube(100.0),
+            sphere_diameter_mm: 10.0,
+            min_gap_mm: 2.0,
+            min_distance_diff_mm: 0.0,
+        };
+        let tetra =
+            Family::new(FamilyKind::Tetrahedron { centre: true }, cube(100.0), 10.0).unwrap();
+        let v = constraints.violations(&tetra.points(&tetra.initial()));
+        assert!(v.feasible(), "{v:?}");
+        for count in 4..=14 {
+            let custom =
+                Family::new(FamilyKind::Custom { count, start: None }, cube(100.0), 10.0).unwrap();
+            let points = custom.points(&custom.initial());
+            assert_eq!(points.len(), count);
+            assert!(constraints.violations(&points).envelope_mm == 0.0);
+        }
+    }
+
+    #[test]
+    fn violations_are_measured() {
+        let constraints = Constraints {
+            envelope: cube(100.0),
+            sphere_diameter_mm: 10.0,
+            min_gap_mm: 2.0,
+            min_distance_diff_mm: 1.0,
+        };
+        let paper = crate::synthetic::biprism_points(50.0);
+        let v = constraints.violations(&paper);
+        assert_eq!(v.envelope_mm, 0.0);
+        assert_eq!(v.gap_mm, 0.0);
+        // The paper's biprism repeats its distances: not identifiable.
+        assert!(v.distance_diff_mm > 0.0);
+        assert_eq!(v.smallest_distance_diff_mm, 0.0);
+        let mut crowded = paper.clone();
+        crowded[1] = Vector3::new(0.0, 0.0, 11.0);
+        crowded[2] = Vector3::new(0.0, 0.0, 60.0);
+        let v = constraints.violations(&crowded);
+        assert!((v.smallest_gap_mm - 1.0).abs() < 1e-12);
+        assert!(v.gap_mm >= 1.0 && v.envelope_mm >= 10.0);
+        assert!(!v.describe(&constraints).is_empty());
+    }
+
+    #[test]
+    fn bad_families_are_rejected() {
+        assert!(matches!(
+            Family::new(FamilyKind::Tetrahedron { centre: false }, cube(5.0), 10.0),
+            Err(FamilyError::EnvelopeTooSmall { .. })
+        ));
+        assert_eq!(
+            Family::new(
+                FamilyKind::Custom {
+                    count: 3,
+                    start: None
+                },
+                cube(100.0),
+                10.0
+            )
+            .unwrap_err(),
+            FamilyError::TooFewPoints(3)
+        );
+        assert!("100,80".parse::<Envelope>().is_err());
+        assert!("0".parse::<Envelope>().is_err());
+        assert_eq!("120".parse::<Envelope>().unwrap().size_mm, [120.0; 3]);
+    }
+}

@@ -1,0 +1,645 @@
+//! argmin optimisers over a layout family: Nelder–Mead, particle swarm and
+//! simulated annealing, run from several seeded starts in parallel.
+//!
+//! * Every random stream is seeded from (seed, start): particle swarm gets a
+//!   seeded ChaCha generator (argmin's default draws from the OS), annealing
+//!   perturbs with its own seeded generator, and random starts are drawn from
+//!   `stream_rng(seed, START_STREAM, start)`.
+//! * Every run has a bounded iteration count (Nelder–Mead has no bounds and
+//!   may never converge on a noisy objective). Parameters outside the
+//!   family's bounds are clamped before evaluation and penalised by
+//!   [`BOUND_PENALTY`] per range-width of excess, so simplices stay inside.
+//! * Particle swarm and annealing are followed by a Nelder–Mead polish of
+//!   their best point.
+//! * Starts are independent and deterministic; the winner is the best start
+//!   (feasible before infeasible, then lowest cost, then lowest start index),
+//!   so the result does not depend on the thread count.
+//! * A shared tracker reports every improvement of the best-so-far layout to
+//!   the caller (which writes it atomically), and a stop flag, checked at
+//!   every evaluation, ends all starts promptly (Ctrl-C).
+
+use super::{Evaluation, Evaluator};
+use crate::family::Family;
+use crate::synthetic::stream_rng;
+use argmin::core::{observers::ObserverMode, CostFunction, Executor, State, KV};
+use argmin::solver::neldermead::NelderMead;
+use argmin::solver::particleswarm::{Particle, ParticleSwarm};
+use argmin::solver::simulatedannealing::{Anneal, SimulatedAnnealing};
+use rand::Rng;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::StandardNormal;
+use rayon::prelude::*;
+use serde::Serialize;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex};
+
+/// Cost added per range-width a parameter lies outside its bounds.
+pub const BOUND_PENALTY: f64 = 100.0;
+/// Random stream of the random starts.
+const START_STREAM: u64 = 0x5EA2C4;
+/// Random stream of particle swarm.
+const SWARM_STREAM: u64 = 0x5EA2C5;
+/// Random stream of annealing.
+const ANNEAL_STREAM: u64 = 0x5EA2C6;
+/// Nelder–Mead's initial simplex steps this fraction of each range.
+pub const SIMPLEX_STEP: f64 = 0.1;
+/// Initial annealing temperature (costs are ~1 for the reference layout).
+pub const ANNEAL_TEMPERATURE: f64 = 0.05;
+/// At the initial temperature, annealing steps have this fraction of each
+/// parameter's range as standard deviation.
+pub const ANNEAL_STEP: f64 = 0.1;
+
+/// Which optimiser runs each start.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Optimiser {
+    /// Nelder–Mead simplex.
+    NelderMead,
+    /// Particle swarm, then a Nelder–Mead polish.
+    ParticleSwarm,
+    /// Simulated annealing, then a Nelder–Mead polish.
+    Annealing,
+}
+
+impl std::str::FromStr for Optimiser {
+    type Err = String;
+    fn from_str(text: &str) -> Result<Self, Self::Err> {
+        match text {
+            "nelder-mead" | "nm" => Ok(Optimiser::NelderMead),
+            "pso" | "particle-swarm" => Ok(Optimiser::ParticleSwarm),
+            "annealing" | "sa" => Ok(Optimiser::Annealing),
+            other => Err(format!(
+                "unknown optimiser '{other}'; use nelder-mead, pso or annealing"
+            )),
+        }
+    }
+}
+
+/// How the search runs.
+#[derive(Debug, Clone, Serialize)]
+pub struct SearchSettings {
+    /// The optimiser.
+    pub optimiser: Optimiser,
+    /// Independent starts: start 0 is the family's natural start, start 1 its
+    /// maximum-spread start ([`Family::spread`]), the others random within
+    /// bounds.
+    pub starts: usize,
+    /// Iterations of the main optimiser per start.
+    pub iterations: u64,
+    /// Particles (particle swarm).
+    pub particles: usize,
+    /// Iterations of the Nelder–Mead polish (0: none).
+    pub polish_iterations: u64,
+    /// Seed of every random stream.
+    pub seed: u64,
+}
+
+/// A scored parameter vector.
+#[derive(Debug, Clone, Serialize)]
+pub struct Candidate {
+    /// Family parameters (clamped into bounds).
+    pub params: Vec<f64>,
+    /// Its score.
+    pub evaluation: Evaluation,
+    /// The start that found it.
+    pub start: usize,
+}
+
+impl Candidate {
+    /// Feasible before infeasible, then lower cost, then lower start index.
+    fn better_than(&self, other: &Candidate) -> bool {
+        let infeasible = |c: &Candidate| !c.evaluation.violations.feasible();
+        infeasible(self)
+            .cmp(&infeasible(other))
+            .then(self.evaluation.cost.total_cmp(&other.evaluation.cost))
+            .then(self.start.cmp(&other.start))
+            .is_lt()
+    }
+}
+
+/// What the caller hears while the search runs (from worker threads).
+pub trait SearchObserver: Sync {
+    /// The best-so-far layout improved.
+    fn improved(&self, candidate: &Candidate);
+    /// A start finished an iteration; `evaluations` counts all starts.
+    fn progress(&self, start: usize, iteration: u64, evaluations: usize, best_cost: f64);
+}
+
+/// The result of a search.
+#[derive(Debug, Clone, Serialize)]
+pub struct SearchOutcome {
+    /// The winner.
+    pub best: Candidate,
+    /// Each start's best, in start order.
+    pub starts: Vec<Candidate>,
+    /// Objective evaluations.
+    pub evaluations: usize,
+    /// Whether the stop flag ended the search early.
+    pub interrupted: bool,
+}
+
+/// Why a search failed.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum SearchError {
+    /// Bad settings.
+    #[error("invalid search settings: {0}")]
+    Settings(String),
+    /// Stopped before any layout was evaluated.
+    #[error("the search was interrupted before it evaluated any layout")]
+    InterruptedEmpty,
+    /// argmin reported an error.
+    #[error("optimiser failed in start {start}: {message}")]
+    Optimiser {
+        /// The start.
+        start: usize,
+        /// argmin's message.
+        message: String,
+    },
+}
+
+struct Shared<'a> {
+    best: Mutex<Option<Candidate>>,
+    evaluations: Arc<AtomicUsize>,
+    observer: Arc<dyn SearchObserver + Send>,
+    stop: &'a AtomicBool,
+}
+
+impl Shared<'_> {
+    fn offer(&self, candidate: &Candidate) {
+        let mut best = self
+            .best
+            .lock()
+            .expect("no thread panics while holding the tracker");
+        if best.as_ref().is_none_or(|b| candidate.better_than(b)) {
+            *best = Some(candidate.clone());
+            self.observer.improved(candidate);
+        }
+    }
+}
+
+struct LayoutProblem<'a> {
+    family: &'a Family,
+    evaluator: &'a Evaluator,
+    point_sigma: &'a [Option<f64>],
+    lower: &'a [f64],
+    upper: &'a [f64],
+    start: usize,
+    shared: &'a Shared<'a>,
+    start_best: Mutex<Option<Candidate>>,
+    anneal_rng: Mutex<ChaCha8Rng>,
+}
+
+impl LayoutProblem<'_> {
+    fn bound_penalty(&self, params: &[f64]) -> f64 {
+        params
+            .iter()
+            .zip(self.lower.iter().zip(self.upper))
+            .map(|(p, (lo, hi))| {
+                let excess = (lo - p).max(0.0) + (p - hi).max(0.0);
+                BOUND_PENALTY * excess / (hi - lo)
+            })
+            .sum()
+    }
+}
+
+impl CostFunction for LayoutProblem<'_> {
+    type Param = Vec<f64>;
+    type Output = f64;
+
+    fn cost(&self, params: &Self::Param) -> Result<Self::Output, argmin::core::Error> {
+        // After a stop every evaluation returns +∞ at once, so the bounded
+        // iterations drain in microseconds (argmin's Nelder–Mead unwraps
+        // cost errors, so an error cannot end it).
+        if self.shared.stop.load(Ordering::Relaxed) {
+            return Ok(f64::INFINITY);
+        }
+        let clamped = self.family.clamp(params);
+        let evaluation = self
+            .evaluator
+            .evaluate(&self.family.points(&clamped), self.point_sigma);
+        let cost = evaluation.cost + self.bound_penalty(params);
+        let candidate = Candidate {
+            params: clamped,
+            evaluation,
+            start: self.start,
+        };
+        self.shared.evaluations.fetch_add(1, Ordering::Relaxed);
+        {
+            let mut best = self
+                .start_best
+                .lock()
+                .expect("no panics while holding the lock");
+            if best.as_ref().is_none_or(|b| candidate.better_than(b)) {
+                *best = Some(candidate.clone());
+            }
+        }
+        self.shared.offer(&candidate);
+        Ok(cost)
+    }
+}
+
+impl Anneal for LayoutProblem<'_> {
+    type Param = Vec<f64>;
+    type Output = Vec<f64>;
+    type Float = f64;
+
+    /// Moves each parameter with probability 1/2 by a Gaussian step whose
+    /// size shrinks with the temperature.
+    fn anneal(&self, params: &Vec<f64>, temperature: f64) -> Result<Vec<f64>, argmin::core::Error> {
+        let mut rng = self
+            .anneal_rng
+            .lock()
+            .expect("no panics while holding the lock");
+        let scale = ANNEAL_STEP * (temperature / ANNEAL_TEMPERATURE).min(1.0);
+        let mut next = params.clone();
+        for (k, value) in next.iter_mut().enumerate() {
+            if rng.random::<bool>() {
+                let step: f64 = rng.sample(StandardNormal);
+                *value = (*value + step * scale * (self.upper[k] - self.lower[k]))
+                    .clamp(self.lower[k], self.upper[k]);
+            }
+        }
+        Ok(next)
+    }
+}
+
+/// The argmin observer that forwards iterations to the caller's observer.
+struct ProgressObserver {
+    observer: Arc<dyn SearchObserver + Send>,
+    evaluations: Arc<AtomicUsize>,
+    start: usize,
+}
+
+impl ProgressObserver {
+    fn new(shared: &Shared<'_>, start: usize) -> Self {
+        Self {
+            observer: Arc::clone(&shared.observer),
+            evaluations: Arc::clone(&shared.evaluations),
+            start,
+        }
+    }
+}
+
+impl<I: State<Float = f64>> argmin::core::observers::Observe<I> for ProgressObserver {
+    fn observe_iter(&mut self, state: &I, _kv: &KV) -> Result<(), argmin::core::Error> {
+        self.observer.progress(
+            self.start,
+            state.get_iter(),
+            self.evaluations.load(Ordering::Relaxed),
+            state.get_best_cost(),
+        );
+        Ok(())
+    }
+}
+
+fn simplex(start: &[f64], lower: &[f64], upper: &[f64]) -> Vec<Vec<f64>> {
+    let mut vertices = vec![start.to_vec()];
+    for k in 0..start.len() {
+        let mut vertex = start.to_vec();
+        let step = SIMPLEX_STEP * (upper[k] - lower[k]);
+        vertex[k] = if vertex[k] + step <= upper[k] {
+            vertex[k] + step
+        } else {
+            vertex[k] - step
+        };
+        vertices.push(vertex);
+    }
+    vertices
+}
+
+fn run_nelder_mead<'a>(
+    problem: LayoutProblem<'a>,
+    start: &[f64],
+    iterations: u64,
+) -> Result<LayoutProblem<'a>, argmin::core::Error> {
+    let shared = problem.shared;
+    let index = problem.start;
+    let solver =
+        NelderMead::new(simplex(start, problem.lower, problem.upper)).with_sd_tolerance(1e-10)?;
+    let result = Executor::new(problem, solver)
+        .configure(|state| state.max_iters(iterations))
+        .add_observer(ProgressObserver::new(shared, index), ObserverMode::Always)
+        .run()?;
+    Ok(result
+        .problem
+        .problem
+        .expect("the executor returns its problem"))
+}
+
+fn best_params(problem: &LayoutProblem<'_>) -> Option<Vec<f64>> {
+    problem
+        .start_best
+        .lock()
+        .expect("no panics while holding the lock")
+        .as_ref()
+        .map(|c| c.params.clone())
+}
+
+fn run_start<'a>(
+    family: &'a Family,
+    evaluator: &'a Evaluator,
+    settings: &SearchSettings,
+    shared: &'a Shared<'a>,
+    point_sigma: &'a [Option<f64>],
+    bounds: &'a (Vec<f64>, Vec<f64>),
+    start: usize,
+) -> Result<Option<Candidate>, argmin::core::Error> {
+    let (lower, upper) = (&bounds.0, &bounds.1);
+    let initial = if start == 0 {
+        family.initial()
+    } else if start == 1 {
+        family.spread()
+    } else {
+        let mut rng = stream_rng(settings.seed, START_STREAM, start as u64);
+        lower
+            .iter()
+            .zip(upper)
+            .map(|(lo, hi)| rng.random_range(*lo..=*hi))
+            .collect()
+    };
+    let problem = LayoutProblem {
+        family,
+        evaluator,
+        point_sigma,
+        lower,
+        upper,
+        start,
+        shared,
+        start_best: Mutex::new(None),
+        anneal_rng: Mutex::new(stream_rng(settings.seed, ANNEAL_STREAM, start as u64)),
+    };
+    let observer = ProgressObserver::new(shared, start);
+    let problem = match settings.optimiser {
+        Optimiser::NelderMead => run_nelder_mead(problem, &initial, settings.iterations)?,
+        Optimiser::ParticleSwarm => {
+            // The swarm starts from the start point plus random particles, so
+            // start 0 always contains the family's natural start.
+            let mut rng = stream_rng(settings.seed, SWARM_STREAM, start as u64);
+            let mut population = Vec::with_capacity(settings.particles);
+            for k in 0..settings.particles {
+                let position: Vec<f64> = if k == 0 {
+                    initial.clone()
+                } else {
+                    lower
+                        .iter()
+                        .zip(upper)
+                        .map(|(lo, hi)| rng.random_range(*lo..=*hi))
+                        .collect()
+                };
+                let velocity: Vec<f64> = lower
+                    .iter()
+                    .zip(upper)
+                    .map(|(lo, hi)| rng.random_range(-(hi - lo)..=(hi - lo)))
+                    .collect();
+                let cost = problem.cost(&position)?;
+                population.push(Particle::new(position, cost, velocity));
+            }
+            let solver = ParticleSwarm::new((lower.clone(), upper.clone()), settings.particles)
+                .with_rng_generator(rng);
+            let result = Executor::new(problem, solver)
+                .configure(|state| state.population(population).max_iters(settings.iterations))
+                .add_observer(observer, ObserverMode::Always)
+                .run()?;
+            result
+                .problem
+                .problem
+                .expect("the executor returns its problem")
+        }
+        Optimiser::Annealing => {
+            let solver = SimulatedAnnealing::new_with_rng(
+                ANNEAL_TEMPERATURE,
+                stream_rng(settings.seed, SWARM_STREAM, start as u64),
+            )?;
+            let result = Executor::new(problem, solver)
+                .configure(|state| state.param(initial.clone()).max_iters(settings.iterations))
+                .add_observer(observer, ObserverMode::Always)
+                .run()?;
+            result
+                .problem
+                .problem
+                .expect("the executor returns its problem")
+        }
+    };
+    let problem = if settings.optimiser != Optimiser::NelderMead && settings.polish_iterations > 0 {
+        match best_params(&problem) {
+            Some(best) => run_nelder_mead(problem, &best, settings.polish_iterations)?,
+            None => problem,
+        }
+    } else {
+        problem
+    };
+    let best = problem
+        .start_best
+        .lock()
+        .expect("no panics while holding the lock")
+        .take();
+    Ok(best)
+}
+
+/// Minimises `evaluator`'s cost over `family`'s parameters.
+pub fn run(
+    family: &Family,
+    evaluator: &Evaluator,
+    settings: &SearchSettings,
+    stop: &AtomicBool,
+    observer: Arc<dyn SearchObserver + Send>,
+) -> Result<SearchOutcome, SearchError> {
+    if settings.starts == 0 || settings.iterations == 0 {
+        return Err(SearchError::Settings(
+            "starts and iterations must be at least 1".into(),
+        ));
+    }
+    if settings.optimiser == Optimiser::ParticleSwarm && settings.particles < 2 {
+        return Err(SearchError::Settings(
+            "particle swarm needs at least 2 particles".into(),
+        ));
+    }
+    let bounds = family.bounds();
+    let point_sigma: Vec<Option<f64>> = family
+        .layout("", &family.initial())
+        .points
+        .iter()
+        .map(|p| p.sigma_px)
+        .collect();
+    let shared = Shared {
+        best: Mutex::new(None),
+        evaluations: Arc::new(AtomicUsize::new(0)),
+        observer,
+        stop,
+    };
+    let results: Vec<Result<Option<Candidate>, argmin::core::Error>> = (0..settings.starts)
+        .into_par_iter()
+        .map(|start| {
+            run_start(
+                family,
+                evaluator,
+                settings,
+                &shared,
+                &point_sigma,
+                &bounds,
+                start,
+            )
+        })
+        .collect();
+    let interrupted = stop.load(Ordering::Relaxed);
+    let mut starts = Vec::with_capacity(results.len());
+    for (start, result) in results.into_iter().enumerate() {
+        match result {
+            Ok(Some(candidate)) => starts.push(candidate),
+            Ok(None) => {}
+            Err(error) => {
+                return Err(SearchError::Optimiser {
+                    start,
+                    message: error.to_string(),
+                })
+            }
+        }
+    }
+    // After an interruption a start's own best may be missing; the shared
+    // tracker still has the best layout seen anywhere.
+    let best = if interrupted {
+        shared
+            .best
+            .into_inner()
+            .expect("no panics while holding the tracker")
+    } else {
+        starts.iter().fold(None::<Candidate>, |best, c| match best {
+            Some(b) if !c.better_than(&b) => Some(b),
+            _ => Some(c.clone()),
+        })
+    }
+    .ok_or(SearchError::InterruptedEmpty)?;
+    Ok(SearchOutcome {
+        best,
+        starts,
+        evaluations: shared.evaluations.load(Ordering::Relaxed),
+        interrupted,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::camera::Camera;
+    use crate::family::{Constraints, Envelope, FamilyKind};
+    use crate::noise::NoiseModel;
+    use crate::scenario::{Range, ScenarioGrid};
+    use crate::search::{Aggregate, ObjectiveSettings};
+
+    struct Quiet;
+    impl SearchObserver for Quiet {
+        fn improved(&self, _: &Candidate) {}
+        fn progress(&self, _: usize, _: u64, _: usize, _: f64) {}
+    }
+
+    fn setup() -> (Family, Evaluator) {
+        let envelope = Envelope::new([100.0; 3]).unwrap();
+        let family = Family::new(
+            FamilyKind::Biprism {
+                centre: true,
+                tilts: false,
+            },
+            envelope,
+            10.0,
+        )
+        .unwrap();
+        let grid = ScenarioGrid::new(
+            Range::list(&[400.0, 800.0]),
+            Range::single(30.0),
+            Range::single(0.0),
+            Range::list(&[-30.0, 30.0]),
+            Range::single(0.0),
+            Range::single(0.0),
+            Range::single(0.5),
+        )
+        .unwrap();
+        let evaluator = Evaluator::new(
+            Camera::paper(),
+            grid.scenarios(),
+            ObjectiveSettings {
+                objective: "crlb".parse().unwrap(),
+                aggregate: Aggregate::Mean,
+                translation_weight: 0.5,
+                availability_weight: 2.0,
+                trials: 10,
+                seed: 1,
+                noise: NoiseModel::default(),
+            },
+            Constraints {
+                envelope,
+                sphere_diameter_mm: 10.0,
+                min_gap_mm: 1.0,
+                min_distance_diff_mm: 0.0,
+            },
+            &crate::synthetic::biprism_points(50.0),
+        );
+        (family, evaluator)
+    }
+
+    #[test]
+    fn every_optimiser_improves_on_a_shrunken_start_and_is_deterministic() {
+        let (family, evaluator) = setup();
+        for optimiser in [
+            Optimiser::NelderMead,
+            Optimiser::ParticleSwarm,
+            Optimiser::Annealing,
+        ] {
+            let settings = SearchSettings {
+                optimiser,
+                starts: 2,
+                iterations: 40,
+                particles: 8,
+                polish_iterations: 40,
+                seed: 5,
+            };
+            let stop = AtomicBool::new(false);
+            let a = run(&family, &evaluator, &settings, &stop, Arc::new(Quiet)).unwrap();
+            let b = run(&family, &evaluator, &settings, &stop, Arc::new(Quiet)).unwrap();
+            assert_eq!(
+                a.best.params, b.best.params,
+                "{optimiser:?} is not deterministic"
+            );
+            // Without tilts the longest arms are best: the start (the paper's
+            // biprism) is already near-optimal, so the search must not lose it.
+            assert!(
+                a.best.evaluation.cost <= 1.0 + 1e-9,
+                "{optimiser:?}: {}",
+                a.best.evaluation.cost
+            );
+            assert!(a.evaluations > 10);
+        }
+    }
+
+    #[test]
+    fn a_stop_flag_ends_the_search() {
+        let (family, evaluator) = setup();
+        for optimiser in [
+            Optimiser::NelderMead,
+            Optimiser::ParticleSwarm,
+            Optimiser::Annealing,
+        ] {
+            let settings = SearchSettings {
+                optimiser,
+                starts: 2,
+                iterations: 100_000,
+                particles: 8,
+                polish_iterations: 100_000,
+                seed: 5,
+            };
+            let stop = AtomicBool::new(true);
+            let started = std::time::Instant::now();
+            let result = run(&family, &evaluator, &settings, &stop, Arc::new(Quiet));
+            assert!(
+                matches!(result, Err(SearchError::InterruptedEmpty)),
+                "{optimiser:?}"
+            );
+            // Not a timing assertion on speed, a liveness one: 10⁵ iterations
+            // of real evaluations would take minutes.
+            assert!(
+                started.elapsed().as_secs() < 30,
+                "{optimiser:?} did not stop"
+            );
+        }
+    }
+}
