@@ -322,6 +322,8 @@ fn candidates_are_distinct_minima_in_front_with_the_lowest_cost_first() {
         assert_eq!(statistics.charts_solved, 4);
         assert_eq!(statistics.returned, candidates.len());
         assert!(statistics.local_minima <= statistics.real_critical_points);
+        assert!(statistics.in_front <= statistics.trusted);
+        assert!(statistics.trusted <= statistics.local_minima);
         for (i, a) in candidates.iter().enumerate() {
             assert!(a.all_in_front(&object));
             for b in &candidates[i + 1..] {

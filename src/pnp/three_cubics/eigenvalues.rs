@@ -50,6 +50,10 @@ pub enum EigenvalueError {
     NoConvergence,
 }
 
+/// A square matrix stored as its columns: `columns[j][i]` is entry `(i, j)`,
+/// so column operations run over contiguous memory.
+type Columns<const N: usize> = [[f64; N]; N];
+
 /// All `N` eigenvalues of `matrix`, in no particular order.
 pub fn eigenvalues<const N: usize>(
     matrix: &SMatrix<f64, N, N>,
@@ -57,21 +61,24 @@ pub fn eigenvalues<const N: usize>(
     if !matrix.iter().all(|v| v.is_finite()) {
         return Err(EigenvalueError::NonFinite);
     }
-    let mut h = *matrix;
-    balance(&mut h);
-    reduce_to_hessenberg(&mut h);
-    hessenberg_eigenvalues(&mut h)
+    let mut columns: Columns<N> = [[0.0; N]; N];
+    for (column, source) in columns.iter_mut().zip(matrix.as_slice().chunks_exact(N)) {
+        column.copy_from_slice(source);
+    }
+    balance(&mut columns);
+    reduce_to_hessenberg(&mut columns);
+    hessenberg_eigenvalues(&mut columns)
 }
 
 /// Parlett–Reinsch balancing in the 1-norm: a diagonal similarity by powers
 /// of two that makes each row and column (off the diagonal) of similar size.
-fn balance<const N: usize>(a: &mut SMatrix<f64, N, N>) {
+fn balance<const N: usize>(a: &mut Columns<N>) {
     for _ in 0..MAX_BALANCING_SWEEPS {
         let mut converged = true;
         for i in 0..N {
-            let column: f64 = (0..N).filter(|&j| j != i).map(|j| a[(j, i)].abs()).sum();
-            let row: f64 = (0..N).filter(|&j| j != i).map(|j| a[(i, j)].abs()).sum();
-            if column == 0.0 || row == 0.0 {
+            let column: f64 = a[i].iter().map(|v| v.abs()).sum::<f64>() - a[i][i].abs();
+            let row: f64 = a.iter().map(|c| c[i].abs()).sum::<f64>() - a[i][i].abs();
+            if !(column > 0.0 && row > 0.0) {
                 continue;
             }
             let (mut scaled_column, mut scaled_row, mut factor) = (column, row, 1.0);
@@ -87,9 +94,12 @@ fn balance<const N: usize>(a: &mut SMatrix<f64, N, N>) {
             }
             if scaled_column + scaled_row < BALANCING_IMPROVEMENT * (column + row) {
                 converged = false;
-                for j in 0..N {
-                    a[(j, i)] *= factor;
-                    a[(i, j)] /= factor;
+                // Column i times f, row i divided by f (the diagonal is unchanged).
+                for v in a[i].iter_mut() {
+                    *v *= factor;
+                }
+                for c in a.iter_mut() {
+                    c[i] /= factor;
                 }
             }
         }
@@ -101,42 +111,44 @@ fn balance<const N: usize>(a: &mut SMatrix<f64, N, N>) {
 
 /// Householder reduction to upper Hessenberg form by a similarity
 /// (Golub & Van Loan Algorithm 7.4.2), without accumulating the reflectors.
-fn reduce_to_hessenberg<const N: usize>(a: &mut SMatrix<f64, N, N>) {
+fn reduce_to_hessenberg<const N: usize>(a: &mut Columns<N>) {
     for k in 0..N.saturating_sub(2) {
-        let mut v = [0.0; N];
-        let norm = (k + 1..N)
-            .map(|i| a[(i, k)] * a[(i, k)])
-            .sum::<f64>()
-            .sqrt();
+        let below = &a[k][k + 1..];
+        let norm = below.iter().map(|v| v * v).sum::<f64>().sqrt();
         if norm == 0.0 {
             continue;
         }
-        let alpha = -norm.copysign(a[(k + 1, k)]);
-        for i in k + 1..N {
-            v[i] = a[(i, k)];
-        }
+        let alpha = -norm.copysign(below[0]);
+        let mut v = [0.0; N];
+        v[k + 1..].copy_from_slice(below);
         v[k + 1] -= alpha;
         let v_norm_sq: f64 = v[k + 1..].iter().map(|e| e * e).sum();
         if v_norm_sq == 0.0 {
             continue;
         }
         let tau = 2.0 / v_norm_sq;
-        // Left: rows k+1.., columns k+1.. (column k becomes (α, 0, …)).
-        for j in k + 1..N {
-            let dot: f64 = (k + 1..N).map(|i| v[i] * a[(i, j)]).sum::<f64>() * tau;
-            for i in k + 1..N {
-                a[(i, j)] -= dot * v[i];
+        let v = &v[k + 1..];
+        // Left, (I − τvvᵀ)A on rows k+1..: column k becomes (…, α, 0, …).
+        for column in a[k + 1..].iter_mut() {
+            let rows = &mut column[k + 1..];
+            let dot = tau * rows.iter().zip(v).map(|(c, e)| c * e).sum::<f64>();
+            for (c, e) in rows.iter_mut().zip(v) {
+                *c -= dot * e;
             }
         }
-        a[(k + 1, k)] = alpha;
-        for i in k + 2..N {
-            a[(i, k)] = 0.0;
+        a[k][k + 1] = alpha;
+        a[k][k + 2..].fill(0.0);
+        // Right, A(I − τvvᵀ) on columns k+1..: w = A v, then A −= τ w vᵀ.
+        let mut w = [0.0; N];
+        for (column, &e) in a[k + 1..].iter().zip(v) {
+            for (wi, c) in w.iter_mut().zip(column) {
+                *wi += c * e;
+            }
         }
-        // Right: every row, columns k+1...
-        for i in 0..N {
-            let dot: f64 = (k + 1..N).map(|j| a[(i, j)] * v[j]).sum::<f64>() * tau;
-            for j in k + 1..N {
-                a[(i, j)] -= dot * v[j];
+        for (column, &e) in a[k + 1..].iter_mut().zip(v) {
+            let factor = tau * e;
+            for (c, wi) in column.iter_mut().zip(&w) {
+                *c -= factor * wi;
             }
         }
     }
@@ -198,54 +210,64 @@ fn reflector<const K: usize>(x: [f64; K]) -> Option<([f64; K], f64)> {
 /// window `[low, high]`: from the left to columns `max(low, k−1)..=high`,
 /// from the right to rows `low..=min(k+K, high)`.
 fn apply_reflector<const N: usize, const K: usize>(
-    h: &mut SMatrix<f64, N, N>,
+    h: &mut Columns<N>,
     (v, tau): ([f64; K], f64),
     k: usize,
     low: usize,
     high: usize,
 ) {
-    for j in k.saturating_sub(1).max(low)..=high {
-        let dot: f64 = (0..K).map(|i| v[i] * h[(k + i, j)]).sum::<f64>() * tau;
-        for i in 0..K {
-            h[(k + i, j)] -= dot * v[i];
+    for column in h[k.saturating_sub(1).max(low)..=high].iter_mut() {
+        let rows = &mut column[k..k + K];
+        let dot = tau * rows.iter().zip(&v).map(|(c, e)| c * e).sum::<f64>();
+        for (c, e) in rows.iter_mut().zip(&v) {
+            *c -= dot * e;
         }
     }
-    for i in low..=(k + K).min(high) {
-        let dot: f64 = (0..K).map(|j| h[(i, k + j)] * v[j]).sum::<f64>() * tau;
-        for j in 0..K {
-            h[(i, k + j)] -= dot * v[j];
+    let last = (k + K).min(high);
+    let columns = &mut h[k..k + K];
+    let mut dots = [0.0; N];
+    for (column, e) in columns.iter().zip(&v) {
+        for (d, c) in dots[low..=last].iter_mut().zip(&column[low..=last]) {
+            *d += c * e;
+        }
+    }
+    for (column, e) in columns.iter_mut().zip(&v) {
+        let factor = tau * e;
+        for (c, d) in column[low..=last].iter_mut().zip(&dots[low..=last]) {
+            *c -= factor * d;
         }
     }
 }
 
 /// Francis double-shift QR on an upper Hessenberg matrix (destroyed).
 fn hessenberg_eigenvalues<const N: usize>(
-    h: &mut SMatrix<f64, N, N>,
+    h: &mut Columns<N>,
 ) -> Result<[Eigenvalue; N], EigenvalueError> {
     let mut out = [Eigenvalue { re: 0.0, im: 0.0 }; N];
     if N == 0 {
         return Ok(out);
     }
-    let scale = h.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    // Entry (i, j) is h[j][i].
+    let scale = h.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()));
     let mut high = N - 1;
     let mut iterations = 0usize;
     loop {
         // Deflate: find the start `low` of the unreduced block ending at `high`.
         let mut low = high;
         while low > 0 {
-            let mut neighbourhood = h[(low - 1, low - 1)].abs() + h[(low, low)].abs();
+            let mut neighbourhood = h[low - 1][low - 1].abs() + h[low][low].abs();
             if neighbourhood == 0.0 {
                 neighbourhood = scale;
             }
-            if h[(low, low - 1)].abs() <= f64::EPSILON * neighbourhood {
-                h[(low, low - 1)] = 0.0;
+            if h[low - 1][low].abs() <= f64::EPSILON * neighbourhood {
+                h[low - 1][low] = 0.0;
                 break;
             }
             low -= 1;
         }
         if low == high {
             out[high] = Eigenvalue {
-                re: h[(high, high)],
+                re: h[high][high],
                 im: 0.0,
             };
             iterations = 0;
@@ -256,12 +278,7 @@ fn hessenberg_eigenvalues<const N: usize>(
             continue;
         }
         if low + 1 == high {
-            let pair = eigenvalues_2x2(
-                h[(low, low)],
-                h[(low, high)],
-                h[(high, low)],
-                h[(high, high)],
-            );
+            let pair = eigenvalues_2x2(h[low][low], h[high][low], h[low][high], h[high][high]);
             out[low] = pair[0];
             out[high] = pair[1];
             iterations = 0;
@@ -278,14 +295,14 @@ fn hessenberg_eigenvalues<const N: usize>(
 
         // The two shifts enter only through their sum and product.
         let (a, b, c, d) = (
-            h[(high - 1, high - 1)],
-            h[(high - 1, high)],
-            h[(high, high - 1)],
-            h[(high, high)],
+            h[high - 1][high - 1],
+            h[high][high - 1],
+            h[high - 1][high],
+            h[high][high],
         );
         let (shift_sum, shift_product) = if iterations % EXCEPTIONAL_SHIFT_EVERY == 0 {
             // Wilkinson's exceptional shift (as in EISPACK `hqr`).
-            let s = h[(high, high - 1)].abs() + h[(high - 1, high - 2)].abs();
+            let s = h[high - 1][high].abs() + h[high - 2][high - 1].abs();
             (2.0 * d + 1.5 * s, d * d + 1.5 * s * d + s * s)
         } else {
             (a + d, a * d - b * c)
@@ -293,11 +310,11 @@ fn hessenberg_eigenvalues<const N: usize>(
 
         // First column of (H − σ1 I)(H − σ2 I) (Golub & Van Loan eq. 7.5.6).
         let (h00, h01, h10, h11, h21) = (
-            h[(low, low)],
-            h[(low, low + 1)],
-            h[(low + 1, low)],
-            h[(low + 1, low + 1)],
-            h[(low + 2, low + 1)],
+            h[low][low],
+            h[low + 1][low],
+            h[low][low + 1],
+            h[low + 1][low + 1],
+            h[low + 1][low + 2],
         );
         let mut x = h00 * h00 + h01 * h10 - shift_sum * h00 + shift_product;
         let mut y = h10 * (h00 + h11 - shift_sum);
@@ -309,20 +326,20 @@ fn hessenberg_eigenvalues<const N: usize>(
             }
             if k > low {
                 // Exact zeros where the reflector annihilated the bulge.
-                h[(k + 1, k - 1)] = 0.0;
-                h[(k + 2, k - 1)] = 0.0;
+                h[k - 1][k + 1] = 0.0;
+                h[k - 1][k + 2] = 0.0;
             }
-            x = h[(k + 1, k)];
-            y = h[(k + 2, k)];
+            x = h[k][k + 1];
+            y = h[k][k + 2];
             if k + 3 <= high {
-                z = h[(k + 3, k)];
+                z = h[k][k + 3];
             }
         }
         if let Some(r) = reflector([x, y]) {
             apply_reflector(h, r, high - 1, low, high);
         }
         if high >= low + 2 {
-            h[(high, high - 2)] = 0.0;
+            h[high - 2][high] = 0.0;
         }
     }
 }

@@ -107,8 +107,8 @@ fn change_variables(system: &[Cubic; 3], q: &Matrix3<f64>) -> [Cubic; 3] {
     // linear factor x_k = Σ_j Q_kj y_j at a time.
     let mut expansions = [[0.0; CUBIC_TERMS]; CUBIC_TERMS];
     expansions[0][0] = 1.0;
-    for m in 1..CUBIC_TERMS {
-        let mut exponents = MONOMIALS[m];
+    for (m, &monomial) in MONOMIALS.iter().enumerate().take(CUBIC_TERMS).skip(1) {
+        let mut exponents = monomial;
         let k = exponents.iter().position(|&e| e > 0).unwrap_or(0);
         exponents[k] -= 1;
         let lower = index(
@@ -178,14 +178,15 @@ fn lu_solve<const N: usize, const R: usize>(
 ) -> bool {
     let largest = matrix.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()));
     let threshold = TEMPLATE_PIVOT_TOLERANCE * largest;
-    if !(threshold > 0.0) {
+    if threshold.is_nan() || threshold <= 0.0 {
         return false;
     }
     for k in 0..N {
         let pivot_row = (k..N)
             .max_by(|&a, &b| matrix[a][k].abs().total_cmp(&matrix[b][k].abs()))
             .unwrap_or(k);
-        if !(matrix[pivot_row][k].abs() > threshold) {
+        let usable = matrix[pivot_row][k].abs() > threshold;
+        if !usable {
             return false;
         }
         matrix.swap(k, pivot_row);
@@ -464,7 +465,7 @@ pub fn polish(system: &[Cubic; 3], x: &Vector3<f64>) -> Vector3<f64> {
         };
         let next = x - step;
         let next_residual = evaluate(system, &next).norm();
-        if !(next_residual < residual) {
+        if next_residual.is_nan() || next_residual >= residual {
             break;
         }
         x = next;
