@@ -19,7 +19,8 @@
 //! `tan(θ/2)` times the unit axis). The depths and translation are free, so
 //! the factor `1 + sᵀs` can be absorbed into them; the paper minimises
 //! `J'(s) = vec(C̄(s))ᵀ M vec(C̄(s)) = (1 + sᵀs)² J`, a quartic in `s`
-//! (its eq. 17). The optimality conditions `∇J'(s) = 0` (eq. 18) are three
+//! (its eq. 17; equation numbers as the authors' and TheiaSfM's code cite
+//! them). The optimality conditions `∇J'(s) = 0` (eq. 18) are three
 //! cubics with 27 complex solutions, all found by the Macaulay-matrix /
 //! action-matrix solver of [`super::three_cubics`]. Each real critical point
 //! that is a local minimum (positive definite Hessian, as in the authors'
@@ -57,8 +58,10 @@
 //! back exactly).
 //!
 //! **Requirements.** n ≥ 3 points, not collinear (P3P's minimum: with three
-//! points DLS returns the up-to-four exact P3P poses). Coplanar points are
-//! fine: nothing in the derivation needs a 3D spread.
+//! points the up-to-four exact P3P poses are among the candidates, next to
+//! any local minima of positive cost, which rank below them). Coplanar
+//! points are fine: nothing in the derivation needs a 3D spread (tested on
+//! planar and quasi-planar sets).
 //!
 //! **Deviations from the paper.** (1) Four charts instead of DLS+++'s three
 //! (see above). (2) The action matrix is for multiplication by one variable
@@ -66,7 +69,10 @@
 //! eliminated block by block, rather than the paper's Schur complement with
 //! a random linear form (same basis, same template rows, fewer flops, no
 //! randomness). (3) Each root is polished by Newton's method on `∇J' = 0`,
-//! the same equations, before it is used.
+//! the same equations, before it is used. (4) Every trusted minimum of every
+//! chart is returned and the caller ranks them by reprojection error;
+//! OpenCV's port instead keeps the lowest `J'` over its charts, although
+//! the charts' `J'` weight `J` differently and are not comparable.
 
 use super::three_cubics::{self, monomials, Cubic, CubicSystemError};
 use super::{Candidates, PnpError};

@@ -153,7 +153,17 @@ fn four_charts_cover_every_rotation_within_120_degrees() {
         "worst {}",
         worst.to_degrees()
     );
-    // The worst case is attained by the 120° turns about the cube diagonals.
+    // DLS+++'s three 90° charts leave a hole: the 120° turns about the cube
+    // diagonals are half-turns in all three (R' = R Q_kᵀ).
+    let quarter_turns = [Vector3::x_axis(), Vector3::y_axis(), Vector3::z_axis()]
+        .map(|axis| Rotation3::from_axis_angle(&axis, std::f64::consts::FRAC_PI_2));
+    let diagonal =
+        UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(0.5, -0.5, -0.5, -0.5));
+    for quarter_turn in &quarter_turns {
+        let in_chart = diagonal.to_rotation_matrix() * quarter_turn.inverse();
+        assert!((rotation_error_deg(&Rotation3::identity(), &in_chart) - 180.0).abs() < 1e-9);
+    }
+    // With the four charts, the worst case is 120°, attained by the same rotations.
     let diagonal =
         UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(0.5, -0.5, -0.5, -0.5));
     let rotation = diagonal.to_rotation_matrix();
@@ -234,6 +244,49 @@ fn recovers_planar_scenes_exactly() {
         }
     }
     assert_eq!(misses, 0);
+}
+
+#[test]
+fn recovers_quasi_planar_sets_and_far_off_origins_exactly() {
+    for case in 0..200 {
+        let mut rng = stream_rng(SEED, 9, case);
+        let count = rng.random_range(4..=40);
+        // Thickness 10⁻¹…10⁻⁴ of the extent, in a random orientation.
+        let thickness = 10f64.powf(-1.0 - 3.0 * rng.random::<f64>());
+        let tilt = uniform_rotation(&mut rng);
+        let mut object: Vec<Vector3<f64>> = (0..count)
+            .map(|_| {
+                let u = Vector3::new(
+                    rng.random::<f64>(),
+                    rng.random::<f64>(),
+                    rng.random::<f64>(),
+                );
+                tilt * (u - Vector3::repeat(0.5)).component_mul(&Vector3::new(
+                    100.0,
+                    100.0,
+                    100.0 * thickness,
+                ))
+            })
+            .collect();
+        let depth_mm = 200.0 * 10f64.powf(2.0 * rng.random::<f64>());
+        let mut truth = random_pose(&mut rng, depth_mm, 0.4);
+        if case % 2 == 1 {
+            // Object coordinates far from their origin: the centring must be exact.
+            let offset = Vector3::new(1e4, -3e4, 2e4);
+            for p in &mut object {
+                *p += offset;
+            }
+            truth.translation -= truth.rotation * offset;
+        }
+        if object.iter().any(|p| truth.transform(p).z < 50.0) {
+            continue;
+        }
+        let (rotation_error, translation_error) = best_errors(&truth, &object);
+        assert!(
+            rotation_error < ROTATION_TOLERANCE_DEG && translation_error < TRANSLATION_TOLERANCE,
+            "case {case} (thickness {thickness:e}): {rotation_error}° {translation_error}"
+        );
+    }
 }
 
 #[test]
