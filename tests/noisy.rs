@@ -97,6 +97,11 @@ fn epnp_gn_is_within_25_percent_of_the_limit() {
     check(Solver::EpnpGn, 0.25);
 }
 
+#[test]
+fn dls_is_within_10_percent_of_the_limit() {
+    check(Solver::Dls, 0.10);
+}
+
 /// Every other solver: finite poses always, and the ratio printed (no bound:
 /// DLT, EPnP and the unweighted variants are not expected near the limit).
 #[test]

@@ -16,12 +16,14 @@ use crate::pose::{reprojection_rms_normalised, Pose};
 use nalgebra::{Matrix3, SymmetricEigen, Vector2, Vector3};
 use smallvec::SmallVec;
 
+pub mod dls;
 pub mod dlt;
 pub mod epnp;
 pub mod gauss_newton;
 pub mod iepnp;
 pub mod ml;
 pub mod parallel;
+pub mod three_cubics;
 
 /// Candidate poses returned by a solver. Four fit inline, so the common
 /// solvers allocate nothing.
@@ -88,6 +90,15 @@ pub enum PnpError {
         /// Human name of the method.
         solver: &'static str,
     },
+    /// The method's polynomial system solver failed (e.g. a singular
+    /// elimination template) on every formulation it tries.
+    #[error("{solver}: the polynomial solver failed: {source}")]
+    PolynomialSolver {
+        /// Human name of the method.
+        solver: &'static str,
+        /// What went wrong.
+        source: three_cubics::CubicSystemError,
+    },
     /// The method's numerics broke down on this input.
     #[error("{solver} failed: {reason}")]
     Degenerate {
@@ -119,6 +130,9 @@ pub enum Solver {
     /// The paper's method: paraperspective → betas (eqs. 14–16) → weighted
     /// GN (eqs. 30–31) → absolute orientation.
     ParallelWeighted,
+    /// Direct least squares over the Cayley parameters, all critical points
+    /// by a Macaulay/action-matrix solver (Hesch & Roumeliotis 2011).
+    Dls,
     /// Levenberg–Marquardt on reprojection error from the best closed-form
     /// start: the maximum-likelihood estimate under isotropic Gaussian noise.
     Ml,
@@ -134,6 +148,7 @@ impl Solver {
         Solver::Parallel,
         Solver::ParallelGn,
         Solver::ParallelWeighted,
+        Solver::Dls,
         Solver::Ml,
     ];
 
@@ -147,6 +162,7 @@ impl Solver {
             Solver::Parallel => "parallel",
             Solver::ParallelGn => "parallel-gn",
             Solver::ParallelWeighted => "parallel-weighted",
+            Solver::Dls => "dls",
             Solver::Ml => "ml",
         }
     }
@@ -161,6 +177,7 @@ impl Solver {
             Solver::Parallel => "Paraperspective",
             Solver::ParallelGn => "Paraperspective+GN (unweighted)",
             Solver::ParallelWeighted => "Parallel-weighted",
+            Solver::Dls => "DLS",
             Solver::Ml => "ML (Levenberg-Marquardt)",
         }
     }
@@ -175,6 +192,7 @@ impl Solver {
             Solver::Parallel => "paraperspective pose, eqs. 17-21, iterated to full perspective (Horaud et al. 1997)",
             Solver::ParallelGn => "ablation: paraperspective betas + unweighted Gauss-Newton (eq. 10)",
             Solver::ParallelWeighted => "the paper's method: paraperspective -> betas (eqs. 14-16) -> weighted GN (eqs. 30-31) -> absolute orientation",
+            Solver::Dls => "direct least squares: all 27 critical points of the Cayley-parameterised cost by a Macaulay/action-matrix solver, in four charts (Hesch & Roumeliotis 2011)",
             Solver::Ml => "Levenberg-Marquardt on reprojection error from the best closed-form start (maximum likelihood)",
         }
     }
@@ -188,13 +206,24 @@ impl Solver {
     pub fn min_points(self) -> usize {
         match self {
             Solver::Dlt => dlt::MIN_POINTS,
+            Solver::Dls => dls::MIN_POINTS,
             _ => 4,
         }
     }
 
     /// Whether the method needs noncoplanar object points.
     pub fn needs_noncoplanar(self) -> bool {
-        true
+        match self {
+            Solver::Dls => false,
+            Solver::Dlt
+            | Solver::Epnp
+            | Solver::EpnpGn
+            | Solver::Iepnp
+            | Solver::Parallel
+            | Solver::ParallelGn
+            | Solver::ParallelWeighted
+            | Solver::Ml => true,
+        }
     }
 
     /// Runs the method and returns every candidate pose it produces.
@@ -212,6 +241,7 @@ impl Solver {
             Solver::Parallel => parallel::solve_iterative(object, image)?,
             Solver::ParallelGn => parallel::solve_with_gauss_newton(object, image, false)?,
             Solver::ParallelWeighted => parallel::solve_with_gauss_newton(object, image, true)?,
+            Solver::Dls => dls::solve(object, image)?,
             Solver::Ml => ml::solve(object, image)?,
         };
         Ok(candidates)
