@@ -18,10 +18,15 @@ use smallvec::SmallVec;
 
 pub mod dlt;
 pub mod epnp;
+pub mod foam;
 pub mod gauss_newton;
 pub mod iepnp;
+pub mod lhm;
 pub mod ml;
 pub mod parallel;
+pub mod polynomial;
+pub mod rpnp;
+pub mod sqpnp;
 
 /// Candidate poses returned by a solver. Four fit inline, so the common
 /// solvers allocate nothing.
@@ -119,6 +124,16 @@ pub enum Solver {
     /// The paper's method: paraperspective → betas (eqs. 14–16) → weighted
     /// GN (eqs. 30–31) → absolute orientation.
     ParallelWeighted,
+    /// Orthogonal iteration on the object-space error (Lu, Hager &
+    /// Mjolsness 2000), from a weak-perspective start.
+    Lhm,
+    /// RPnP (Li, Xu & Xie 2012): all local minima of the degree-7 cost
+    /// derivative about the widest edge.
+    Rpnp,
+    /// SQPnP (Terzakis & Lourakis 2020): sequential quadratic programming
+    /// over the nine rotation entries from the null-space starts; handles
+    /// coplanar points.
+    Sqpnp,
     /// Levenberg–Marquardt on reprojection error from the best closed-form
     /// start: the maximum-likelihood estimate under isotropic Gaussian noise.
     Ml,
@@ -134,6 +149,9 @@ impl Solver {
         Solver::Parallel,
         Solver::ParallelGn,
         Solver::ParallelWeighted,
+        Solver::Lhm,
+        Solver::Rpnp,
+        Solver::Sqpnp,
         Solver::Ml,
     ];
 
@@ -147,6 +165,9 @@ impl Solver {
             Solver::Parallel => "parallel",
             Solver::ParallelGn => "parallel-gn",
             Solver::ParallelWeighted => "parallel-weighted",
+            Solver::Lhm => "lhm",
+            Solver::Rpnp => "rpnp",
+            Solver::Sqpnp => "sqpnp",
             Solver::Ml => "ml",
         }
     }
@@ -161,6 +182,9 @@ impl Solver {
             Solver::Parallel => "Paraperspective",
             Solver::ParallelGn => "Paraperspective+GN (unweighted)",
             Solver::ParallelWeighted => "Parallel-weighted",
+            Solver::Lhm => "LHM",
+            Solver::Rpnp => "RPnP",
+            Solver::Sqpnp => "SQPnP",
             Solver::Ml => "ML (Levenberg-Marquardt)",
         }
     }
@@ -175,6 +199,9 @@ impl Solver {
             Solver::Parallel => "paraperspective pose, eqs. 17-21, iterated to full perspective (Horaud et al. 1997)",
             Solver::ParallelGn => "ablation: paraperspective betas + unweighted Gauss-Newton (eq. 10)",
             Solver::ParallelWeighted => "the paper's method: paraperspective -> betas (eqs. 14-16) -> weighted GN (eqs. 30-31) -> absolute orientation",
+            Solver::Lhm => "orthogonal iteration on the object-space error from a weak-perspective start (Lu, Hager & Mjolsness 2000)",
+            Solver::Rpnp => "RPnP: every local minimum of the degree-7 cost about the widest edge, then 3D alignment (Li, Xu & Xie 2012)",
+            Solver::Sqpnp => "SQPnP: SQP over the rotation entries from the null-space starts, all local minima; coplanar points allowed (Terzakis & Lourakis 2020)",
             Solver::Ml => "Levenberg-Marquardt on reprojection error from the best closed-form start (maximum likelihood)",
         }
     }
@@ -194,7 +221,19 @@ impl Solver {
 
     /// Whether the method needs noncoplanar object points.
     pub fn needs_noncoplanar(self) -> bool {
-        true
+        match self {
+            Solver::Sqpnp => false,
+            Solver::Dlt
+            | Solver::Epnp
+            | Solver::EpnpGn
+            | Solver::Iepnp
+            | Solver::Parallel
+            | Solver::ParallelGn
+            | Solver::ParallelWeighted
+            | Solver::Lhm
+            | Solver::Rpnp
+            | Solver::Ml => true,
+        }
     }
 
     /// Runs the method and returns every candidate pose it produces.
@@ -212,6 +251,9 @@ impl Solver {
             Solver::Parallel => parallel::solve_iterative(object, image)?,
             Solver::ParallelGn => parallel::solve_with_gauss_newton(object, image, false)?,
             Solver::ParallelWeighted => parallel::solve_with_gauss_newton(object, image, true)?,
+            Solver::Lhm => lhm::solve(object, image)?,
+            Solver::Rpnp => rpnp::solve(object, image)?,
+            Solver::Sqpnp => sqpnp::solve(object, image)?,
             Solver::Ml => ml::solve(object, image)?,
         };
         Ok(candidates)
