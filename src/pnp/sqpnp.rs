@@ -22,12 +22,13 @@
 //! regions they seed may hold a lower minimum (§4.2).
 //!
 //! **SQP** (§4.1, eqs. 9–13). At `r` the six orthonormality constraints
-//! `h(r) = 0` are linearised; the step `δ = H x + N y` splits into the
-//! row space H of the constraint Jacobian (from `J H x = −h(r)`, lower
-//! triangular by Gram–Schmidt) and its null space N (`y` minimises the cost
-//! along the constraint-tangent directions:
-//! `(Nᵀ Ω N) y = −Nᵀ Ω (r + H x)`). Iterate until `‖δ‖²` falls below
-//! [`SQP_SQUARED_TOLERANCE`] or [`SQP_MAX_ITERATIONS`] steps.
+//! `h(r) = 0` are linearised; the step satisfies them to first order and
+//! minimises the cost over what they leave free (three directions). Iterate
+//! until `‖δ‖²` falls below [`SQP_SQUARED_TOLERANCE`] or
+//! [`SQP_MAX_ITERATIONS`] steps. The step is the paper's; only the basis it
+//! is computed in differs: with `mat(δ) = W R⁻ᵀ` the linearised constraints
+//! fix the symmetric part of W, `−½ (R Rᵀ − I)`, and leave its skew part
+//! free, so no Gram–Schmidt is needed.
 //!
 //! Every distinct minimum that passes the cheirality test (centroid in
 //! front, or a majority of points in front, as in the reference code) is
@@ -45,8 +46,8 @@
 //! onto SO(3) (the reference skips that when its determinant is within 1.01),
 //! because a [`Pose`] holds an exact rotation; all local minima are
 //! returned rather than only those within 1e-6 of the lowest error; and the
-//! null-space basis of the constraint Jacobian is built from the SO(3)
-//! tangent directions at r rather than from coordinate axes. The image-point
+//! SQP step is computed in the basis `W R⁻ᵀ` (the same step, without
+//! Gram–Schmidt). The image-point
 //! variance guard is [`IMAGE_VARIANCE_TOLERANCE`], far below OpenCV's 1e-5,
 //! which would reject objects more than ~100 sizes away.
 
@@ -74,9 +75,6 @@ pub const MAX_NULL_VECTORS: usize = 6;
 /// Variance of the normalised image points below which `Σ Q_i` is singular
 /// (all image points coincide).
 pub const IMAGE_VARIANCE_TOLERANCE: f64 = 1e-14;
-/// A candidate null-space direction is accepted when at least this fraction
-/// of its length survives orthogonalisation.
-const NULL_DIRECTION_TOLERANCE: f64 = 0.1;
 
 type Vector9 = SVector<f64, 9>;
 type Matrix9 = SMatrix<f64, 9, 9>;
@@ -217,101 +215,33 @@ impl SqpnpSystem {
         nearest_rotation(&m)
     }
 
-    /// One SQP step δ at r (eqs. 9–13), or `None` if the reduced Hessian
-    /// `Nᵀ Ω N` is singular.
+    /// One SQP step δ at r (eqs. 9–13), or `None` if R is singular or the
+    /// reduced Hessian `Nᵀ Ω N` is not positive definite.
+    ///
+    /// The step solves the linearised constraints `J δ = −h(r)` and, within
+    /// that affine set, minimises `(r + δ)ᵀ Ω (r + δ)`. The paper (and the
+    /// reference code) parameterise the set with an orthonormal basis H of
+    /// J's row space and N of its null space, found by Gram–Schmidt. The
+    /// minimiser does not depend on the basis, and a cheaper one exists:
+    /// writing `mat(δ) = W R⁻ᵀ` makes `r_c · δ_a = W_ac`, so the six
+    /// linearised constraints fix the symmetric part of W,
+    /// `W_sym = −½ (R Rᵀ − I)`, and leave its skew part `[ω]×` free. Hence
+    /// `δ = vec((−½ (R Rᵀ − I) + [ω]×) R⁻ᵀ)`, with the null-space basis
+    /// `N = [vec([e_k]× R⁻ᵀ)]` and ω from `(Nᵀ Ω N) ω = −Nᵀ Ω (r + δ_p)`.
     fn sqp_step(&self, r: &Vector9) -> Option<Vector9> {
-        let rows = [
-            r.fixed_rows::<3>(0).into_owned(),
-            r.fixed_rows::<3>(3).into_owned(),
-            r.fixed_rows::<3>(6).into_owned(),
-        ];
-        // Constraints h(r) = [‖r1‖²−1, ‖r2‖²−1, ‖r3‖²−1, r1·r2, r1·r3, r2·r3]
-        // and the rows of their Jacobian J.
-        let constraint_value = [
-            rows[0].norm_squared() - 1.0,
-            rows[1].norm_squared() - 1.0,
-            rows[2].norm_squared() - 1.0,
-            rows[0].dot(&rows[1]),
-            rows[0].dot(&rows[2]),
-            rows[1].dot(&rows[2]),
-        ];
-        let stack = |blocks: [Vector3<f64>; 3]| {
-            let mut v = Vector9::zeros();
-            for (k, block) in blocks.iter().enumerate() {
-                v.fixed_rows_mut::<3>(3 * k).copy_from(block);
-            }
-            v
-        };
-        let zero = Vector3::zeros();
-        let jacobian = [
-            stack([rows[0] * 2.0, zero, zero]),
-            stack([zero, rows[1] * 2.0, zero]),
-            stack([zero, zero, rows[2] * 2.0]),
-            stack([rows[1], rows[0], zero]),
-            stack([rows[2], zero, rows[0]]),
-            stack([zero, rows[2], rows[1]]),
-        ];
-        // Gram–Schmidt on the gradients: H orthonormal, K = J H lower triangular.
-        let mut row_space = [Vector9::zeros(); 6];
-        let mut k = SMatrix::<f64, 6, 6>::zeros();
-        for i in 0..6 {
-            let mut v = jacobian[i];
-            for j in 0..i {
-                let projection = row_space[j].dot(&v);
-                k[(i, j)] = projection;
-                v -= row_space[j] * projection;
-            }
-            let norm = v.norm();
-            if norm.is_nan() || norm <= 0.0 {
-                return None;
-            }
-            k[(i, i)] = norm;
-            row_space[i] = v / norm;
-        }
-        // Forward substitution K x = −h; the row-space part of the step.
-        let mut x = [0.0; 6];
-        for i in 0..6 {
-            let mut value = -constraint_value[i];
-            for j in 0..i {
-                value -= k[(i, j)] * x[j];
-            }
-            x[i] = value / k[(i, i)];
-        }
-        let mut step = Vector9::zeros();
-        for (direction, &amount) in row_space.iter().zip(&x) {
-            step += direction * amount;
-        }
-        // Null space: the SO(3) tangents [e_k]× R at r, orthogonalised
-        // against H (and coordinate axes should a tangent collapse).
         let m = mat_row_major(r);
+        let inverse_transpose = m.try_inverse()?.transpose();
+        let constraint_residual = m * m.transpose() - Matrix3::identity();
+        let particular = vec_row_major(&(constraint_residual * inverse_transpose * -0.5));
         let mut null_space = SMatrix::<f64, 9, 3>::zeros();
-        let mut found = 0;
-        let tangents = (0..3).map(|k| vec_row_major(&(Vector3::ith(k, 1.0).cross_matrix() * m)));
-        let axes = (0..9).map(|k| Vector9::ith(k, 1.0));
-        for candidate in tangents.chain(axes) {
-            let length = candidate.norm();
-            let mut v = candidate;
-            for h in &row_space {
-                v -= h * h.dot(&v);
-            }
-            for column in 0..found {
-                let n = null_space.column(column).into_owned();
-                v -= n * n.dot(&v);
-            }
-            let norm = v.norm();
-            if norm > NULL_DIRECTION_TOLERANCE * length {
-                null_space.set_column(found, &(v / norm));
-                found += 1;
-                if found == 3 {
-                    break;
-                }
-            }
+        for k in 0..3 {
+            let direction = Vector3::ith(k, 1.0).cross_matrix() * inverse_transpose;
+            null_space.set_column(k, &vec_row_major(&direction));
         }
-        // Minimise the cost along the null space: (NᵀΩN) y = −NᵀΩ(r + δ).
         let n_omega = null_space.transpose() * self.omega;
         let reduced = n_omega * null_space;
-        let y = reduced.cholesky()?.solve(&(-(n_omega * (r + step))));
-        Some(step + null_space * y)
+        let omega_step = reduced.cholesky()?.solve(&(-(n_omega * (r + particular))));
+        Some(particular + null_space * omega_step)
     }
 }
 
