@@ -1,34 +1,37 @@
 //! Orthogonal iteration (LHM): Lu, Hager & Mjolsness, "Fast and Globally
 //! Convergent Pose Estimation from Video Images", IEEE TPAMI 22(6), 2000.
 //!
-//! **Object-space error** (§3, eqs. 15–17). The line of sight of image point
+//! **Object-space error.** The line of sight of image point
 //! `v_i = (x_i, y_i, 1)` projects onto itself with `V_i = v_i v_iᵀ / (v_iᵀ v_i)`;
 //! a pose is exact when every camera point lies on its line of sight, so the
 //! method minimises
 //! `E(R, t) = Σ_i ‖(I − V_i)(R p_i + t)‖²`.
 //!
-//! **Optimal translation** (eq. 20). For fixed R the minimiser is
+//! **Optimal translation.** For fixed R the minimiser is
 //! `t(R) = (1/n) (I − (1/n) Σ_j V_j)⁻¹ Σ_j (V_j − I) R p_j`; with the object
 //! points centred (`Σ p_j = 0`) this is `G Σ_j V_j R p_j`, where the
 //! translation factor `G = (I − (1/n) Σ V_j)⁻¹ / n` is computed once per solve.
 //!
-//! **Iteration** (§4.2, eqs. 21–24). Given `R_k`, project the camera points
-//! onto the lines of sight, `q_i = V_i (R_k p_i + t(R_k))`, and solve the
-//! absolute-orientation problem `p_i → q_i` in closed form (the SVD of
-//! `Σ_i (q_i − q̄)(p_i − p̄)ᵀ`, determinant forced to +1) for `R_{k+1}`.
-//! The error never increases and the iteration converges globally (§4.3).
+//! **Iteration.** Given `R_k`, project the camera points onto the lines of
+//! sight, `q_i = V_i (R_k p_i + t(R_k))`, and solve the absolute-orientation
+//! problem `p_i → q_i` in closed form for `R_{k+1}`: the rotation nearest to
+//! `Σ_i (q_i − q̄)(p_i − p̄)ᵀ` (the paper uses its SVD; we use FOAM,
+//! [`super::foam`], which gives the same rotation faster). The error never
+//! increases, and the iteration converges to a critical point from any
+//! start (the paper's global-convergence result).
 //!
-//! **Start** (§4.3, as the authors' `objpose.m` does without an initial
+//! **Start** (as the authors' `objpose.m` does without an initial
 //! guess): the weak-perspective pose, i.e. the same absolute-orientation step
 //! with every point placed at depth 1 on its line of sight, `q_i = v_i`.
 //!
 //! **Stopping.** The loop ends when the object-space error falls below
 //! [`ERROR_FLOOR`] times the object scatter `Σ ‖p_i‖²` (an exact fit), when
 //! an iteration lowers it by less than [`RELATIVE_DECREASE_TOLERANCE`] of its
-//! value (converged on noisy data), or after [`MAX_ITERATIONS`]. The
-//! authors' code stops at a relative decrease of 1e-5 or an absolute error of
-//! 1e-8 (units of the data) after at most 20 iterations; those settings stop
-//! short of the exact pose, which is why ours are tighter and scale-free.
+//! value (converged on noisy data), or after [`MAX_ITERATIONS`]. The copy
+//! of the authors' `objpose.m` we read stops at a relative decrease of 1e-5
+//! or an absolute error of 1e-8 (units of the data), after at most 20
+//! iterations; that stops short of the exact pose, which is why ours are
+//! tighter and scale-free.
 //!
 //! `V_i` is held as the unit direction `u_i = v_i / ‖v_i‖` (`V_i = u_i u_iᵀ`,
 //! `V_i x = u_i (u_i · x)`), the centred points and directions sit in
@@ -36,7 +39,9 @@
 //! solve beyond), and the iteration itself allocates nothing. `t(R)` is
 //! linear in R, so `G Σ V_i ⊗ p_iᵀ` is also precomputed as a 3×9 map.
 //!
-//! One candidate is returned.
+//! One candidate is returned. Equation numbers are not cited: this follows
+//! the authors' reference code (`objpose.m`), read for understanding, and
+//! the paper's description of the method.
 
 use super::foam::nearest_rotation;
 use super::{Candidates, PnpError};
@@ -115,7 +120,7 @@ impl OrthogonalIteration {
         })
     }
 
-    /// The optimal translation for `rotation` (eq. 20).
+    /// The optimal translation for `rotation`.
     #[inline]
     fn translation(&self, rotation: &Matrix3<f64>) -> Vector3<f64> {
         let row_major = SMatrix::<f64, 9, 1>::from_fn(|k, _| rotation[(k / 3, k % 3)]);
@@ -123,8 +128,8 @@ impl OrthogonalIteration {
     }
 
     /// One pass over the points for pose `(rotation, translation)`: the
-    /// object-space error (eq. 17) and the cross-covariance
-    /// `Σ q_i p_iᵀ` of the projected camera points (eq. 23).
+    /// object-space error and the cross-covariance
+    /// `Σ q_i p_iᵀ` of the projected camera points.
     #[inline]
     fn error_and_covariance(
         &self,
@@ -172,7 +177,7 @@ pub fn solve(object: &[Vector3<f64>], image: &[Vector2<f64>]) -> Result<Candidat
         if error.is_nan() || error <= ERROR_FLOOR * scatter {
             break;
         }
-        // Eqs. 22–24: absolute orientation p_i → q_i, then t(R).
+        // Absolute orientation p_i → q_i, then t(R).
         let next_rotation = nearest_rotation(&covariance).into_inner();
         let next_translation = iteration.translation(&next_rotation);
         let (next_error, next_covariance) =

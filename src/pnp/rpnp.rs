@@ -1,24 +1,24 @@
 //! RPnP: Li, Xu & Xie, "A Robust O(n) Solution to the Perspective-n-Point
 //! Problem", IEEE TPAMI 34(7), 2012.
 //!
-//! 1. **Rotation axis** (§3.1). The pair of points whose lines of sight make
+//! 1. **Rotation axis.** The pair of points whose lines of sight make
 //!    the widest angle (the longest projected segment) fixes the axis
 //!    `P_i1 → P_i2`. The object points are re-expressed in a frame whose
 //!    x-axis is that edge, with origin at its midpoint.
-//! 2. **Cost polynomial** (§3.2). Each other point `P_i` forms a P3P triplet
+//! 2. **Cost polynomial.** Each other point `P_i` forms a P3P triplet
 //!    with the edge. With unit rays `u`, `C_i1 = s u_i1`,
 //!    `C_i2 = s (cos θ12 + τ) u_i2` and `C_i = s μ u_i`, the three distance
 //!    constraints eliminate `s` and `μ` and leave a quartic `f_i(τ) = 0`.
 //!    The cost `F(τ) = Σ_i f_i(τ)²` is minimised: its derivative
 //!    `F′/2 = Σ f_i f_i′` has degree 7. Every real root with `F″ > 0` is a
 //!    candidate.
-//! 3. **Rotation about the axis and translation** (§3.3). For each τ the
+//! 3. **Rotation about the axis and translation.** For each τ the
 //!    camera-frame direction of the axis is `(cos θ12 + τ) u_i2 − u_i1`; the
 //!    rotation about it, `(cos α, sin α)`, and the translation enter the
 //!    projection equations linearly, so they come from the eigenvector of
 //!    the smallest eigenvalue of the 6×6 normal matrix (the homogeneous
 //!    least-squares solution, scaled so its last entry is 1).
-//! 4. **Refinement** (§3.3). The distances `‖R X_j + t‖` from step 3 put
+//! 4. **Refinement.** The distances `‖R X_j + t‖` from step 3 put
 //!    every point back on its own line of sight, and 3D alignment (absolute
 //!    orientation) of the object points with those camera points gives the
 //!    final pose, which is a rigid transform even when `cos² α + sin² α ≠ 1`.
@@ -31,6 +31,9 @@
 //! alignment is rigid rather than a similarity whose scale is then dropped;
 //! the real roots come from [`super::polynomial`] (exact real-root isolation)
 //! rather than companion-matrix roots filtered by imaginary part.
+//!
+//! Equation numbers are not cited: this follows the authors' reference code,
+//! read for understanding, and the paper's description of the method.
 //!
 //! Requirements: n ≥ 4 points (validated by the caller). Nothing is
 //! allocated: the polynomial and the 6×6 system are fixed size.
@@ -45,6 +48,11 @@ const NAME: &str = "RPnP";
 /// Smallest accepted `|last entry|` of the eigenvector of step 3, relative to
 /// the vector's norm: below it the homogeneous solution has no finite scale.
 pub const HOMOGENEOUS_SCALE_TOLERANCE: f64 = 1e-12;
+
+/// The widest pair of lines of sight must make at least this squared sine
+/// (an angle of 1e-8 rad); below it all image points coincide and no pose
+/// follows. Objects 200 sizes away still subtend ~5e-3 rad.
+pub const MIN_SPREAD_SIN_SQ: f64 = 1e-16;
 
 /// Unit line of sight of a normalised image point.
 #[inline]
@@ -82,7 +90,7 @@ fn widest_pair(rays: impl Fn(usize) -> Vector3<f64>, count: usize) -> (usize, us
 }
 
 /// The quartic `f_i(τ)` (ascending coefficients) of the triplet
-/// `(P_i1, P_i2, P_i)` (§3.2).
+/// `(P_i1, P_i2, P_i)` (step 2).
 ///
 /// With `k = cos θ12 + τ`, `w = sin² θ12 + τ²` (so that `s² = D1² / w`),
 /// `A = (D2/D1)²`, `B = (D3/D1)²`, the distance constraints are
@@ -131,15 +139,20 @@ pub fn solve(object: &[Vector3<f64>], image: &[Vector2<f64>]) -> Result<Candidat
     // Step 1: the rotation axis and the object frame built on it.
     let (i1, i2) = widest_pair(|i| ray(&image[i]), count);
     let (ray1, ray2) = (ray(&image[i1]), ray(&image[i2]));
+    let sin12_sq = ray1.cross(&ray2).norm_squared();
+    if sin12_sq.is_nan() || sin12_sq <= MIN_SPREAD_SIN_SQ {
+        return Err(degenerate(
+            "the image points have no spread (all lines of sight coincide)",
+        ));
+    }
     let edge = object[i2] - object[i1];
     let edge_length = edge.norm();
     let midpoint = 0.5 * (object[i1] + object[i2]);
     let object_frame = frame_with_first_axis(&(edge / edge_length));
     let local = |p: &Vector3<f64>| object_frame.transpose() * (p - midpoint);
 
-    // Step 2: F′/2 = Σ f_i f_i′, degree 7 (§3.2).
+    // Step 2: F′/2 = Σ f_i f_i′, degree 7.
     let cos12 = ray1.dot(&ray2);
-    let sin12_sq = ray1.cross(&ray2).norm_squared();
     let mut derivative_half = [0.0; 8];
     for (i, p) in object.iter().enumerate() {
         if i == i1 || i == i2 {
@@ -315,6 +328,16 @@ mod tests {
                 .fold(f64::INFINITY, f64::min);
             assert!(best < 1e-7, "case {case}: {best}°");
         }
+    }
+
+    #[test]
+    fn a_point_image_is_a_typed_error() {
+        let object = [Vector3::zeros(), Vector3::x(), Vector3::y(), Vector3::z()];
+        let err = solve(&object, &[Vector2::new(0.1, 0.2); 4]).unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "RPnP failed: the image points have no spread (all lines of sight coincide)"
+        );
     }
 
     #[test]

@@ -1,27 +1,27 @@
 //! SQPnP: Terzakis & Lourakis, "A Consistently Fast and Globally Optimal
 //! Solution to the Perspective-n-Point Problem", ECCV 2020.
 //!
-//! **Cost** (§3, eqs. 3–7). With `r = vec(R)` row-major, `R X_i = A_i r`
+//! **Cost.** With `r = vec(R)` row-major, `R X_i = A_i r`
 //! where `A_i = I₃ ⊗ X_iᵀ`. The error of point i is
 //! `‖[I₂ | −m_i] (A_i r + t)‖²`, i.e. `(A_i r + t)ᵀ Q_i (A_i r + t)` with
 //! `Q_i = [1 0 −x; 0 1 −y; −x −y x²+y²]` (the projection error scaled by
 //! depth). The translation minimising the sum is linear in r,
-//! `t = P r` with `P = −(Σ Q_i)⁻¹ Σ Q_i A_i` (eq. 6), and eliminating it
+//! `t = P r` with `P = −(Σ Q_i)⁻¹ Σ Q_i A_i`, and eliminating it
 //! leaves the quadratic program
 //! `min rᵀ Ω r` subject to `R ∈ SO(3)`, with
-//! `Ω = Σ A_iᵀ Q_i A_i + (Σ Q_i A_i)ᵀ P` (eq. 7), a 9×9 positive
+//! `Ω = Σ A_iᵀ Q_i A_i + (Σ Q_i A_i)ᵀ P`, a 9×9 positive
 //! semidefinite matrix.
 //!
-//! **Starts** (§4, Algorithm 1). Each eigenvector `e` of Ω whose eigenvalue
+//! **Starts.** Each eigenvector `e` of Ω whose eigenvalue
 //! is below [`RANK_TOLERANCE`] (at least the smallest one) gives a start:
 //! if `√3 e` is already orthogonal (to [`ORTHOGONALITY_SQUARED_ERROR_THRESHOLD`])
 //! it is the solution up to the sign of its determinant; otherwise SQP runs
 //! from the nearest rotations to both `√3 e` and `−√3 e`. Further
 //! eigenvectors, in increasing order of eigenvalue, are tried (both signs)
 //! while the best error found exceeds three times their eigenvalue: the
-//! regions they seed may hold a lower minimum (§4.2).
+//! regions they seed may hold a lower minimum.
 //!
-//! **SQP** (§4.1, eqs. 9–13). At `r` the six orthonormality constraints
+//! **SQP.** At `r` the six orthonormality constraints
 //! `h(r) = 0` are linearised; the step satisfies them to first order and
 //! minimises the cost over what they leave free (three directions). Iterate
 //! until `‖δ‖²` falls below [`SQP_SQUARED_TOLERANCE`] or
@@ -39,17 +39,24 @@
 //! every solver here it is given ≥ 4.
 //!
 //! Deviations from OpenCV's `sqpnp.cpp` (which follows the authors' code):
-//! a start that is already a rotation is polished by SQP rather than taken
-//! as is (see [`OrthogonalStart`]; [`solve_with`] can do either); the object points are centred and scaled to unit RMS radius before Ω is
-//! built, so the absolute tolerances below (the paper's values, tuned for
-//! unit-scale data) mean the same in any unit; every SQP result is projected
-//! onto SO(3) (the reference skips that when its determinant is within 1.01),
-//! because a [`Pose`] holds an exact rotation; all local minima are
-//! returned rather than only those within 1e-6 of the lowest error; and the
-//! SQP step is computed in the basis `W R⁻ᵀ` (the same step, without
-//! Gram–Schmidt). The image-point
-//! variance guard is [`IMAGE_VARIANCE_TOLERANCE`], far below OpenCV's 1e-5,
-//! which would reject objects more than ~100 sizes away.
+//! - a start that is already a rotation is polished by SQP rather than taken
+//!   as is (see [`OrthogonalStart`]; [`solve_with`] can do either);
+//! - the object points are centred and scaled to unit RMS radius before Ω is
+//!   built, so the absolute tolerances below (the reference values, tuned for
+//!   unit-scale data) mean the same in any unit;
+//! - every SQP result is projected onto SO(3) (the reference skips that when
+//!   its determinant is within 1.01), because a [`Pose`] holds an exact
+//!   rotation;
+//! - all local minima are returned, not only those within 1e-6 of the
+//!   lowest error;
+//! - the SQP step is computed in the basis `W R⁻ᵀ` (the same step, without
+//!   Gram–Schmidt);
+//! - the image-point variance guard is [`IMAGE_VARIANCE_TOLERANCE`], far
+//!   below OpenCV's 1e-5, which would reject objects more than ~100 sizes
+//!   away.
+//!
+//! Equation numbers are not cited: this follows the reference code, read
+//! for understanding, and the paper's description of it.
 
 use super::foam::nearest_rotation;
 use super::{Candidates, PnpError};
@@ -58,14 +65,14 @@ use nalgebra::{Matrix3, Rotation3, SMatrix, SVector, SymmetricEigen, Vector2, Ve
 
 /// The method's name in messages.
 const NAME: &str = "SQPnP";
-/// Eigenvalues of Ω below this count as zero (paper/OpenCV: 1e-7).
+/// Eigenvalues of Ω below this count as zero (reference value: 1e-7).
 pub const RANK_TOLERANCE: f64 = 1e-7;
-/// SQP stops when the squared step norm falls below this (paper/OpenCV: 1e-10).
+/// SQP stops when the squared step norm falls below this (reference value: 1e-10).
 pub const SQP_SQUARED_TOLERANCE: f64 = 1e-10;
-/// Upper bound on SQP steps per start (paper/OpenCV: 15).
+/// Upper bound on SQP steps per start (reference value: 15).
 pub const SQP_MAX_ITERATIONS: usize = 15;
 /// A start `√3 e` with squared orthogonality error below this is taken as a
-/// rotation without SQP (OpenCV: 1e-8).
+/// rotation (OpenCV: 1e-8; see [`OrthogonalStart`]).
 pub const ORTHOGONALITY_SQUARED_ERROR_THRESHOLD: f64 = 1e-8;
 /// Two solutions whose `r` differ by less than this (squared) are one
 /// (OpenCV: 1e-10).
@@ -108,7 +115,7 @@ pub struct SqpnpSystem {
 }
 
 impl SqpnpSystem {
-    /// Builds Ω (eq. 7) and P (eq. 6) from the points, after centring the
+    /// Builds Ω and P from the points, after centring the
     /// object points and scaling them to unit RMS radius.
     pub fn new(object: &[Vector3<f64>], image: &[Vector2<f64>]) -> Result<Self, PnpError> {
         let count = object.len() as f64;
@@ -174,7 +181,7 @@ impl SqpnpSystem {
         })
     }
 
-    /// The 9×9 matrix Ω of eq. 7 (in the normalised object frame).
+    /// The 9×9 matrix Ω (in the normalised object frame).
     pub fn omega(&self) -> &Matrix9 {
         &self.omega
     }
@@ -195,7 +202,7 @@ impl SqpnpSystem {
         )
     }
 
-    /// Sequential quadratic programming from the rotation `start` (§4.1).
+    /// Sequential quadratic programming from the rotation `start`.
     /// Returns the final rotation (projected onto SO(3)).
     pub fn run_sqp(&self, start: &Rotation3<f64>) -> Rotation3<f64> {
         let mut r = vec_row_major(start.matrix());
@@ -215,7 +222,7 @@ impl SqpnpSystem {
         nearest_rotation(&m)
     }
 
-    /// One SQP step δ at r (eqs. 9–13), or `None` if R is singular or the
+    /// One SQP step δ at r, or `None` if R is singular or the
     /// reduced Hessian `Nᵀ Ω N` is not positive definite.
     ///
     /// The step solves the linearised constraints `J δ = −h(r)` and, within
@@ -284,7 +291,7 @@ impl MinimumSet {
 /// error below [`ORTHOGONALITY_SQUARED_ERROR_THRESHOLD`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum OrthogonalStart {
-    /// Take it as the solution without SQP, as the paper (§4.2) and the
+    /// Take it as the solution without SQP, as the paper and the
     /// reference code do. Its rotation is then off by up to
     /// `√threshold ≈ 1e-4` rad from the constrained minimum: on noise-free
     /// data far from the camera (Ω's null vector is accurate only to
@@ -381,7 +388,7 @@ pub fn solve_with(
         }
     }
     // Further eigenvectors while the best cost exceeds three times their
-    // eigenvalue (§4.2); the largest one is never used (as in the reference).
+    // eigenvalue; the largest one is never used (as in the reference).
     for &index in &order[start_count..8] {
         if found.lowest_cost <= 3.0 * eigen.eigenvalues[index] {
             break;
