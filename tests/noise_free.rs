@@ -1,7 +1,9 @@
 //! Noise-free recovery: every solver recovers the generating pose to
 //! rotation error < 1e-6° and relative translation error < 1e-8 on at least
 //! 1000 seeded problems: the biprism and random n = 6…100 sets (near field,
-//! far field, off axis, any rotation), and n = 4–5 where the method allows it.
+//! far field, off axis, any rotation), and n = 4–5 where the method allows it;
+//! methods that accept coplanar points (SQPnP) also on planar and
+//! quasi-planar sets.
 
 mod common;
 

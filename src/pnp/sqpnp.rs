@@ -62,6 +62,7 @@ use super::foam::nearest_rotation;
 use super::{Candidates, PnpError};
 use crate::pose::Pose;
 use nalgebra::{Matrix3, Rotation3, SMatrix, SVector, SymmetricEigen, Vector2, Vector3};
+use smallvec::SmallVec;
 
 /// The method's name in messages.
 const NAME: &str = "SQPnP";
@@ -262,7 +263,7 @@ struct Minimum {
 /// Keeps the distinct minima that pass the cheirality test, and the lowest
 /// cost among them.
 struct MinimumSet {
-    minima: Vec<Minimum>,
+    minima: SmallVec<[Minimum; 8]>,
     lowest_cost: f64,
 }
 
@@ -353,7 +354,7 @@ pub fn solve_with(
         2 * ahead >= object.len()
     };
     let mut found = MinimumSet {
-        minima: Vec::with_capacity(4),
+        minima: SmallVec::new(),
         lowest_cost: f64::INFINITY,
     };
     let run_both_signs = |e: &Vector9, found: &mut MinimumSet| {
