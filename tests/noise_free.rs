@@ -1,7 +1,9 @@
 //! Noise-free recovery: every solver recovers the generating pose to
 //! rotation error < 1e-6° and relative translation error < 1e-8 on at least
 //! 1000 seeded problems: the biprism and random n = 6…100 sets (near field,
-//! far field, off axis, any rotation), and n = 4–5 where the method allows it.
+//! far field, off axis, any rotation), and n = 4–5 where the method allows it;
+//! methods that accept coplanar points (SQPnP) also on planar and
+//! quasi-planar sets.
 
 mod common;
 
@@ -15,14 +17,23 @@ const SEED: u64 = 20261121;
 /// Cases per family; the biprism and random families together give ≥ 1000.
 const CASES: u64 = 500;
 
-/// Misses allowed per 1000 cases. Zero for every method except IEPnP, whose
-/// weak-perspective start is far from the truth well off the optical axis, so
-/// Gauss–Newton can settle in another minimum (seen: 1 case in 1500, at 54%
-/// off-axis, and 6 in 500 well-spread n = 4–5 sets). The count is printed
-/// either way.
+/// Misses allowed per 1000 cases. Zero for every method except:
+/// - IEPnP, whose weak-perspective start is far from the truth well off the
+///   optical axis, so Gauss–Newton can settle in another minimum (seen: 1
+///   case in 1500, at 54% off-axis, and 6 in 500 well-spread n = 4–5 sets);
+/// - LHM, whose orthogonal iteration converges to *a* minimum of the
+///   object-space error, not always the global one (Lu et al. §4.3 prove
+///   global convergence to a critical point only). Seen: 0 misses on the
+///   biprism and on random n = 6…100 sets, and 1 in 500 n = 4–5 sets
+///   (Minimal case 94, n = 4, near field: LHM stops at a true local minimum
+///   108° away whose reprojection error is 0.079; SQPnP finds the same
+///   minimum among its candidates).
+///
+/// The count is printed either way.
 fn allowed_misses_per_1000(solver: Solver) -> usize {
     match solver {
         Solver::Iepnp => 20,
+        Solver::Lhm => 2,
         _ => 0,
     }
 }
@@ -85,5 +96,16 @@ noise_free_tests! {
     parallel_gn: Solver::ParallelGn, minimal = true;
     parallel_weighted: Solver::ParallelWeighted, minimal = true;
     dls: Solver::Dls, minimal = true;
+    lhm: Solver::Lhm, minimal = true;
+    rpnp: Solver::Rpnp, minimal = true;
+    sqpnp: Solver::Sqpnp, minimal = true;
     ml: Solver::Ml, minimal = true;
+}
+
+/// SQPnP accepts coplanar points: exact recovery on planar sets and on
+/// slabs 1e-4…1e-1 as thick as they are wide.
+#[test]
+fn sqpnp_planar_and_quasi_planar() {
+    check(Solver::Sqpnp, Family::Planar, CASES);
+    check(Solver::Sqpnp, Family::QuasiPlanar, CASES);
 }

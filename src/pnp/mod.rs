@@ -19,10 +19,15 @@ use smallvec::SmallVec;
 pub mod dls;
 pub mod dlt;
 pub mod epnp;
+pub mod foam;
 pub mod gauss_newton;
 pub mod iepnp;
+pub mod lhm;
 pub mod ml;
 pub mod parallel;
+pub mod polynomial;
+pub mod rpnp;
+pub mod sqpnp;
 pub mod three_cubics;
 
 /// Candidate poses returned by a solver. Four fit inline, so the common
@@ -133,6 +138,16 @@ pub enum Solver {
     /// Direct least squares over the Cayley parameters, all critical points
     /// by a Macaulay/action-matrix solver (Hesch & Roumeliotis 2011).
     Dls,
+    /// Orthogonal iteration on the object-space error (Lu, Hager &
+    /// Mjolsness 2000), from a weak-perspective start.
+    Lhm,
+    /// RPnP (Li, Xu & Xie 2012): all local minima of the degree-7 cost
+    /// derivative about the widest edge.
+    Rpnp,
+    /// SQPnP (Terzakis & Lourakis 2020): sequential quadratic programming
+    /// over the nine rotation entries from the null-space starts; handles
+    /// coplanar points.
+    Sqpnp,
     /// Levenberg–Marquardt on reprojection error from the best closed-form
     /// start: the maximum-likelihood estimate under isotropic Gaussian noise.
     Ml,
@@ -149,6 +164,9 @@ impl Solver {
         Solver::ParallelGn,
         Solver::ParallelWeighted,
         Solver::Dls,
+        Solver::Lhm,
+        Solver::Rpnp,
+        Solver::Sqpnp,
         Solver::Ml,
     ];
 
@@ -163,6 +181,9 @@ impl Solver {
             Solver::ParallelGn => "parallel-gn",
             Solver::ParallelWeighted => "parallel-weighted",
             Solver::Dls => "dls",
+            Solver::Lhm => "lhm",
+            Solver::Rpnp => "rpnp",
+            Solver::Sqpnp => "sqpnp",
             Solver::Ml => "ml",
         }
     }
@@ -178,6 +199,9 @@ impl Solver {
             Solver::ParallelGn => "Paraperspective+GN (unweighted)",
             Solver::ParallelWeighted => "Parallel-weighted",
             Solver::Dls => "DLS",
+            Solver::Lhm => "LHM",
+            Solver::Rpnp => "RPnP",
+            Solver::Sqpnp => "SQPnP",
             Solver::Ml => "ML (Levenberg-Marquardt)",
         }
     }
@@ -193,6 +217,9 @@ impl Solver {
             Solver::ParallelGn => "ablation: paraperspective betas + unweighted Gauss-Newton (eq. 10)",
             Solver::ParallelWeighted => "the paper's method: paraperspective -> betas (eqs. 14-16) -> weighted GN (eqs. 30-31) -> absolute orientation",
             Solver::Dls => "direct least squares: all 27 critical points of the Cayley-parameterised cost by a Macaulay/action-matrix solver, in four charts (Hesch & Roumeliotis 2011)",
+            Solver::Lhm => "orthogonal iteration on the object-space error from a weak-perspective start (Lu, Hager & Mjolsness 2000)",
+            Solver::Rpnp => "RPnP: every local minimum of the degree-7 cost about the widest edge, then 3D alignment (Li, Xu & Xie 2012)",
+            Solver::Sqpnp => "SQPnP: SQP over the rotation entries from the null-space starts, all local minima; coplanar points allowed (Terzakis & Lourakis 2020)",
             Solver::Ml => "Levenberg-Marquardt on reprojection error from the best closed-form start (maximum likelihood)",
         }
     }
@@ -215,6 +242,7 @@ impl Solver {
     pub fn needs_noncoplanar(self) -> bool {
         match self {
             Solver::Dls => false,
+            Solver::Sqpnp => false,
             Solver::Dlt
             | Solver::Epnp
             | Solver::EpnpGn
@@ -222,6 +250,8 @@ impl Solver {
             | Solver::Parallel
             | Solver::ParallelGn
             | Solver::ParallelWeighted
+            | Solver::Lhm
+            | Solver::Rpnp
             | Solver::Ml => true,
         }
     }
@@ -242,6 +272,9 @@ impl Solver {
             Solver::ParallelGn => parallel::solve_with_gauss_newton(object, image, false)?,
             Solver::ParallelWeighted => parallel::solve_with_gauss_newton(object, image, true)?,
             Solver::Dls => dls::solve(object, image)?,
+            Solver::Lhm => lhm::solve(object, image)?,
+            Solver::Rpnp => rpnp::solve(object, image)?,
+            Solver::Sqpnp => sqpnp::solve(object, image)?,
             Solver::Ml => ml::solve(object, image)?,
         };
         Ok(candidates)

@@ -5,7 +5,7 @@ use layout_opt::camera::Camera;
 use layout_opt::pnp::Spread;
 use layout_opt::pose::{rotation_error_deg, Pose};
 use layout_opt::synthetic::{
-    self, biprism_points, random_points, random_pose, stream_rng, Problem,
+    self, biprism_points, random_points, random_pose, stream_rng, uniform_rotation, Problem,
 };
 use nalgebra::Vector3;
 use rand::Rng;
@@ -22,6 +22,12 @@ pub enum Family {
     Random,
     /// Random noncoplanar points, n = 4 or 5.
     Minimal,
+    /// Random coplanar points, n = 4…20, in a randomly oriented plane
+    /// through the cube (for the methods that accept coplanar points).
+    Planar,
+    /// Random points, n = 4…20, in a slab whose thickness is 1e-4…1e-1 of
+    /// its width (log-uniform): nearly coplanar but not quite.
+    QuasiPlanar,
 }
 
 /// Problem `case` of a family: depth/size ratio log-uniform in [2, 200]
@@ -32,6 +38,8 @@ pub fn problem(seed: u64, family: Family, case: u64, sigma_px: f64) -> Problem {
         Family::Biprism => 1,
         Family::Random => 2,
         Family::Minimal => 3,
+        Family::Planar => 4,
+        Family::QuasiPlanar => 5,
     };
     let camera = Camera::paper();
     let mut attempt = 0;
@@ -48,11 +56,30 @@ pub fn problem(seed: u64, family: Family, case: u64, sigma_px: f64) -> Problem {
                 let n = rng.random_range(4..=5);
                 (random_points(&mut rng, n, 100.0), 100.0)
             }
+            Family::Planar | Family::QuasiPlanar => {
+                let n = rng.random_range(4..=20);
+                let thickness = if family == Family::Planar {
+                    0.0
+                } else {
+                    10f64.powf(rng.random_range(-4.0..-1.0))
+                };
+                let plane = uniform_rotation(&mut rng);
+                let points = random_points(&mut rng, n, 100.0)
+                    .into_iter()
+                    .map(|p| plane * Vector3::new(p.x, p.y, p.z * thickness))
+                    .collect();
+                (points, 100.0)
+            }
         };
         // General position: a well-spread set, not a sliver. Random 4–5 point
         // draws are often nearly coplanar, where every method is ill-posed.
+        // The (quasi-)planar families need only a well-spread plane.
         let spread = Spread::of(&object);
-        if spread.extents[2] < MIN_THICKNESS * spread.extents[0] {
+        let thin_axis = match family {
+            Family::Planar | Family::QuasiPlanar => 1,
+            _ => 2,
+        };
+        if spread.extents[thin_axis] < MIN_THICKNESS * spread.extents[0] {
             continue;
         }
         let ratio = if case % 2 == 0 {
