@@ -52,7 +52,14 @@ use std::str::FromStr;
 /// Half-width of the soft visibility ramp, px.
 pub const SOFT_MARGIN_PX: f64 = 5.0;
 /// Cost added per mm of total constraint violation.
-pub const CONSTRAINT_PENALTY: f64 = 2.0;
+pub const CONSTRAINT_PENALTY: f64 = 10.0;
+/// The penalty measures violations of the gap and identifiability
+/// constraints tightened by this fraction (plus [`PENALTY_MARGIN_MM`]), so
+/// that optimisers, which settle on the edge of what they are penalised for,
+/// settle inside the true constraints.
+pub const PENALTY_MARGIN_FRACTION: f64 = 0.02;
+/// Absolute part of the tightening, mm.
+pub const PENALTY_MARGIN_MM: f64 = 0.01;
 /// Cost of a term when no scenario has every sphere in front of the camera.
 pub const UNMEASURABLE_COST: f64 = 1e3;
 
@@ -258,6 +265,8 @@ pub struct Evaluator {
     scenarios: Vec<Scenario>,
     settings: ObjectiveSettings,
     constraints: Constraints,
+    /// The constraints the penalty measures (tightened).
+    penalised: Constraints,
     /// (R₀, T₀) per term, from the reference layout.
     reference: Vec<(f64, f64)>,
 }
@@ -285,12 +294,29 @@ impl Evaluator {
         constraints: Constraints,
         reference: &[Vector3<f64>],
     ) -> Self {
+        let tighten = |value: f64| {
+            if value > 0.0 {
+                value * (1.0 + PENALTY_MARGIN_FRACTION) + PENALTY_MARGIN_MM
+            } else {
+                0.0
+            }
+        };
+        // The envelope is not tightened: its excess is continuous and the
+        // best layouts sit on it, so shrinking it would cost real accuracy.
+        let penalised = Constraints {
+            envelope: constraints.envelope,
+            sphere_diameter_mm: constraints.sphere_diameter_mm,
+            min_gap_mm: constraints.min_gap_mm * (1.0 + PENALTY_MARGIN_FRACTION)
+                + PENALTY_MARGIN_MM,
+            min_distance_diff_mm: tighten(constraints.min_distance_diff_mm),
+        };
         let mut evaluator = Self {
             camera,
             scenarios,
             reference: vec![(1.0, 1.0); settings.objective.terms.len()],
             settings,
             constraints,
+            penalised,
         };
         let raw = evaluator.values(reference, &vec![None; reference.len()]);
         evaluator.reference = raw
@@ -436,6 +462,12 @@ impl Evaluator {
         values
     }
 
+    /// The constraint penalty of `points` alone (tightened constraints,
+    /// [`CONSTRAINT_PENALTY`] per mm): zero when they are met with margin.
+    pub fn penalty(&self, points: &[Vector3<f64>]) -> f64 {
+        CONSTRAINT_PENALTY * self.penalised.violations(points).total()
+    }
+
     /// Scores a layout's points (with optional per-point σ from its file).
     pub fn evaluate(&self, points: &[Vector3<f64>], point_sigma: &[Option<f64>]) -> Evaluation {
         let values = self.values(points, point_sigma);
@@ -471,7 +503,7 @@ impl Evaluator {
         let violations = self.constraints.violations(points);
         let objective = accuracy + self.settings.availability_weight * (1.0 - soft_availability);
         Evaluation {
-            cost: objective + CONSTRAINT_PENALTY * violations.total(),
+            cost: objective + self.penalty(points),
             objective,
             accuracy,
             terms,

@@ -1,0 +1,247 @@
+//! `layout-opt search` end to end: the report and layout it writes, the same
+//! winner at any thread count, and clear errors for bad arguments. A small
+//! grid and budget keep CI fast; the default run's figures are in README.
+
+use assert_cmd::Command;
+use predicates::prelude::*;
+use std::path::Path;
+
+fn layout_opt() -> Command {
+    Command::cargo_bin("layout-opt").unwrap()
+}
+
+const SMALL: [&str; 12] = [
+    "--depth",
+    "300,800",
+    "--offset-x",
+    "0,60",
+    "--tilt",
+    "-40..40:20",
+    "--starts",
+    "2",
+    "--compare-trials",
+    "20",
+    "--quiet",
+    "--seed",
+];
+
+fn run_search(dir: &Path, threads: &str, extra: &[&str]) -> assert_cmd::assert::Assert {
+    layout_opt()
+        .arg("search")
+        .args(SMALL)
+        .arg("3")
+        .args(["--threads", threads, "--name", "t"])
+        .arg("--out")
+        .arg(dir.join("t.json"))
+        .arg("--report")
+        .arg(dir.join("report"))
+        .args(extra)
+        .args(if extra.contains(&"--iterations") {
+            &[][..]
+        } else {
+            &["--iterations", "150"][..]
+        })
+        .assert()
+}
+
+#[test]
+fn search_writes_a_valid_layout_and_a_report() {
+    let dir = tempfile::tempdir().unwrap();
+    run_search(dir.path(), "2", &[])
+        .success()
+        .stdout(predicate::str::contains("paper-biprism"));
+    let layout = layout_opt::layout::Layout::load(&dir.path().join("t.json")).unwrap();
+    layout.validate().unwrap();
+    let provenance = layout.provenance.unwrap();
+    assert_eq!(provenance["seed"], 3);
+    assert_eq!(provenance["status"], "finished");
+    assert!(provenance["command"].as_str().unwrap().contains("search"));
+    let report = std::fs::read_to_string(dir.path().join("report/report.md")).unwrap();
+    for needle in [
+        "## Designs on the same scenarios and draws",
+        "seven-cube-corners",
+        "tetrahedron-with-centre",
+        "## Verdicts",
+        "winner-validation/report.md",
+    ] {
+        assert!(report.contains(needle), "report.md lacks {needle:?}");
+    }
+    assert!(dir
+        .path()
+        .join("report/winner-validation/summary.json")
+        .exists());
+    let summary: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(dir.path().join("report/summary.json")).unwrap(),
+    )
+    .unwrap();
+    let designs = summary["designs"].as_array().unwrap();
+    assert_eq!(designs[0]["name"], "t");
+    assert_eq!(designs[2]["name"], "paper-biprism");
+    // The search never loses its natural start (the paper's biprism).
+    let winner = designs[0]["evaluation"]["cost"].as_f64().unwrap();
+    let start = designs[1]["evaluation"]["objective"].as_f64().unwrap();
+    assert!(
+        winner <= start + 1e-12,
+        "winner {winner} worse than its start {start}"
+    );
+    assert!(summary["verdicts"]["winner_feasible"].as_bool().unwrap());
+}
+
+#[test]
+fn the_winner_does_not_depend_on_the_thread_count() {
+    let one = tempfile::tempdir().unwrap();
+    let two = tempfile::tempdir().unwrap();
+    run_search(one.path(), "1", &[]).success();
+    run_search(two.path(), "2", &[]).success();
+    let points = |dir: &Path| {
+        let layout = layout_opt::layout::Layout::load(&dir.join("t.json")).unwrap();
+        layout.points.iter().map(|p| p.position).collect::<Vec<_>>()
+    };
+    assert_eq!(points(one.path()), points(two.path()));
+}
+
+#[test]
+fn every_family_and_optimiser_runs() {
+    for extra in [
+        &[
+            "--family",
+            "tetrahedron",
+            "--optimiser",
+            "pso",
+            "--particles",
+            "8",
+            "--iterations",
+            "20",
+            "--polish",
+            "100",
+        ][..],
+        &[
+            "--family",
+            "custom",
+            "--points",
+            "6",
+            "--optimiser",
+            "annealing",
+            "--iterations",
+            "100",
+            "--polish",
+            "100",
+        ][..],
+        &[
+            "--family",
+            "biprism",
+            "--no-tilts",
+            "--no-centre",
+            "--iterations",
+            "3000",
+        ][..],
+        &["--objective", "transfer", "--aggregate", "max"][..],
+        &[
+            "--objective",
+            "crlb:0.5+mc:parallel-weighted:0.5",
+            "--trials",
+            "3",
+            "--iterations",
+            "20",
+        ][..],
+    ] {
+        let dir = tempfile::tempdir().unwrap();
+        run_search(dir.path(), "2", extra).success();
+        layout_opt::layout::Layout::load(&dir.path().join("t.json"))
+            .unwrap()
+            .validate()
+            .unwrap();
+    }
+}
+
+#[test]
+fn custom_search_keeps_fixed_points() {
+    let dir = tempfile::tempdir().unwrap();
+    let init = dir.path().join("init.json");
+    std::fs::write(
+        &init,
+        r#"{"name": "seed", "points": [
+            {"name": "A", "position": [0, 0, 0], "fixed": true},
+            {"name": "B", "position": [40, 0, 0]},
+            {"name": "C", "position": [0, 40, 0]},
+            {"name": "D", "position": [0, 0, 40]},
+            {"name": "E", "position": [-30, -30, 20], "fixed": true}]}"#,
+    )
+    .unwrap();
+    run_search(
+        dir.path(),
+        "2",
+        &[
+            "--family",
+            "custom",
+            "--init",
+            init.to_str().unwrap(),
+            "--min-distance-diff",
+            "0",
+        ],
+    )
+    .success();
+    let layout = layout_opt::layout::Layout::load(&dir.path().join("t.json")).unwrap();
+    assert_eq!(layout.points[0].position, nalgebra::Vector3::zeros());
+    assert_eq!(
+        layout.points[4].position,
+        nalgebra::Vector3::new(-30.0, -30.0, 20.0)
+    );
+    assert!(layout.points[0].fixed && layout.points[4].fixed);
+}
+
+#[test]
+fn bad_arguments_are_clear_errors() {
+    for (args, message) in [
+        (&["--depth", "500..100:50"][..], "the range is empty"),
+        (&["--depth", "0"][..], "depth must be positive"),
+        (&["--envelope", "5"][..], "smaller than one sphere"),
+        (
+            &["--family", "custom", "--points", "3"][..],
+            "at least 4 points, got 3",
+        ),
+        (&["--objective", "fast"][..], "unknown objective"),
+        (&["--envelope", "1,2"][..], "cannot parse envelope"),
+        (&["--iterations", "0"][..], "iterations must be at least 1"),
+    ] {
+        layout_opt()
+            .arg("search")
+            .args(args)
+            .args(["--quiet", "--out", "/nonexistent-dir-for-test/x.json"])
+            .assert()
+            .failure()
+            .stderr(predicate::str::contains(message));
+    }
+    // Constraints that cannot all be met: seven spheres of 30 mm with 20 mm
+    // gaps do not fit a 60 mm box.
+    let dir = tempfile::tempdir().unwrap();
+    layout_opt()
+        .arg("search")
+        .args([
+            "--quiet",
+            "--envelope",
+            "60",
+            "--sphere-diameter",
+            "30",
+            "--min-gap",
+            "20",
+            "--iterations",
+            "50",
+            "--starts",
+            "1",
+            "--depth",
+            "500",
+            "--tilt",
+            "0",
+        ])
+        .arg("--out")
+        .arg(dir.path().join("x.json"))
+        .arg("--report")
+        .arg(dir.path().join("r"))
+        .assert()
+        .failure()
+        .stderr(
+            predicate::str::contains("cannot all be met")
+                .and(predicate::str::contains("smallest gap")),
+        );
+}
