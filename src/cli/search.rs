@@ -103,6 +103,10 @@ pub struct SearchArgs {
     /// Trials per scenario of the Monte-Carlo comparison.
     #[arg(long, default_value_t = 200)]
     compare_trials: usize,
+    /// Solvers of the winner's full sensitivity report (`all` or a list; the
+    /// polynomial solvers DLS and OPnP take 0.3–2 ms per solve).
+    #[arg(long, default_value = "parallel-weighted,parallel-gn,epnp-gn,sqpnp,lhm,ml")]
+    validate_solvers: String,
     /// Name of the result. Default: <family>-search.
     #[arg(long)]
     name: Option<String>,
@@ -415,11 +419,13 @@ pub fn run(args: SearchArgs, global: &GlobalOptions) -> anyhow::Result<()> {
         designs: rows,
     };
     search_report::write(&report_dir, &summary)?;
+    let validate_solvers = super::validate::parse_solvers(&args.validate_solvers)?;
     write_winner_validation(
         &report_dir.join("winner-validation"),
         &winner,
         &camera,
         &grid,
+        validate_solvers,
         validation_seed,
         args.compare_trials,
         args.noise_model,
@@ -488,6 +494,7 @@ fn write_winner_validation(
     winner: &Layout,
     camera: &layout_opt::camera::Camera,
     grid: &ScenarioGrid,
+    solvers: Vec<Solver>,
     seed: u64,
     trials: usize,
     noise: NoiseModel,
@@ -496,7 +503,7 @@ fn write_winner_validation(
     let config = layout_opt::montecarlo::MonteCarloConfig {
         trials,
         seed,
-        solvers: Solver::ALL.to_vec(),
+        solvers,
         noise,
         gross_threshold_deg: layout_opt::montecarlo::DEFAULT_GROSS_THRESHOLD_DEG,
     };
