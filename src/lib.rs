@@ -14,6 +14,7 @@
 pub mod batch;
 pub mod camera;
 pub mod error_model;
+pub mod linalg;
 pub mod pnp;
 pub mod pose;
 pub mod synthetic;
