@@ -27,7 +27,10 @@
 //!    the iterates orthonormalised in order (Gram–Schmidt with the
 //!    Daniel–Gragg–Kaufman–Stewart reorthogonalisation test), so that
 //!    clusters and exactly repeated eigenvalues give an orthonormal basis of
-//!    their invariant subspace.
+//!    their invariant subspace. A vector whose orthogonalisation cancelled
+//!    gets one more solve against the final vectors before it, as `dstein`
+//!    iterates against converged vectors, which keeps its residual at the
+//!    level of the others.
 //! 4. **Back-transformation** `v = Q z` by applying the stored reflectors to
 //!    the K vectors only (`dormtr`).
 //!
@@ -400,7 +403,9 @@ impl<const N: usize> Tridiagonal<N> {
     /// start is only normalised; after every later one the iterates are
     /// orthonormalised in order, which within a cluster of eigenvalues is
     /// subspace iteration and elsewhere removes rounding-level components,
-    /// and each must pass the growth test of [`converged_residual`].
+    /// and each must pass the growth test of [`converged_residual`]; then
+    /// [`polish_cancelled`] refines the columns whose orthogonalisation
+    /// cancelled.
     fn inverse_iteration<const K: usize>(
         &self,
         values: &[f64; K],
@@ -427,8 +432,10 @@ impl<const N: usize> Tridiagonal<N> {
         let mut growth = [0.0; K];
         for _ in 0..MAX_INVERSE_ITERATIONS {
             lu.solve(&mut z);
-            growth = orthonormalise(&mut z);
+            let cancelled;
+            (growth, cancelled) = orthonormalise(&mut z);
             if growth.iter().all(|&g| g >= converged) {
+                polish_cancelled(&lu, &mut z, &cancelled);
                 return Ok(z);
             }
         }
@@ -437,6 +444,41 @@ impl<const N: usize> Tridiagonal<N> {
             .position(|&g| g < converged || g.is_nan())
             .unwrap_or(0);
         Err(EigenError::InverseIterationNoConvergence { index })
+    }
+}
+
+/// One more inverse-iteration step, in order, for each column whose last
+/// orthogonalisation cancelled (DGKS test). Such a column was mostly a
+/// combination of the columns before it, so their rounding errors, divided
+/// by what was left, can reach it at tens of ε (seen on exactly repeated
+/// eigenvalues: residuals near 60 ε‖A‖). Solving again from the
+/// orthonormalised column damps every component outside its cluster, and
+/// orthogonalising the result against the final columns before it then
+/// hardly cancels; this is why `dstein` orthogonalises each iterate against
+/// converged vectors and iterates beyond convergence. Columns without
+/// cancellation, the rule away from clusters, are left as they are.
+fn polish_cancelled<const N: usize, const K: usize>(
+    lu: &ShiftedLu<N, K>,
+    z: &mut [[f64; K]; N],
+    cancelled: &[bool; K],
+) {
+    let mut moved = false;
+    for k in 0..K {
+        let mut polish = cancelled[k];
+        if moved && !polish {
+            // A column before this one has moved: restore orthogonality, and
+            // polish this one too if that cancels.
+            polish = orthonormalise_column(z, k).1;
+        }
+        if polish {
+            let mut solved = *z;
+            lu.solve(&mut solved);
+            for (row, solved_row) in z.iter_mut().zip(&solved) {
+                row[k] = solved_row[k];
+            }
+            orthonormalise_column(z, k);
+            moved = true;
+        }
     }
 }
 
@@ -856,64 +898,79 @@ fn normalise_columns<const N: usize, const K: usize>(z: &mut [[f64; K]; N]) {
     }
 }
 
-/// Gram–Schmidt on the columns of `z`, in order: each column loses its
-/// projections on the (already orthonormal) columns before it, repeated once
-/// when the DGKS test ([`REORTHOGONALISE_BELOW`]) detects cancellation, and
-/// is scaled to unit length. Returns each column's norm after projection,
-/// before scaling.
-#[allow(clippy::needless_range_loop)]
-fn orthonormalise<const N: usize, const K: usize>(z: &mut [[f64; K]; N]) -> [f64; K] {
+/// Gram–Schmidt on the columns of `z`, in order (see
+/// [`orthonormalise_column`]). Returns each column's norm after projection,
+/// before scaling, and whether its first projection cancelled.
+fn orthonormalise<const N: usize, const K: usize>(z: &mut [[f64; K]; N]) -> ([f64; K], [bool; K]) {
     let mut norms = [0.0; K];
+    let mut cancelled = [false; K];
     for k in 0..K {
-        let mut norm_sq = column_norm_sq(z, k);
-        for _pass in 0..2 {
-            if k == 0 {
-                break;
-            }
-            // Projections on all columns, two partial sums per lane; those
-            // on columns k… are discarded.
-            let mut even = [0.0; K];
-            let mut odd = [0.0; K];
-            for i in (0..N).step_by(2) {
-                let zk = z[i][k];
-                for p in 0..K {
-                    even[p] += z[i][p] * zk;
-                }
-            }
-            for i in (1..N).step_by(2) {
-                let zk = z[i][k];
-                for p in 0..K {
-                    odd[p] += z[i][p] * zk;
-                }
-            }
-            let mut coefficients = [0.0; K];
-            for p in 0..k {
-                coefficients[p] = even[p] + odd[p];
-            }
-            for i in 0..N {
-                let mut correction = 0.0;
-                for p in 0..K {
-                    correction += coefficients[p] * z[i][p];
-                }
-                z[i][k] -= correction;
-            }
-            let after = column_norm_sq(z, k);
-            let cancelled = after < REORTHOGONALISE_BELOW * norm_sq;
-            norm_sq = after;
-            if !cancelled {
-                break;
+        (norms[k], cancelled[k]) = orthonormalise_column(z, k);
+    }
+    (norms, cancelled)
+}
+
+/// Removes from column k of `z` its projections on the (orthonormal)
+/// columns before it, repeated once when the DGKS test
+/// ([`REORTHOGONALISE_BELOW`]) detects cancellation, and scales it to unit
+/// length. Returns its norm after projection and whether the first
+/// projection cancelled.
+#[allow(clippy::needless_range_loop)]
+fn orthonormalise_column<const N: usize, const K: usize>(
+    z: &mut [[f64; K]; N],
+    k: usize,
+) -> (f64, bool) {
+    let mut norm_sq = column_norm_sq(z, k);
+    let mut cancelled = false;
+    for pass in 0..2 {
+        if k == 0 {
+            break;
+        }
+        // Projections on all columns, two partial sums per lane; those on
+        // columns k… are discarded.
+        let mut even = [0.0; K];
+        let mut odd = [0.0; K];
+        for i in (0..N).step_by(2) {
+            let zk = z[i][k];
+            for p in 0..K {
+                even[p] += z[i][p] * zk;
             }
         }
-        let norm = norm_sq.sqrt();
-        norms[k] = norm;
-        if norm > 0.0 && norm.is_finite() {
-            let inverse = 1.0 / norm;
-            for i in 0..N {
-                z[i][k] *= inverse;
+        for i in (1..N).step_by(2) {
+            let zk = z[i][k];
+            for p in 0..K {
+                odd[p] += z[i][p] * zk;
             }
+        }
+        let mut coefficients = [0.0; K];
+        for p in 0..k {
+            coefficients[p] = even[p] + odd[p];
+        }
+        for i in 0..N {
+            let mut correction = 0.0;
+            for p in 0..K {
+                correction += coefficients[p] * z[i][p];
+            }
+            z[i][k] -= correction;
+        }
+        let after = column_norm_sq(z, k);
+        let lost = after < REORTHOGONALISE_BELOW * norm_sq;
+        norm_sq = after;
+        if pass == 0 {
+            cancelled = lost;
+        }
+        if !lost {
+            break;
         }
     }
-    norms
+    let norm = norm_sq.sqrt();
+    if norm > 0.0 && norm.is_finite() {
+        let inverse = 1.0 / norm;
+        for i in 0..N {
+            z[i][k] *= inverse;
+        }
+    }
+    (norm, cancelled)
 }
 
 /// The SplitMix64 generator (Steele, Lea & Flood 2014): deterministic
@@ -949,12 +1006,13 @@ mod tests {
     type Matrix12 = SMatrix<f64, 12, 12>;
 
     const SEED: u64 = 20261121;
-    /// Eigenvalue error allowed, relative to ‖A‖₂.
-    const VALUE_TOLERANCE: f64 = 1e-12;
+    /// Eigenvalue error allowed, relative to ‖A‖₂ (about 450 ε; the brief
+    /// asked for 1e-12, the worst seen is ~15 ε).
+    const VALUE_TOLERANCE: f64 = 1e-13;
     /// Residual `‖A v − λ v‖` allowed, relative to ‖A‖₂.
-    const RESIDUAL_TOLERANCE: f64 = 1e-12;
+    const RESIDUAL_TOLERANCE: f64 = 1e-13;
     /// `max |VᵀV − I|` allowed.
-    const ORTHOGONALITY_TOLERANCE: f64 = 1e-12;
+    const ORTHOGONALITY_TOLERANCE: f64 = 1e-13;
     /// Subspace (or single-vector) angle allowed, in units of `‖A‖₂ / gap`:
     /// both methods are accurate to a modest multiple of `ε‖A‖/gap`.
     const ANGLE_TOLERANCE: f64 = 1e-13;
@@ -968,6 +1026,8 @@ mod tests {
         cases: usize,
         value_error: f64,
         residual: f64,
+        /// The same for `SymmetricEigen`'s four smallest pairs.
+        reference_residual: f64,
         orthogonality: f64,
         /// Largest `sin θ · gap / ‖A‖` for subspaces with a healthy gap.
         subspace_angle_times_gap: f64,
@@ -980,11 +1040,13 @@ mod tests {
     impl Worst {
         fn report(&self, family: &str) {
             eprintln!(
-                "{family}: {} matrices; max |Δλ|/‖A‖ {:.2e}, residual/‖A‖ {:.2e}, |VᵀV−I| {:.2e}, \
-                 subspace sinθ {:.2e} (sinθ·gap/‖A‖ {:.2e}), vector sinθ·gap/‖A‖ {:.2e}",
+                "{family}: {} matrices; max |Δλ|/‖A‖ {:.2e}, residual/‖A‖ {:.2e} \
+                 (SymmetricEigen {:.2e}), |VᵀV−I| {:.2e}, subspace sinθ {:.2e} \
+                 (sinθ·gap/‖A‖ {:.2e}), vector sinθ·gap/‖A‖ {:.2e}",
                 self.cases,
                 self.value_error,
                 self.residual,
+                self.reference_residual,
                 self.orthogonality,
                 self.subspace_angle,
                 self.subspace_angle_times_gap,
@@ -1022,6 +1084,9 @@ mod tests {
                 "{label}: residual of pair {k} is {residual:e}‖A‖"
             );
             worst.residual = worst.residual.max(residual);
+            let u = reference.eigenvectors.column(order[k]);
+            let reference_residual = (a * u - u * values[k]).norm() / scale;
+            worst.reference_residual = worst.reference_residual.max(reference_residual);
             for l in 0..4 {
                 let expected = if k == l { 1.0 } else { 0.0 };
                 let error = (ours.vectors[k].dot(&ours.vectors[l]) - expected).abs();
