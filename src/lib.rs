@@ -16,6 +16,7 @@ pub mod camera;
 pub mod error_model;
 pub mod family;
 pub mod layout;
+pub mod linalg;
 pub mod montecarlo;
 pub mod noise;
 pub mod pnp;

@@ -15,11 +15,14 @@
 //! GN weights the six control-point distances.
 //!
 //! Requirements: n ≥ 4 noncoplanar points (validated by the caller). Nothing
-//! is allocated: `MᵀM` is accumulated directly as a 12×12 fixed-size matrix.
+//! is allocated: `MᵀM` is accumulated directly as a 12×12 fixed-size matrix,
+//! and only its four smallest eigenpairs are computed
+//! ([`crate::linalg::smallest_eigenpairs`]).
 
 use super::{gauss_newton, Candidates, PnpError, Spread};
+use crate::linalg::{smallest_eigenpairs, EigenError};
 use crate::pose::{absolute_orientation, Pose};
-use nalgebra::{Matrix3, SMatrix, SVector, SymmetricEigen, Vector2, Vector3, Vector4};
+use nalgebra::{Matrix3, SMatrix, SVector, Vector2, Vector3, Vector4};
 
 /// The six control-point pairs `i < j`, in the order of the rows of L and ρ.
 pub const PAIRS: [(usize, usize); 6] = [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)];
@@ -61,15 +64,7 @@ impl EpnpSystem {
         object: &[Vector3<f64>],
         image: &[Vector2<f64>],
     ) -> Result<Self, PnpError> {
-        let basis = Matrix3::from_columns(&[
-            control_world[1] - control_world[0],
-            control_world[2] - control_world[0],
-            control_world[3] - control_world[0],
-        ]);
-        let to_barycentric = basis.try_inverse().ok_or(PnpError::Degenerate {
-            solver: "EPnP",
-            reason: "control points are coplanar",
-        })?;
+        let to_barycentric = barycentric_map(&control_world)?;
         let mut system = Self {
             control_world,
             to_barycentric,
@@ -77,36 +72,18 @@ impl EpnpSystem {
             distance_products: SMatrix::zeros(),
             control_distances_sq: SVector::zeros(),
         };
-
-        // Eq. 7 in normalised coordinates (fx = fy = 1, principal point 0):
-        // Σ_j α_ij x_j − α_ij x_i z_j = 0 and Σ_j α_ij y_j − α_ij y_i z_j = 0.
-        let mut mtm = SMatrix::<f64, 12, 12>::zeros();
-        for (p, m) in object.iter().zip(image) {
-            let alphas = system.alphas(p);
-            let mut row_x = Stacked::zeros();
-            let mut row_y = Stacked::zeros();
-            for (j, &alpha) in alphas.iter().enumerate() {
-                row_x[3 * j] = alpha;
-                row_x[3 * j + 2] = -alpha * m.x;
-                row_y[3 * j + 1] = alpha;
-                row_y[3 * j + 2] = -alpha * m.y;
-            }
-            mtm.syger(1.0, &row_x, &row_x, 1.0);
-            mtm.syger(1.0, &row_y, &row_y, 1.0);
-        }
-        mtm.fill_upper_triangle_with_lower_triangle();
-        let eigen = SymmetricEigen::new(mtm);
-        if !eigen.eigenvalues.iter().all(|v| v.is_finite()) {
-            return Err(PnpError::Degenerate {
+        let mtm = accumulate_normal_matrix(&control_world[0], &to_barycentric, object, image);
+        // Eq. 9: the null space is spanned by the eigenvectors of MᵀM for its
+        // four smallest eigenvalues, smallest first.
+        system.null_space = smallest_eigenpairs::<12, 4>(&mtm)
+            .map_err(|error| PnpError::Degenerate {
                 solver: "EPnP",
-                reason: "eigen-decomposition of MᵀM failed",
-            });
-        }
-        let mut order: [usize; 12] = std::array::from_fn(|i| i);
-        order.sort_by(|&a, &b| eigen.eigenvalues[a].total_cmp(&eigen.eigenvalues[b]));
-        for (vector, &index) in system.null_space.iter_mut().zip(&order) {
-            *vector = eigen.eigenvectors.column(index).into_owned();
-        }
+                reason: match error {
+                    EigenError::NonFinite { .. } => "MᵀM has a non-finite entry",
+                    _ => "the eigen-decomposition of MᵀM did not converge",
+                },
+            })?
+            .vectors;
 
         // Lepetit eq. 13: ‖Σ_k β_k (v_k[a] − v_k[b])‖² = ‖c_a − c_b‖².
         for (row, &(a, b)) in PAIRS.iter().enumerate() {
@@ -134,11 +111,27 @@ impl EpnpSystem {
         Ok(system)
     }
 
+    /// `MᵀM` of eq. 8 for `object`/`image` under the given control points,
+    /// the matrix whose smallest eigenvectors span the solution (eq. 9).
+    /// Exposed for tests and benchmarks of the eigen-solver.
+    pub fn normal_matrix(
+        control_world: [Vector3<f64>; 4],
+        object: &[Vector3<f64>],
+        image: &[Vector2<f64>],
+    ) -> Result<SMatrix<f64, 12, 12>, PnpError> {
+        let to_barycentric = barycentric_map(&control_world)?;
+        Ok(accumulate_normal_matrix(
+            &control_world[0],
+            &to_barycentric,
+            object,
+            image,
+        ))
+    }
+
     /// Barycentric coordinates `α` of `p` with respect to the control points (eq. 4).
     #[inline]
     pub fn alphas(&self, p: &Vector3<f64>) -> [f64; 4] {
-        let a = self.to_barycentric * (p - self.control_world[0]);
-        [1.0 - a.x - a.y - a.z, a.x, a.y, a.z]
+        barycentric(&self.control_world[0], &self.to_barycentric, p)
     }
 
     /// The world-frame control points.
@@ -271,6 +264,58 @@ impl EpnpSystem {
         });
         absolute_orientation(object.iter().copied(), camera_points)
     }
+}
+
+/// Barycentric coordinates `α` of `p` (eq. 4), given the first control
+/// point and the map from `p − c0` to `(α1, α2, α3)`.
+#[inline]
+fn barycentric(
+    control0: &Vector3<f64>,
+    to_barycentric: &Matrix3<f64>,
+    p: &Vector3<f64>,
+) -> [f64; 4] {
+    let a = to_barycentric * (p - control0);
+    [1.0 - a.x - a.y - a.z, a.x, a.y, a.z]
+}
+
+/// Accumulates `MᵀM` (eq. 8) row pair by row pair (eq. 7), without forming M.
+fn accumulate_normal_matrix(
+    control0: &Vector3<f64>,
+    to_barycentric: &Matrix3<f64>,
+    object: &[Vector3<f64>],
+    image: &[Vector2<f64>],
+) -> SMatrix<f64, 12, 12> {
+    // Eq. 7 in normalised coordinates (fx = fy = 1, principal point 0):
+    // Σ_j α_ij x_j − α_ij x_i z_j = 0 and Σ_j α_ij y_j − α_ij y_i z_j = 0.
+    let mut mtm = SMatrix::<f64, 12, 12>::zeros();
+    for (p, m) in object.iter().zip(image) {
+        let alphas = barycentric(control0, to_barycentric, p);
+        let mut row_x = Stacked::zeros();
+        let mut row_y = Stacked::zeros();
+        for (j, &alpha) in alphas.iter().enumerate() {
+            row_x[3 * j] = alpha;
+            row_x[3 * j + 2] = -alpha * m.x;
+            row_y[3 * j + 1] = alpha;
+            row_y[3 * j + 2] = -alpha * m.y;
+        }
+        mtm.syger(1.0, &row_x, &row_x, 1.0);
+        mtm.syger(1.0, &row_y, &row_y, 1.0);
+    }
+    mtm.fill_upper_triangle_with_lower_triangle();
+    mtm
+}
+
+/// Inverse of `[c1−c0, c2−c0, c3−c0]`, the map from `p − c0` to `(α1, α2, α3)`.
+fn barycentric_map(control_world: &[Vector3<f64>; 4]) -> Result<Matrix3<f64>, PnpError> {
+    let basis = Matrix3::from_columns(&[
+        control_world[1] - control_world[0],
+        control_world[2] - control_world[0],
+        control_world[3] - control_world[0],
+    ]);
+    basis.try_inverse().ok_or(PnpError::Degenerate {
+        solver: "EPnP",
+        reason: "control points are coplanar",
+    })
 }
 
 /// Both roots with the sign convention of the reference implementation:
