@@ -84,5 +84,6 @@ noise_free_tests! {
     parallel: Solver::Parallel, minimal = true;
     parallel_gn: Solver::ParallelGn, minimal = true;
     parallel_weighted: Solver::ParallelWeighted, minimal = true;
+    opnp: Solver::Opnp, minimal = true;
     ml: Solver::Ml, minimal = true;
 }

@@ -21,6 +21,7 @@ pub mod epnp;
 pub mod gauss_newton;
 pub mod iepnp;
 pub mod ml;
+pub mod opnp;
 pub mod parallel;
 
 /// Candidate poses returned by a solver. Four fit inline, so the common
@@ -119,6 +120,9 @@ pub enum Solver {
     /// The paper's method: paraperspective → betas (eqs. 14–16) → weighted
     /// GN (eqs. 30–31) → absolute orientation.
     ParallelWeighted,
+    /// OPnP: every local minimum of the algebraic cost in a non-unit
+    /// quaternion, by a Gröbner-basis solver (Zheng et al., ICCV 2013).
+    Opnp,
     /// Levenberg–Marquardt on reprojection error from the best closed-form
     /// start: the maximum-likelihood estimate under isotropic Gaussian noise.
     Ml,
@@ -134,6 +138,7 @@ impl Solver {
         Solver::Parallel,
         Solver::ParallelGn,
         Solver::ParallelWeighted,
+        Solver::Opnp,
         Solver::Ml,
     ];
 
@@ -147,6 +152,7 @@ impl Solver {
             Solver::Parallel => "parallel",
             Solver::ParallelGn => "parallel-gn",
             Solver::ParallelWeighted => "parallel-weighted",
+            Solver::Opnp => "opnp",
             Solver::Ml => "ml",
         }
     }
@@ -161,6 +167,7 @@ impl Solver {
             Solver::Parallel => "Paraperspective",
             Solver::ParallelGn => "Paraperspective+GN (unweighted)",
             Solver::ParallelWeighted => "Parallel-weighted",
+            Solver::Opnp => opnp::NAME,
             Solver::Ml => "ML (Levenberg-Marquardt)",
         }
     }
@@ -175,6 +182,7 @@ impl Solver {
             Solver::Parallel => "paraperspective pose, eqs. 17-21, iterated to full perspective (Horaud et al. 1997)",
             Solver::ParallelGn => "ablation: paraperspective betas + unweighted Gauss-Newton (eq. 10)",
             Solver::ParallelWeighted => "the paper's method: paraperspective -> betas (eqs. 14-16) -> weighted GN (eqs. 30-31) -> absolute orientation",
+            Solver::Opnp => "OPnP: all minima of the algebraic cost in a non-unit quaternion, Gröbner-basis solver (Zheng et al. 2013)",
             Solver::Ml => "Levenberg-Marquardt on reprojection error from the best closed-form start (maximum likelihood)",
         }
     }
@@ -188,13 +196,17 @@ impl Solver {
     pub fn min_points(self) -> usize {
         match self {
             Solver::Dlt => dlt::MIN_POINTS,
+            Solver::Opnp => opnp::MIN_POINTS,
             _ => 4,
         }
     }
 
     /// Whether the method needs noncoplanar object points.
     pub fn needs_noncoplanar(self) -> bool {
-        true
+        match self {
+            Solver::Opnp => false,
+            _ => true,
+        }
     }
 
     /// Runs the method and returns every candidate pose it produces.
@@ -212,6 +224,7 @@ impl Solver {
             Solver::Parallel => parallel::solve_iterative(object, image)?,
             Solver::ParallelGn => parallel::solve_with_gauss_newton(object, image, false)?,
             Solver::ParallelWeighted => parallel::solve_with_gauss_newton(object, image, true)?,
+            Solver::Opnp => opnp::solve(object, image)?,
             Solver::Ml => ml::solve(object, image)?,
         };
         Ok(candidates)

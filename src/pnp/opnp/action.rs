@@ -1,0 +1,1020 @@
+//! Real solutions of four *odd* cubic equations in four unknowns by an
+//! elimination template and a multiplication (action) matrix.
+//!
+//! **Problem.** `f_j(q) = C_j(q) + L_j(q) = 0`, `j = 1…4`, `q = (a, b, c, d)`,
+//! where `C_j` is a cubic form and `L_j` a linear form: every monomial has odd
+//! degree, so the solutions come in pairs `±q`, plus the trivial `q = 0`.
+//! When the cubic parts share no projective zero (no solutions at infinity),
+//! Bézout's bound is attained: 81 solutions, that is `q = 0` and 40 pairs.
+//! OPnP's optimality conditions have this form (Zheng et al., ICCV 2013,
+//! §3.2; their generated solver reports the same 81 = 1 + 2·40).
+//!
+//! **Quotient algebra.** Let `I = ⟨f_1…f_4⟩`. Because the `f_j` are odd,
+//! `ℂ[q]/I` splits into an even part (dimension 41: the 40 pairs and `q = 0`)
+//! and an odd part (dimension 40: odd functions vanish at `q = 0`). The
+//! cubic parts form a regular sequence, so the graded Hilbert function of the
+//! quotient is that of four generic cubics, `(1 + t + t²)⁴ = 1, 4, 10, 16, 19,
+//! 16, 10, 4, 1` in degrees 0…8, and the `f_j` are an H-basis: the part of
+//! `I` of degree ≤ D is spanned by the multiples `m·f_j`, `deg m ≤ D − 3`.
+//! Ask, Kuang & Åström (ICPR 2012, "Exploiting p-fold symmetries for faster
+//! polynomial equation solving") and the OPnP authors work in one parity
+//! class of the quotient; so do we.
+//!
+//! **Template.** Even polynomials up to degree 8 are reduced modulo `I`
+//! degree by degree. A multiple `m·f_j` with `deg m = k − 3` has a degree-`k`
+//! part `m·C_j` and a degree-`(k−2)` part `m·L_j`, so the Macaulay matrix is
+//! block bidiagonal by degree. Each block (top degree k = 8, 6, 4: 224, 80 and
+//! 16 rows over 165, 84 and 35 top columns) is brought to echelon form by
+//! Gaussian elimination with complete pivoting over its top columns (the
+//! adaptive basis choice of Byröd, Josephson & Åström, "Fast and stable
+//! polynomial equation solving and its application to computer vision",
+//! IJCV 2009). Its expected rank is the number of top monomials minus the
+//! Hilbert function (164, 74, 16); the unpivoted columns are this problem's
+//! standard monomials, 1 + 10 + 19 in degrees 8, 6, 4, plus every monomial of
+//! degree 2 and the constant: 41, a basis of the even quotient.
+//!
+//! **Action matrix without degree 9.** Multiplying the odd quotient by an
+//! even polynomial (the classical action matrix on a parity class) would need
+//! reductions in degree 9 — a 336-row block. Instead we use the four maps
+//! `M_x : odd quotient → even quotient`, `b ↦ NF(x·b)`, for `x ∈ {a, b, c, d}`,
+//! which need degree 8 only. With `B` a fixed basis of the odd quotient (40
+//! odd monomials, [`Template::odd_basis`]) and `v_k = (b(q_k))_{b∈B}`, every
+//! solution pair satisfies `ev_{q_k} · M_x = x(q_k) · v_kᵀ`. The row of `M_x`
+//! for the constant monomial is zero (`x·b` vanishes at `q = 0`); dropping it
+//! leaves 40×40 matrices with `M_x = W⁻¹ diag(x(q_k)) V` (V, W evaluation
+//! matrices). For two linear forms `ℓ₁, ℓ₂`, `A = M_{ℓ₂}⁻¹ M_{ℓ₁} = V⁻¹
+//! diag(ℓ₁(q_k)/ℓ₂(q_k)) V`: the eigenvectors of `Aᵀ` are the `v_k`, read off
+//! the real Schur form. `ℓ₂` is chosen per problem among a few fixed forms
+//! as the one whose `M_{ℓ₂}` is best conditioned.
+//!
+//! **Extraction.** `B` holds `a, b, c, d`, so `v_k` gives the direction `u` of
+//! `q_k`; 16 cubic monomials of `B` give `|q_k|²` by least squares
+//! (`v(m) = s·|q|³ m(u)`, `v(x) = s·|q| u`). A negative `|q|²` means the pair is
+//! `±i·w` with `w` real: not a real solution.
+
+use super::monomials::{self, Exponent, CUBIC, CUBIC_COUNT, LINEAR};
+use nalgebra::{DMatrix, DVector};
+use rand::{Rng, SeedableRng};
+use std::sync::LazyLock;
+
+/// Coefficients of one odd cubic equation: the 20 cubic monomials of
+/// [`monomials::CUBIC`] (grevlex order), then `a, b, c, d`.
+pub type OddCubic = [f64; EQUATION_TERMS];
+/// Number of coefficients of an odd cubic equation in four unknowns.
+pub const EQUATION_TERMS: usize = CUBIC_COUNT + 4;
+/// Number of solution pairs `±q ≠ 0` of a generic system (Bézout: 81 = 1 + 2·40).
+pub const SOLUTION_PAIRS: usize = 40;
+
+/// A pivot below this fraction of the largest pivot of its block means the
+/// block has lost rank: the system is degenerate for this template.
+pub const RANK_TOLERANCE: f64 = 1e-11;
+/// After the expected number of pivots, what is left of a block must be below
+/// this fraction of the smallest pivot taken; otherwise the rank is not the
+/// one the Hilbert function predicts.
+pub const RANK_GAP: f64 = 1e-5;
+/// Smallest acceptable reciprocal condition estimate (smallest over largest
+/// LU pivot) of the denominator matrix `M_{ℓ₂}`.
+pub const DENOMINATOR_RCOND: f64 = 1e-13;
+/// A 2×2 Schur block whose eigenvalues' imaginary part is below this
+/// fraction of their modulus is taken as a (numerically split) real pair.
+pub const NEAR_REAL: f64 = 1e-8;
+/// Iteration cap of the real Schur decomposition, per matrix dimension.
+pub const SCHUR_ITERATIONS_PER_DIMENSION: usize = 60;
+/// Seed of the random odd cubic system used once, at start-up, to choose the
+/// odd basis ([`Template::odd_basis`]).
+const STRUCTURE_SEED: u64 = 0x0_0917_2013;
+
+/// Why the polynomial solver could not return solutions.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+#[non_exhaustive]
+pub enum SolverError {
+    /// A block of the elimination template does not have the rank the Hilbert
+    /// function of a system without solutions at infinity predicts.
+    #[error("elimination template block of degree {degree} has rank {found}, expected {expected}")]
+    RankDeficient {
+        /// Top degree of the block.
+        degree: usize,
+        /// Numerical rank found (number of acceptable pivots).
+        found: usize,
+        /// Rank predicted by the Hilbert function.
+        expected: usize,
+    },
+    /// Every candidate denominator multiplication matrix is singular.
+    #[error("no multiplication matrix is invertible")]
+    SingularDenominator,
+    /// The real Schur decomposition of the action matrix did not converge.
+    #[error("Schur decomposition of the action matrix did not converge")]
+    SchurFailed,
+}
+
+impl SolverError {
+    /// A fixed description, for error types that carry a `&'static str`.
+    pub fn reason(&self) -> &'static str {
+        match self {
+            SolverError::RankDeficient { .. } => {
+                "Gröbner elimination template is rank deficient (solutions at infinity or a degenerate configuration)"
+            }
+            SolverError::SingularDenominator => {
+                "Gröbner solver: no multiplication matrix is invertible"
+            }
+            SolverError::SchurFailed => {
+                "Gröbner solver: Schur decomposition of the action matrix did not converge"
+            }
+        }
+    }
+}
+
+/// One row pattern of a template block: equation `equation` multiplied by a
+/// monomial; `top[t]` is the block column of `multiplier · CUBIC[t]`,
+/// `tail[t]` the tail column of `multiplier · LINEAR[t]`.
+#[derive(Debug, Clone)]
+struct RowPattern {
+    equation: usize,
+    top: [u16; CUBIC_COUNT],
+    tail: [u16; 4],
+}
+
+/// One degree block of the even Macaulay matrix.
+#[derive(Debug, Clone)]
+struct Block {
+    /// Top degree k of the block's rows.
+    degree: usize,
+    /// Offset of the degree-k monomials in the global even column space.
+    top_offset: usize,
+    /// Number of degree-k monomials.
+    top_len: usize,
+    /// Number of degree-(k−2) monomials (they follow the top ones).
+    tail_len: usize,
+    /// Rank predicted by the Hilbert function.
+    rank: usize,
+    rows: Vec<RowPattern>,
+}
+
+impl Block {
+    fn width(&self) -> usize {
+        self.top_len + self.tail_len
+    }
+}
+
+/// Fixed structure of the solver, built once ([`TEMPLATE`]).
+#[derive(Debug, Clone)]
+pub struct Template {
+    /// Even monomials of degree 8, 6, 4, 2, 0, concatenated: the global even
+    /// column space (295 columns).
+    even_columns: Vec<Exponent>,
+    /// Offsets of degrees 8, 6, 4, 2, 0 in `even_columns`.
+    degree_offsets: [usize; 5],
+    blocks: [Block; 3],
+    /// Basis of the odd quotient: 40 odd monomials.
+    odd_basis: Vec<Exponent>,
+    /// Positions of `a, b, c, d` in `odd_basis`.
+    linear_positions: [usize; 4],
+    /// Positions of the cubic monomials in `odd_basis`.
+    cubic_positions: Vec<usize>,
+    /// `targets[x][i]`: global even column of `x · odd_basis[i]`.
+    targets: [[usize; SOLUTION_PAIRS]; 4],
+}
+
+/// The solver structure, built on first use.
+pub static TEMPLATE: LazyLock<Template> = LazyLock::new(Template::build);
+
+/// Hilbert function of the quotient by four cubics in four unknowns,
+/// `(1 + t + t²)⁴`, degrees 0…8.
+const HILBERT: [usize; 9] = [1, 4, 10, 16, 19, 16, 10, 4, 1];
+
+impl Template {
+    /// Builds the template structure: the even blocks and an odd basis.
+    fn build() -> Template {
+        let even_degrees = [8usize, 6, 4, 2, 0];
+        let mut even_columns = Vec::new();
+        let mut degree_offsets = [0usize; 5];
+        for (slot, &degree) in even_degrees.iter().enumerate() {
+            degree_offsets[slot] = even_columns.len();
+            even_columns.extend(monomials::of_degree(degree));
+        }
+        let blocks = [8usize, 6, 4].map(|degree| {
+            let slot = even_degrees.iter().position(|&d| d == degree).unwrap();
+            let top = monomials::of_degree(degree);
+            let tail = monomials::of_degree(degree - 2);
+            let rows = block_rows(degree, &top, &tail);
+            Block {
+                degree,
+                top_offset: degree_offsets[slot],
+                top_len: top.len(),
+                tail_len: tail.len(),
+                rank: top.len() - HILBERT[degree],
+                rows,
+            }
+        });
+        let odd_basis = choose_odd_basis();
+        let linear_positions = LINEAR.map(|x| monomials::position(&odd_basis, &x).unwrap());
+        let cubic_positions = (0..odd_basis.len())
+            .filter(|&i| monomials::degree(&odd_basis[i]) == 3)
+            .collect();
+        let targets = std::array::from_fn(|x| {
+            std::array::from_fn(|i| {
+                let product = monomials::product(&LINEAR[x], &odd_basis[i]);
+                monomials::position(&even_columns, &product).unwrap()
+            })
+        });
+        Template {
+            even_columns,
+            degree_offsets,
+            blocks,
+            odd_basis,
+            linear_positions,
+            cubic_positions,
+            targets,
+        }
+    }
+
+    /// The 40 odd monomials whose classes form the basis of the odd quotient.
+    pub fn odd_basis(&self) -> &[Exponent] {
+        &self.odd_basis
+    }
+
+    /// Number of rows of each degree block (top degree 8, 6, 4).
+    pub fn block_sizes(&self) -> [(usize, usize); 3] {
+        self.blocks.clone().map(|b| (b.rows.len(), b.width()))
+    }
+}
+
+/// Rows of the degree-`degree` block: every equation times every odd monomial
+/// of degree `degree − 3`.
+fn block_rows(degree: usize, top: &[Exponent], tail: &[Exponent]) -> Vec<RowPattern> {
+    let mut rows = Vec::new();
+    for multiplier in monomials::of_degree(degree - 3) {
+        for equation in 0..4 {
+            let top_columns = std::array::from_fn(|t| {
+                let m = monomials::product(&multiplier, &CUBIC[t]);
+                monomials::position(top, &m).unwrap() as u16
+            });
+            let tail_columns = std::array::from_fn(|t| {
+                let m = monomials::product(&multiplier, &LINEAR[t]);
+                monomials::position(tail, &m).unwrap() as u16
+            });
+            rows.push(RowPattern {
+                equation,
+                top: top_columns,
+                tail: tail_columns,
+            });
+        }
+    }
+    rows
+}
+
+/// Chooses the odd basis once: the grevlex standard monomials of a random
+/// odd cubic system, found by reducing the odd Macaulay blocks (top degree 7,
+/// 5, 3) column by column in grevlex order with partial pivoting. Columns
+/// left without a pivot are standard: 4 + 16 + 16 in degrees 7, 5, 3, plus
+/// the four linear monomials. For a system without solutions at infinity
+/// any such set is a basis of the odd quotient; the per-problem conditioning
+/// is handled by the even side and the choice of `ℓ₂`.
+fn choose_odd_basis() -> Vec<Exponent> {
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(STRUCTURE_SEED);
+    let equations: [OddCubic; 4] =
+        std::array::from_fn(|_| std::array::from_fn(|_| rng.random_range(-1.0..1.0)));
+    odd_standard_monomials(&equations)
+}
+
+/// Grevlex standard odd monomials of a given system (see [`choose_odd_basis`]).
+pub fn odd_standard_monomials(equations: &[OddCubic; 4]) -> Vec<Exponent> {
+    let mut basis = Vec::new();
+    for degree in [7usize, 5, 3] {
+        let top = monomials::of_degree(degree);
+        let tail = monomials::of_degree(degree - 2);
+        let rows = block_rows(degree, &top, &tail);
+        let width = top.len();
+        let mut matrix = vec![0.0; rows.len() * width];
+        for (r, row) in rows.iter().enumerate() {
+            for (t, &column) in row.top.iter().enumerate() {
+                matrix[r * width + usize::from(column)] += equations[row.equation][t];
+            }
+        }
+        let mut used = vec![false; rows.len()];
+        for column in 0..width {
+            let best = (0..rows.len())
+                .filter(|&r| !used[r])
+                .max_by(|&x, &y| {
+                    matrix[x * width + column]
+                        .abs()
+                        .total_cmp(&matrix[y * width + column].abs())
+                });
+            let pivot_row = match best {
+                Some(r) if matrix[r * width + column].abs() > 1e-9 => r,
+                _ => {
+                    basis.push(top[column]);
+                    continue;
+                }
+            };
+            used[pivot_row] = true;
+            let pivot: Vec<f64> = matrix[pivot_row * width..(pivot_row + 1) * width].to_vec();
+            for r in 0..rows.len() {
+                if used[r] {
+                    continue;
+                }
+                let factor = matrix[r * width + column] / pivot[column];
+                if factor != 0.0 {
+                    for (a, b) in matrix[r * width..(r + 1) * width].iter_mut().zip(&pivot) {
+                        *a -= factor * b;
+                    }
+                }
+            }
+        }
+    }
+    basis.extend(LINEAR);
+    basis
+}
+
+/// Echelon form of one block: the pivots in elimination order and the top
+/// columns left without a pivot (this problem's standard monomials).
+struct Echelon {
+    pivots: Vec<(usize, usize)>,
+    standard: Vec<usize>,
+}
+
+/// Gaussian elimination with complete pivoting over the first `block.top_len`
+/// columns of the row-major `matrix` (rows × `block.width()`), stopping after
+/// `block.rank` pivots. Rows keep their storage position; after step `s`
+/// every row not yet used as a pivot is exactly zero in the first `s` pivot
+/// columns, so the pivot rows form an echelon in elimination order.
+fn eliminate(matrix: &mut [f64], block: &Block) -> Result<Echelon, SolverError> {
+    let rows = block.rows.len();
+    let width = block.width();
+    let top = block.top_len;
+    let mut row_used = vec![false; rows];
+    let mut column_used = vec![false; top];
+    let mut pivots = Vec::with_capacity(block.rank);
+    let mut pivot_row_values = vec![0.0; width];
+
+    // Largest entry of the unused rows over the top columns.
+    let largest = |matrix: &[f64], row_used: &[bool]| {
+        let mut best = (0usize, 0usize, 0.0f64);
+        for r in (0..rows).filter(|&r| !row_used[r]) {
+            for (c, v) in matrix[r * width..r * width + top].iter().enumerate() {
+                if v.abs() > best.2 {
+                    best = (r, c, v.abs());
+                }
+            }
+        }
+        best
+    };
+    let mut next = largest(matrix, &row_used);
+    let first_pivot = next.2;
+    let mut smallest_pivot = f64::INFINITY;
+    for step in 0..block.rank {
+        let (pivot_row, pivot_column, magnitude) = next;
+        if !(magnitude > RANK_TOLERANCE * first_pivot) {
+            return Err(SolverError::RankDeficient {
+                degree: block.degree,
+                found: step,
+                expected: block.rank,
+            });
+        }
+        smallest_pivot = smallest_pivot.min(magnitude);
+        row_used[pivot_row] = true;
+        column_used[pivot_column] = true;
+        pivots.push((pivot_row, pivot_column));
+        pivot_row_values.copy_from_slice(&matrix[pivot_row * width..(pivot_row + 1) * width]);
+        let pivot = pivot_row_values[pivot_column];
+        next = (0, 0, 0.0);
+        for r in 0..rows {
+            if row_used[r] {
+                continue;
+            }
+            let row = &mut matrix[r * width..(r + 1) * width];
+            let factor = row[pivot_column] / pivot;
+            if factor != 0.0 {
+                for (a, b) in row.iter_mut().zip(&pivot_row_values) {
+                    *a -= factor * b;
+                }
+                row[pivot_column] = 0.0;
+            }
+            for (c, v) in row[..top].iter().enumerate() {
+                if v.abs() > next.2 {
+                    next = (r, c, v.abs());
+                }
+            }
+        }
+        let _ = step;
+    }
+    if next.2 > RANK_GAP * smallest_pivot {
+        return Err(SolverError::RankDeficient {
+            degree: block.degree,
+            found: block.rank + 1,
+            expected: block.rank,
+        });
+    }
+    let standard = (0..top).filter(|&c| !column_used[c]).collect();
+    Ok(Echelon { pivots, standard })
+}
+
+/// One real solution pair `±q` of the system (one representative), with the
+/// eigenvalue residual it came from.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RealSolution {
+    /// The solution `q = (a, b, c, d)`; `−q` is a solution too.
+    pub q: [f64; 4],
+}
+
+/// Output of [`solve`]: the real solution pairs, and how many real
+/// eigenvalues the action matrix had (including pairs `±i·w`).
+#[derive(Debug, Clone, Default)]
+pub struct Solutions {
+    /// One representative of every real pair `±q`, `q ≠ 0`.
+    pub real: Vec<RealSolution>,
+    /// Number of real eigenvalues of the action matrix.
+    pub real_eigenvalues: usize,
+}
+
+/// Fixed candidate linear forms for the denominator `ℓ₂` (the coordinate
+/// axes and four mixed forms); the numerator `ℓ₁` is [`NUMERATOR_FORM`].
+const DENOMINATOR_FORMS: [[f64; 4]; 8] = [
+    [1.0, 0.0, 0.0, 0.0],
+    [0.0, 1.0, 0.0, 0.0],
+    [0.0, 0.0, 1.0, 0.0],
+    [0.0, 0.0, 0.0, 1.0],
+    [0.5, 0.5, 0.5, 0.5],
+    [0.5, -0.5, 0.5, -0.5],
+    [0.5, 0.5, -0.5, -0.5],
+    [0.5, -0.5, -0.5, 0.5],
+];
+/// The numerator form `ℓ₁`: fixed, generic, and not proportional to any
+/// denominator candidate, so that `ℓ₁/ℓ₂` separates the solutions.
+const NUMERATOR_FORM: [f64; 4] = [0.6172, -0.2893, 0.4351, 0.5887];
+
+/// Diagonal of the chart matrix `A` (see [`to_chart`]): positive, so every
+/// real solution lands inside the ellipsoid `pᵀAp < 1`, and unequal, so the
+/// isotropic cone `q·q = 0` — where nearly isotropic systems (OPnP on a
+/// symmetric marker) park their escaping solutions — is not the chart's
+/// hyperplane at infinity.
+pub const CHART_DIAGONAL: [f64; 4] = [0.55, 0.85, 1.2, 1.6];
+
+/// Rewrites the system in the weighted-projective chart `s = 1 − pᵀAp`.
+///
+/// With the extra unknown `s` of weight 2, `F_j(q, s) = C_j(q) + s·L_j(q)` is
+/// weighted homogeneous of degree 3, and `(q, s) ~ (λq, λ²s)`; the original
+/// system is the chart `s = 1`, where solutions near infinity (`s → 0`)
+/// have huge `‖q‖` and ruin any monomial basis up to degree 8. In the chart
+/// `pᵀAp + s = 1` the system is again odd cubic,
+/// `g_j(p) = C_j(p) − (pᵀAp)·L_j(p) + L_j(p)`, with the same solution pairs:
+/// a solution `p` with `σ = 1 − pᵀAp > 0` is `q = p/√σ` of the original
+/// (`f_j(q) = σ^{-3/2} g_j(p)`), and `σ < 0` means the original pair is
+/// `±i·w`, not real.
+pub fn to_chart(equations: &[OddCubic; 4]) -> [OddCubic; 4] {
+    let cubic_index = |e: &Exponent| monomials::position(&CUBIC, e).unwrap();
+    equations.map(|mut e| {
+        for k in 0..4 {
+            for r in 0..4 {
+                let mut m = [0u8; 4];
+                m[k] += 2;
+                m[r] += 1;
+                e[cubic_index(&m)] -= CHART_DIAGONAL[k] * e[CUBIC_COUNT + r];
+            }
+        }
+        let norm = e.iter().map(|c| c * c).sum::<f64>().sqrt();
+        if norm > 0.0 {
+            e.iter_mut().for_each(|c| *c /= norm);
+        }
+        e
+    })
+}
+
+/// Maps a real chart solution `p` back to `q = p/√(1 − pᵀAp)`; `None` when
+/// `1 − pᵀAp ≤ 0` (the original pair is not real).
+pub fn from_chart(p: &[f64; 4]) -> Option<[f64; 4]> {
+    let sigma = 1.0 - (0..4).map(|k| CHART_DIAGONAL[k] * p[k] * p[k]).sum::<f64>();
+    (sigma > 0.0).then(|| {
+        let scale = sigma.sqrt().recip();
+        p.map(|x| x * scale)
+    })
+}
+
+/// Solves `f_1 = … = f_4 = 0` for its real solution pairs, through the
+/// chart of [`to_chart`].
+pub fn solve(equations: &[OddCubic; 4]) -> Result<Solutions, SolverError> {
+    let mut solutions = solve_direct(&to_chart(equations))?;
+    solutions.real = solutions
+        .real
+        .iter()
+        .filter_map(|s| from_chart(&s.q).map(|q| RealSolution { q }))
+        .collect();
+    Ok(solutions)
+}
+
+/// Solves the system as given (no chart): [`solve`] without the change of
+/// variables.
+pub fn solve_direct(equations: &[OddCubic; 4]) -> Result<Solutions, SolverError> {
+    let template = &*TEMPLATE;
+    let even_len = template.even_columns.len();
+
+    // 1. Eliminate each degree block (complete pivoting over its top columns).
+    let mut matrices = Vec::with_capacity(3);
+    let mut echelons = Vec::with_capacity(3);
+    for block in &template.blocks {
+        let width = block.width();
+        let mut matrix = vec![0.0; block.rows.len() * width];
+        for (r, row) in block.rows.iter().enumerate() {
+            let coefficients = &equations[row.equation];
+            let out = &mut matrix[r * width..(r + 1) * width];
+            for (t, &column) in row.top.iter().enumerate() {
+                out[usize::from(column)] = coefficients[t];
+            }
+            for (t, &column) in row.tail.iter().enumerate() {
+                out[block.top_len + usize::from(column)] = coefficients[CUBIC_COUNT + t];
+            }
+        }
+        let echelon = eliminate(&mut matrix, block)?;
+        matrices.push(matrix);
+        echelons.push(echelon);
+    }
+
+    // 2. The even basis (constant dropped): standard monomials of degree 8,
+    //    6, 4 (from the eliminations), then all ten of degree 2.
+    let mut basis_of_column = vec![usize::MAX; even_len];
+    let mut basis_len = 0;
+    for (block, echelon) in template.blocks.iter().zip(&echelons) {
+        for &c in &echelon.standard {
+            basis_of_column[block.top_offset + c] = basis_len;
+            basis_len += 1;
+        }
+    }
+    for column in template.degree_offsets[3]..template.degree_offsets[4] {
+        basis_of_column[column] = basis_len;
+        basis_len += 1;
+    }
+    debug_assert_eq!(basis_len, SOLUTION_PAIRS);
+
+    // 3. Normal forms of x·b for x ∈ {a, b, c, d} and b in the odd basis,
+    //    reduced block by block; each distinct monomial once.
+    let mut normal_forms: Vec<Option<Vec<f64>>> = vec![None; even_len];
+    let mut work = vec![0.0; even_len];
+    let mut multiplication: [DMatrix<f64>; 4] =
+        std::array::from_fn(|_| DMatrix::zeros(SOLUTION_PAIRS, SOLUTION_PAIRS));
+    for x in 0..4 {
+        for i in 0..SOLUTION_PAIRS {
+            let column = template.targets[x][i];
+            if normal_forms[column].is_none() {
+                work.iter_mut().for_each(|v| *v = 0.0);
+                work[column] = 1.0;
+                reduce(&mut work, template, &matrices, &echelons);
+                let coordinates = (0..even_len)
+                    .filter(|&c| basis_of_column[c] != usize::MAX)
+                    .map(|c| (basis_of_column[c], work[c]))
+                    .fold(vec![0.0; SOLUTION_PAIRS], |mut acc, (k, v)| {
+                        acc[k] = v;
+                        acc
+                    });
+                normal_forms[column] = Some(coordinates);
+            }
+            let coordinates = normal_forms[column].as_ref().unwrap();
+            for (k, &v) in coordinates.iter().enumerate() {
+                multiplication[x][(k, i)] = v;
+            }
+        }
+    }
+
+    // 4. Denominator ℓ₂: the best-conditioned candidate; A = M_ℓ₂⁻¹ M_ℓ₁.
+    let combine = |form: &[f64; 4]| {
+        let mut m = DMatrix::zeros(SOLUTION_PAIRS, SOLUTION_PAIRS);
+        for (x, &w) in form.iter().enumerate() {
+            if w != 0.0 {
+                m += &multiplication[x] * w;
+            }
+        }
+        m
+    };
+    let mut best: Option<(f64, nalgebra::LU<f64, nalgebra::Dyn, nalgebra::Dyn>)> = None;
+    for form in &DENOMINATOR_FORMS {
+        let lu = combine(form).lu();
+        let diagonal = lu.u().diagonal().map(f64::abs);
+        let rcond = diagonal.min() / diagonal.max();
+        if std::env::var("OPNP_DEBUG").is_ok() {
+            eprintln!("form {form:?} rcond {rcond:e}");
+        }
+        if rcond.is_finite() && best.as_ref().is_none_or(|(b, _)| rcond > *b) {
+            best = Some((rcond, lu));
+        }
+    }
+    let (rcond, lu) = best.ok_or(SolverError::SingularDenominator)?;
+    if std::env::var("OPNP_DEBUG").is_ok() {
+        eprintln!("rcond {rcond:e}");
+    }
+    if !(rcond > DENOMINATOR_RCOND) {
+        return Err(SolverError::SingularDenominator);
+    }
+    let action = lu
+        .solve(&combine(&NUMERATOR_FORM))
+        .ok_or(SolverError::SingularDenominator)?;
+
+    // 5. Eigenvectors of Aᵀ for its real eigenvalues: the odd-basis values at
+    //    the solution pairs.
+    let transposed = action.transpose();
+    let schur = nalgebra::Schur::try_new(
+        transposed,
+        f64::EPSILON,
+        SCHUR_ITERATIONS_PER_DIMENSION * SOLUTION_PAIRS,
+    )
+    .ok_or(SolverError::SchurFailed)?;
+    let (orthogonal, triangular) = schur.unpack();
+    let mut solutions = Solutions::default();
+    for (position, eigenvalue) in real_eigenvalues(&triangular) {
+        solutions.real_eigenvalues += 1;
+        let Some(local) = quasi_triangular_eigenvector(&triangular, position, eigenvalue) else {
+            continue;
+        };
+        let vector = &orthogonal * local;
+        if std::env::var("OPNP_DEBUG").is_ok() {
+            eprintln!("eig {eigenvalue:e} pos {position} q {:?}", extract(template, &vector));
+        }
+        if let Some(q) = extract(template, &vector) {
+            solutions.real.push(RealSolution { q });
+        }
+    }
+    Ok(solutions)
+}
+
+/// Reduces the even polynomial `g` (dense over the global even columns)
+/// modulo `I`, block by block: afterwards it is nonzero only on standard
+/// monomials and in degrees 2 and 0.
+fn reduce(g: &mut [f64], template: &Template, matrices: &[Vec<f64>], echelons: &[Echelon]) {
+    for ((block, matrix), echelon) in template.blocks.iter().zip(matrices).zip(echelons) {
+        let width = block.width();
+        let span = &mut g[block.top_offset..block.top_offset + width];
+        if span[..block.top_len].iter().all(|&v| v == 0.0) {
+            continue;
+        }
+        for &(row, column) in &echelon.pivots {
+            let value = span[column];
+            if value == 0.0 {
+                continue;
+            }
+            let pivot_row = &matrix[row * width..(row + 1) * width];
+            let factor = value / pivot_row[column];
+            for (a, b) in span.iter_mut().zip(pivot_row) {
+                *a -= factor * b;
+            }
+            span[column] = 0.0;
+        }
+    }
+}
+
+/// Real eigenvalues of a real quasi-upper-triangular (Schur) matrix, with
+/// the diagonal position of each: 1×1 blocks, and 2×2 blocks whose complex
+/// pair is real within [`NEAR_REAL`] (rounding can split a real pair into a
+/// nearly-real complex one; both are kept, as the real part).
+fn real_eigenvalues(t: &DMatrix<f64>) -> Vec<(usize, f64)> {
+    let n = t.nrows();
+    let mut out = Vec::new();
+    let mut k = 0;
+    while k < n {
+        let is_pair = k + 1 < n && t[(k + 1, k)] != 0.0;
+        if !is_pair {
+            out.push((k, t[(k, k)]));
+            k += 1;
+            continue;
+        }
+        let (p, q, r, s) = (t[(k, k)], t[(k, k + 1)], t[(k + 1, k)], t[(k + 1, k + 1)]);
+        let mean = 0.5 * (p + s);
+        let discriminant = 0.25 * (p - s) * (p - s) + q * r;
+        if discriminant >= 0.0 {
+            let root = discriminant.sqrt();
+            out.push((k + 1, mean + root));
+            out.push((k + 1, mean - root));
+        } else {
+            let imaginary = (-discriminant).sqrt();
+            if imaginary <= NEAR_REAL * (mean * mean - discriminant).sqrt() {
+                out.push((k + 1, mean));
+            }
+        }
+        k += 2;
+    }
+    out
+}
+
+/// Eigenvector of the quasi-upper-triangular `t` for the real eigenvalue
+/// `lambda` sitting at (or, for a 2×2 block, ending at) diagonal `position`:
+/// back substitution through the 1×1 and 2×2 blocks above it.
+fn quasi_triangular_eigenvector(
+    t: &DMatrix<f64>,
+    position: usize,
+    lambda: f64,
+) -> Option<DVector<f64>> {
+    let n = t.nrows();
+    let scale = t.amax().max(f64::MIN_POSITIVE);
+    let tiny = f64::EPSILON * scale;
+    let mut x = DVector::zeros(n);
+    // Start: for a 1×1 block, x[position] = 1; for a 2×2 block ending at
+    // `position`, the null vector of its shifted block.
+    let mut top = position;
+    let starts_pair = position > 0 && t[(position, position - 1)] != 0.0;
+    if starts_pair {
+        let k = position - 1;
+        let (p, q) = (t[(k, k)] - lambda, t[(k, k + 1)]);
+        let (r, s) = (t[(k + 1, k)], t[(k + 1, k + 1)] - lambda);
+        // Null vector of [[p, q], [r, s]] from its larger row.
+        if p.abs() + q.abs() >= r.abs() + s.abs() {
+            x[k] = -q;
+            x[k + 1] = p;
+        } else {
+            x[k] = s;
+            x[k + 1] = -r;
+        }
+        if x[k] == 0.0 && x[k + 1] == 0.0 {
+            x[k] = 1.0;
+        }
+        top = k;
+    } else {
+        x[position] = 1.0;
+    }
+    let mut i = top;
+    while i > 0 {
+        let row = i - 1;
+        let is_pair_bottom = row > 0 && t[(row, row - 1)] != 0.0;
+        if is_pair_bottom {
+            let k = row - 1;
+            let rhs0: f64 = -(k + 2..n).map(|j| t[(k, j)] * x[j]).sum::<f64>();
+            let rhs1: f64 = -(k + 2..n).map(|j| t[(k + 1, j)] * x[j]).sum::<f64>();
+            let (p, q) = (t[(k, k)] - lambda, t[(k, k + 1)]);
+            let (r, s) = (t[(k + 1, k)], t[(k + 1, k + 1)] - lambda);
+            let mut det = p * s - q * r;
+            if det.abs() < tiny * tiny {
+                det = tiny * tiny;
+            }
+            x[k] = (rhs0 * s - q * rhs1) / det;
+            x[k + 1] = (p * rhs1 - r * rhs0) / det;
+            i = k;
+        } else {
+            let rhs: f64 = -(row + 1..n).map(|j| t[(row, j)] * x[j]).sum::<f64>();
+            let mut denominator = t[(row, row)] - lambda;
+            if denominator.abs() < tiny {
+                denominator = if denominator < 0.0 { -tiny } else { tiny };
+            }
+            x[row] = rhs / denominator;
+            i = row;
+        }
+    }
+    let norm = x.norm();
+    (norm.is_finite() && norm > 0.0).then(|| x / norm)
+}
+
+/// Reads `q` off an eigenvector `v ∝ (b(q))_{b∈B}`: the direction from the
+/// linear monomials, `|q|²` by least squares over the cubic ones. `None` when
+/// the pair is not real (`|q|² ≤ 0`) or the vector is unusable.
+fn extract(template: &Template, v: &DVector<f64>) -> Option<[f64; 4]> {
+    let linear = template.linear_positions.map(|i| v[i]);
+    let linear_norm = linear.iter().map(|x| x * x).sum::<f64>().sqrt();
+    if !(linear_norm > 0.0) || !linear_norm.is_finite() {
+        return None;
+    }
+    let direction = linear.map(|x| x / linear_norm);
+    let (mut numerator, mut denominator) = (0.0, 0.0);
+    for &i in &template.cubic_positions {
+        let m = monomials::evaluate(&template.odd_basis[i], &direction);
+        numerator += v[i] * m;
+        denominator += m * m;
+    }
+    let norm_sq = numerator / (linear_norm * denominator);
+    if !(norm_sq > 0.0) || !norm_sq.is_finite() {
+        return None;
+    }
+    let norm = norm_sq.sqrt();
+    Some(direction.map(|x| x * norm))
+}
+
+/// Newton's method on the square system `f(q) = 0`, started at `q`: at most
+/// `iterations` steps, stopping early when a step no longer shrinks the
+/// residual. Polishes the eigenvector estimates to full precision.
+pub fn newton_polish(equations: &[OddCubic; 4], q: &[f64; 4], iterations: usize) -> [f64; 4] {
+    let residual_norm = |q: &[f64; 4]| {
+        equations
+            .iter()
+            .map(|e| evaluate(e, q).powi(2))
+            .sum::<f64>()
+            .sqrt()
+    };
+    let mut current = *q;
+    let mut current_norm = residual_norm(&current);
+    for _ in 0..iterations {
+        let mut jacobian = nalgebra::Matrix4::zeros();
+        let mut value = nalgebra::Vector4::zeros();
+        for (j, e) in equations.iter().enumerate() {
+            value[j] = evaluate(e, &current);
+            let gradient = gradient(e, &current);
+            for k in 0..4 {
+                jacobian[(j, k)] = gradient[k];
+            }
+        }
+        let Some(step) = jacobian.lu().solve(&value) else {
+            break;
+        };
+        let next = std::array::from_fn(|k| current[k] - step[k]);
+        let next_norm = residual_norm(&next);
+        if !(next_norm < current_norm) {
+            break;
+        }
+        current = next;
+        current_norm = next_norm;
+    }
+    current
+}
+
+/// Gradient of an odd cubic equation at `q`.
+pub fn gradient(equation: &OddCubic, q: &[f64; 4]) -> [f64; 4] {
+    let mut out = [0.0; 4];
+    for (m, c) in CUBIC.iter().zip(equation) {
+        for k in 0..4 {
+            if m[k] > 0 {
+                let mut reduced = *m;
+                reduced[k] -= 1;
+                out[k] += c * f64::from(m[k]) * monomials::evaluate(&reduced, q);
+            }
+        }
+    }
+    for k in 0..4 {
+        out[k] += equation[CUBIC_COUNT + k];
+    }
+    out
+}
+
+/// Evaluates an odd cubic equation at `q`.
+pub fn evaluate(equation: &OddCubic, q: &[f64; 4]) -> f64 {
+    let cubic: f64 = CUBIC
+        .iter()
+        .zip(equation)
+        .map(|(m, c)| c * monomials::evaluate(m, q))
+        .sum();
+    cubic + (0..4).map(|k| equation[CUBIC_COUNT + k] * q[k]).sum::<f64>()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::Rng;
+
+    /// Four odd cubic equations that vanish at the given points: a basis of
+    /// the null space of the evaluation conditions, randomly combined.
+    pub(super) fn system_through_pub(points: &[[f64; 4]], rng: &mut impl Rng) -> [OddCubic; 4] { system_through(points, rng) }
+    pub(super) fn dist(x: &[f64; 4], y: &[f64; 4]) -> f64 { distance_up_to_sign(x, y) }
+    fn system_through(points: &[[f64; 4]], rng: &mut impl Rng) -> [OddCubic; 4] {
+        let rows = points.len();
+        let mut conditions = DMatrix::zeros(rows.max(1), EQUATION_TERMS);
+        for (r, p) in points.iter().enumerate() {
+            for (t, m) in CUBIC.iter().enumerate() {
+                conditions[(r, t)] = monomials::evaluate(m, p);
+            }
+            for k in 0..4 {
+                conditions[(r, CUBIC_COUNT + k)] = p[k];
+            }
+        }
+        // Null space from the SVD of the (padded) square system.
+        let mut square = DMatrix::zeros(EQUATION_TERMS, EQUATION_TERMS);
+        square.view_mut((0, 0), (rows, EQUATION_TERMS)).copy_from(&conditions.rows(0, rows));
+        let svd = square.svd(false, true);
+        let v_t = svd.v_t.unwrap();
+        let mut order: Vec<usize> = (0..EQUATION_TERMS).collect();
+        order.sort_by(|&a, &b| svd.singular_values[a].total_cmp(&svd.singular_values[b]));
+        let null: Vec<_> = order[..EQUATION_TERMS - rows]
+            .iter()
+            .map(|&k| v_t.row(k).transpose())
+            .collect();
+        std::array::from_fn(|_| {
+            let mut e = DVector::zeros(EQUATION_TERMS);
+            for v in &null {
+                e += v * rng.random_range(-1.0..1.0);
+            }
+            std::array::from_fn(|t| e[t])
+        })
+    }
+
+    fn distance_up_to_sign(x: &[f64; 4], y: &[f64; 4]) -> f64 {
+        let minus: f64 = (0..4).map(|k| (x[k] - y[k]).powi(2)).sum::<f64>().sqrt();
+        let plus: f64 = (0..4).map(|k| (x[k] + y[k]).powi(2)).sum::<f64>().sqrt();
+        minus.min(plus)
+    }
+
+    #[test]
+    fn template_has_the_predicted_shape() {
+        let template = &*TEMPLATE;
+        assert_eq!(template.even_columns.len(), 295);
+        assert_eq!(template.block_sizes(), [(224, 249), (80, 119), (16, 45)]);
+        assert_eq!(template.blocks.clone().map(|b| b.rank), [164, 74, 16]);
+        let basis = template.odd_basis();
+        assert_eq!(basis.len(), SOLUTION_PAIRS);
+        let per_degree: Vec<usize> = [1, 3, 5, 7]
+            .iter()
+            .map(|&d| basis.iter().filter(|m| monomials::degree(m) == d).count())
+            .collect();
+        assert_eq!(per_degree, vec![4, 16, 16, 4]);
+    }
+
+    #[test]
+    fn random_systems_have_forty_pairs_and_solutions_satisfy_the_equations() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+        for _ in 0..20 {
+            let equations: [OddCubic; 4] =
+                std::array::from_fn(|_| std::array::from_fn(|_| rng.random_range(-1.0..1.0)));
+            let solutions = solve(&equations).expect("generic system");
+            assert!(solutions.real_eigenvalues <= SOLUTION_PAIRS);
+            assert!(solutions.real.len() <= solutions.real_eigenvalues);
+            for s in &solutions.real {
+                // Residuals relative to the size of the terms at q.
+                let q = newton_polish(&equations, &s.q, 5);
+                let scale: f64 = q.iter().map(|x| x.abs()).fold(0.0, f64::max);
+                let scale = scale.powi(3) + scale;
+                for e in &equations {
+                    let residual = evaluate(e, &q) / scale;
+                    assert!(residual.abs() < 1e-12, "residual {residual} at {q:?}");
+                }
+                let step: f64 = (0..4).map(|k| (q[k] - s.q[k]).powi(2)).sum::<f64>().sqrt();
+                assert!(step < 1e-3 * scale.cbrt().max(1.0), "polish moved {step} from {:?}", s.q);
+            }
+        }
+    }
+
+    #[test]
+    fn recovers_prescribed_roots() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        for trial in 0..20 {
+            let roots: Vec<[f64; 4]> = (0..6)
+                .map(|_| std::array::from_fn(|_| rng.random_range(-1.5..1.5)))
+                .collect();
+            let equations = system_through(&roots, &mut rng);
+            let solutions = solve(&equations).expect("generic system");
+            let polished: Vec<[f64; 4]> = solutions
+                .real
+                .iter()
+                .map(|s| newton_polish(&equations, &s.q, 5))
+                .collect();
+            for root in &roots {
+                let nearest = polished
+                    .iter()
+                    .map(|q| distance_up_to_sign(q, root))
+                    .fold(f64::INFINITY, f64::min);
+                assert!(
+                    nearest < 1e-12,
+                    "trial {trial}: root {root:?} missed by {nearest}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    #[ignore = "timing; run with --ignored --nocapture"]
+    fn timing() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
+        let systems: Vec<[OddCubic; 4]> = (0..200)
+            .map(|_| std::array::from_fn(|_| std::array::from_fn(|_| rng.random_range(-1.0..1.0))))
+            .collect();
+        let _ = solve(&systems[0]);
+        let start = std::time::Instant::now();
+        let mut count = 0;
+        for s in &systems {
+            count += solve(s).map(|x| x.real.len()).unwrap_or(0);
+        }
+        let elapsed = start.elapsed().as_secs_f64() / systems.len() as f64;
+        eprintln!("{:.3} ms per solve, {count} real solutions", elapsed * 1e3);
+    }
+
+    #[test]
+    fn degenerate_system_is_a_typed_error() {
+        // All four equations equal: a positive-dimensional solution set.
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        let e: OddCubic = std::array::from_fn(|_| rng.random_range(-1.0..1.0));
+        let err = solve(&[e, e, e, e]).unwrap_err();
+        assert!(matches!(err, SolverError::RankDeficient { .. }), "{err}");
+    }
+}
+#[cfg(test)]
+mod debug_tests {
+    use super::*;
+    use rand::Rng;
+    #[test]
+    #[ignore]
+    fn debug_trial() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        for trial in 0..10 {
+            let roots: Vec<[f64; 4]> = (0..6)
+                .map(|_| std::array::from_fn(|_| rng.random_range(-1.5..1.5)))
+                .collect();
+            let equations = super::tests::system_through_pub(&roots, &mut rng);
+            if trial != 9 { continue; }
+            let solutions = solve(&equations).unwrap();
+            for root in &roots {
+                for s in &solutions.real {
+                    let d = super::tests::dist(&s.q, root);
+                    if d < 1e-2 {
+                        let p = newton_polish(&equations, &s.q, 8);
+                        let r: Vec<f64> = equations.iter().map(|e| evaluate(e, &p)).collect();
+                        let j = {
+                            let mut m = nalgebra::Matrix4::zeros();
+                            for (a, e) in equations.iter().enumerate() { let g = gradient(e, root); for k in 0..4 { m[(a,k)] = g[k]; } }
+                            m
+                        };
+                        eprintln!("root {root:?} raw {d:e} polished {:e} res {r:?} sv {:?}", super::tests::dist(&p, root), j.singular_values());
+                    }
+                }
+            }
+        }
+    }
+}
