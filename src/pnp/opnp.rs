@@ -59,7 +59,7 @@ use super::{Candidates, PnpError};
 use crate::pose::Pose;
 use monomials::{Exponent, CUBIC, CUBIC_COUNT, QUADRATIC};
 use nalgebra::{
-    Matrix3, Matrix4, Quaternion, SMatrix, SVector, SymmetricEigen, UnitQuaternion, Vector2,
+    Matrix4, Quaternion, SMatrix, SVector, SymmetricEigen, UnitQuaternion, Vector2,
     Vector3, Vector4,
 };
 
@@ -318,6 +318,14 @@ impl AlgebraicCost {
         eigenvalues.min() >= -MINIMUM_TOLERANCE * largest
     }
 
+    /// The quaternion of `pose` in this cost's gauge, `‖q‖² = L/z̄` (the
+    /// inverse of [`AlgebraicCost::pose`] up to the sign of `q`).
+    pub fn gauge_quaternion(&self, pose: &Pose) -> Vector4<f64> {
+        let unit = UnitQuaternion::from_rotation_matrix(&pose.rotation);
+        let depth = pose.transform(&self.centroid).z;
+        Vector4::new(unit.w, unit.i, unit.j, unit.k) * (self.length_scale / depth).sqrt()
+    }
+
     /// The pose for a real `q ≠ 0` (paper eq. 14): `R = R̄(q)/‖q‖²`,
     /// `z̄ = L/‖q‖²`, centroid `c = z̄ (t̃₁, t̃₂, 1)`, `t = c − R X̄`.
     pub fn pose(&self, q: &Vector4<f64>) -> Pose {
@@ -400,9 +408,8 @@ mod tests {
     use super::*;
     use crate::pose::rotation_error_deg;
     use approx::assert_relative_eq;
-    use nalgebra::Rotation3;
+    use nalgebra::{Matrix3, Rotation3};
 
-    pub(super) fn problem_pub() -> (Vec<Vector3<f64>>, Vec<Vector2<f64>>, Pose) { problem() }
     fn problem() -> (Vec<Vector3<f64>>, Vec<Vector2<f64>>, Pose) {
         let pose = Pose::new(
             Rotation3::from_euler_angles(0.4, -0.9, 2.2),
@@ -413,13 +420,6 @@ mod tests {
         (object, image, pose)
     }
 
-    /// The quaternion of the true pose in OPnP's gauge: ‖q‖² = L/z̄.
-    fn true_q(cost: &AlgebraicCost, pose: &Pose) -> Vector4<f64> {
-        let unit = UnitQuaternion::from_rotation_matrix(&pose.rotation);
-        let depth = pose.transform(&cost.centroid).z;
-        let scale = (cost.length_scale / depth).sqrt();
-        Vector4::new(unit.w, unit.i, unit.j, unit.k) * scale
-    }
 
     #[test]
     fn derivatives_match_central_differences() {
@@ -458,7 +458,7 @@ mod tests {
     fn true_pose_is_a_zero_of_the_cost_and_a_solution() {
         let (object, image, pose) = problem();
         let cost = AlgebraicCost::new(&object, &image).unwrap();
-        let q = true_q(&cost, &pose);
+        let q = cost.gauge_quaternion(&pose);
         // Zero up to rounding, relative to the cost's constant term Σ(uᵢ − ū)².
         let scale = cost.q_matrix[(0, 0)];
         assert!(cost.value(&q) < 1e-14 * scale, "cost {}", cost.value(&q));
@@ -495,27 +495,5 @@ mod tests {
                 assert_relative_eq!(entry, scaled[(j, k)], epsilon = 1e-14);
             }
         }
-    }
-}
-#[cfg(test)]
-mod debug_tests {
-    use super::*;
-    use rand::Rng;
-    #[test]
-    #[ignore]
-    fn debug_random() {
-        let mut rng = crate::synthetic::stream_rng(1, 2, 3);
-        for noise in [0.0, 1e-3] {
-            let object = crate::synthetic::random_points(&mut rng, 8, 100.0);
-            let pose = crate::synthetic::random_pose(&mut rng, 500.0, 0.2);
-            let image: Vec<Vector2<f64>> = object.iter().map(|p| pose.project_normalised(p) + Vector2::new(rng.random_range(-noise..=noise), rng.random_range(-noise..=noise))).collect();
-            eprintln!("noise {noise}: {:?}", solve_with_report(&object, &image).map(|x| x.1));
-        }
-        let (object, image, _) = super::tests::problem_pub();
-        let cost = AlgebraicCost::new(&object, &image).unwrap();
-        let basis = action::odd_standard_monomials(&cost.equations());
-        eprintln!("biprism odd basis {} {:?}", basis.len(), basis);
-        eprintln!("generic odd basis {:?}", action::TEMPLATE.odd_basis());
-        for e in cost.equations() { eprintln!("{e:?}"); }
     }
 }

@@ -54,7 +54,6 @@
 
 use super::monomials::{self, Exponent, CUBIC, CUBIC_COUNT, LINEAR};
 use nalgebra::{DMatrix, DVector};
-use rand::{Rng, SeedableRng};
 use std::sync::LazyLock;
 
 /// Coefficients of one odd cubic equation: the 20 cubic monomials of
@@ -80,9 +79,6 @@ pub const DENOMINATOR_RCOND: f64 = 1e-13;
 pub const NEAR_REAL: f64 = 1e-8;
 /// Iteration cap of the real Schur decomposition, per matrix dimension.
 pub const SCHUR_ITERATIONS_PER_DIMENSION: usize = 60;
-/// Seed of the random odd cubic system used once, at start-up, to choose the
-/// odd basis ([`Template::odd_basis`]).
-const STRUCTURE_SEED: u64 = 0x0_0917_2013;
 
 /// Why the polynomial solver could not return solutions.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
@@ -164,15 +160,16 @@ pub struct Template {
     even_columns: Vec<Exponent>,
     /// Offsets of degrees 8, 6, 4, 2, 0 in `even_columns`.
     degree_offsets: [usize; 5],
+    /// Even blocks, top degree 8, 6, 4.
     blocks: [Block; 3],
-    /// Basis of the odd quotient: 40 odd monomials.
-    odd_basis: Vec<Exponent>,
-    /// Positions of `a, b, c, d` in `odd_basis`.
-    linear_positions: [usize; 4],
-    /// Positions of the cubic monomials in `odd_basis`.
-    cubic_positions: Vec<usize>,
-    /// `targets[x][i]`: global even column of `x · odd_basis[i]`.
-    targets: [[usize; SOLUTION_PAIRS]; 4],
+    /// Odd monomials of degree 7, 5, 3, 1, concatenated (200).
+    odd_columns: Vec<Exponent>,
+    /// Odd blocks, top degree 7, 5, 3 (their top parts choose the odd basis).
+    odd_blocks: [Block; 3],
+    /// Offsets of degrees 7, 5, 3, 1 in `odd_columns`.
+    odd_offsets: [usize; 4],
+    /// `product_column[i][x]`: global even column of `x · odd_columns[i]`.
+    product_column: Vec<[usize; 4]>,
 }
 
 /// The solver structure, built on first use.
@@ -182,64 +179,67 @@ pub static TEMPLATE: LazyLock<Template> = LazyLock::new(Template::build);
 /// `(1 + t + t²)⁴`, degrees 0…8.
 const HILBERT: [usize; 9] = [1, 4, 10, 16, 19, 16, 10, 4, 1];
 
+/// Concatenates the monomials of the given degrees; returns them with the
+/// offset of each degree.
+fn concatenated<const N: usize>(degrees: [usize; N]) -> (Vec<Exponent>, [usize; N]) {
+    let mut columns = Vec::new();
+    let mut offsets = [0usize; N];
+    for (slot, &degree) in degrees.iter().enumerate() {
+        offsets[slot] = columns.len();
+        columns.extend(monomials::of_degree(degree));
+    }
+    (columns, offsets)
+}
+
+/// The block of top degree `degree`, whose top monomials start at
+/// `top_offset` of its column space.
+fn block(degree: usize, top_offset: usize) -> Block {
+    let top = monomials::of_degree(degree);
+    let tail = monomials::of_degree(degree - 2);
+    let rows = block_rows(degree, &top, &tail);
+    Block {
+        degree,
+        top_offset,
+        top_len: top.len(),
+        tail_len: tail.len(),
+        rank: top.len() - HILBERT[degree],
+        rows,
+    }
+}
+
 impl Template {
-    /// Builds the template structure: the even blocks and an odd basis.
+    /// Builds the template structure: even and odd blocks, product table.
     fn build() -> Template {
-        let even_degrees = [8usize, 6, 4, 2, 0];
-        let mut even_columns = Vec::new();
-        let mut degree_offsets = [0usize; 5];
-        for (slot, &degree) in even_degrees.iter().enumerate() {
-            degree_offsets[slot] = even_columns.len();
-            even_columns.extend(monomials::of_degree(degree));
-        }
-        let blocks = [8usize, 6, 4].map(|degree| {
-            let slot = even_degrees.iter().position(|&d| d == degree).unwrap();
-            let top = monomials::of_degree(degree);
-            let tail = monomials::of_degree(degree - 2);
-            let rows = block_rows(degree, &top, &tail);
-            Block {
-                degree,
-                top_offset: degree_offsets[slot],
-                top_len: top.len(),
-                tail_len: tail.len(),
-                rank: top.len() - HILBERT[degree],
-                rows,
-            }
-        });
-        let odd_basis = choose_odd_basis();
-        let linear_positions = LINEAR.map(|x| monomials::position(&odd_basis, &x).unwrap());
-        let cubic_positions = (0..odd_basis.len())
-            .filter(|&i| monomials::degree(&odd_basis[i]) == 3)
-            .collect();
-        let targets = std::array::from_fn(|x| {
-            std::array::from_fn(|i| {
-                let product = monomials::product(&LINEAR[x], &odd_basis[i]);
-                monomials::position(&even_columns, &product).unwrap()
+        let (even_columns, degree_offsets) = concatenated([8, 6, 4, 2, 0]);
+        let blocks = [(8, 0), (6, 1), (4, 2)].map(|(d, slot)| block(d, degree_offsets[slot]));
+        let (odd_columns, odd_offsets) = concatenated([7, 5, 3, 1]);
+        let odd_blocks = [(7, 0), (5, 1), (3, 2)].map(|(d, slot)| block(d, odd_offsets[slot]));
+        let product_column = odd_columns
+            .iter()
+            .map(|m| {
+                LINEAR.map(|x| {
+                    monomials::position(&even_columns, &monomials::product(&x, m)).unwrap()
+                })
             })
-        });
+            .collect();
         Template {
             even_columns,
             degree_offsets,
             blocks,
-            odd_basis,
-            linear_positions,
-            cubic_positions,
-            targets,
+            odd_columns,
+            odd_blocks,
+            odd_offsets,
+            product_column,
         }
     }
 
-    /// The 40 odd monomials whose classes form the basis of the odd quotient.
-    pub fn odd_basis(&self) -> &[Exponent] {
-        &self.odd_basis
-    }
-
-    /// Number of rows of each degree block (top degree 8, 6, 4).
+    /// Number of rows and columns of each even block (top degree 8, 6, 4).
     pub fn block_sizes(&self) -> [(usize, usize); 3] {
         self.blocks.clone().map(|b| (b.rows.len(), b.width()))
     }
 }
 
-/// Rows of the degree-`degree` block: every equation times every odd monomial
+/// Rows of the degree-`degree` block: every equation times every monomial
 /// of degree `degree − 3`.
 fn block_rows(degree: usize, top: &[Exponent], tail: &[Exponent]) -> Vec<RowPattern> {
     let mut rows = Vec::new();
@@ -263,67 +263,40 @@ fn block_rows(degree: usize, top: &[Exponent], tail: &[Exponent]) -> Vec<RowPatt
     rows
 }
 
-/// Chooses the odd basis once: the grevlex standard monomials of a random
-/// odd cubic system, found by reducing the odd Macaulay blocks (top degree 7,
-/// 5, 3) column by column in grevlex order with partial pivoting. Columns
-/// left without a pivot are standard: 4 + 16 + 16 in degrees 7, 5, 3, plus
-/// the four linear monomials. For a system without solutions at infinity
-/// any such set is a basis of the odd quotient; the per-problem conditioning
-/// is handled by the even side and the choice of `ℓ₂`.
-fn choose_odd_basis() -> Vec<Exponent> {
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(STRUCTURE_SEED);
-    let equations: [OddCubic; 4] =
-        std::array::from_fn(|_| std::array::from_fn(|_| rng.random_range(-1.0..1.0)));
-    odd_standard_monomials(&equations)
-}
-
-/// Grevlex standard odd monomials of a given system (see [`choose_odd_basis`]).
-pub fn odd_standard_monomials(equations: &[OddCubic; 4]) -> Vec<Exponent> {
-    let mut basis = Vec::new();
-    for degree in [7usize, 5, 3] {
-        let top = monomials::of_degree(degree);
-        let tail = monomials::of_degree(degree - 2);
-        let rows = block_rows(degree, &top, &tail);
-        let width = top.len();
-        let mut matrix = vec![0.0; rows.len() * width];
-        for (r, row) in rows.iter().enumerate() {
-            for (t, &column) in row.top.iter().enumerate() {
-                matrix[r * width + usize::from(column)] += equations[row.equation][t];
-            }
+/// Fills a block's matrix (row-major, `width` columns) from the equations:
+/// the cubic coefficients into the top columns and, when `with_tail`, the
+/// linear ones into the tail columns.
+fn fill(block: &Block, equations: &[OddCubic; 4], with_tail: bool) -> (Vec<f64>, usize) {
+    let width = if with_tail { block.width() } else { block.top_len };
+    let mut matrix = vec![0.0; block.rows.len() * width];
+    for (r, row) in block.rows.iter().enumerate() {
+        let coefficients = &equations[row.equation];
+        let out = &mut matrix[r * width..(r + 1) * width];
+        for (t, &column) in row.top.iter().enumerate() {
+            out[usize::from(column)] = coefficients[t];
         }
-        let mut used = vec![false; rows.len()];
-        for column in 0..width {
-            let best = (0..rows.len())
-                .filter(|&r| !used[r])
-                .max_by(|&x, &y| {
-                    matrix[x * width + column]
-                        .abs()
-                        .total_cmp(&matrix[y * width + column].abs())
-                });
-            let pivot_row = match best {
-                Some(r) if matrix[r * width + column].abs() > 1e-9 => r,
-                _ => {
-                    basis.push(top[column]);
-                    continue;
-                }
-            };
-            used[pivot_row] = true;
-            let pivot: Vec<f64> = matrix[pivot_row * width..(pivot_row + 1) * width].to_vec();
-            for r in 0..rows.len() {
-                if used[r] {
-                    continue;
-                }
-                let factor = matrix[r * width + column] / pivot[column];
-                if factor != 0.0 {
-                    for (a, b) in matrix[r * width..(r + 1) * width].iter_mut().zip(&pivot) {
-                        *a -= factor * b;
-                    }
-                }
+        if with_tail {
+            for (t, &column) in row.tail.iter().enumerate() {
+                out[block.top_len + usize::from(column)] = coefficients[CUBIC_COUNT + t];
             }
         }
     }
-    basis.extend(LINEAR);
-    basis
+    (matrix, width)
+}
+
+/// This problem's basis of the odd quotient, as indices into
+/// `odd_columns`: in each odd degree 7, 5, 3 the top columns left without a
+/// pivot by complete pivoting on the top-degree part of the odd block
+/// (4 + 16 + 16, the Hilbert function), plus the four linear monomials.
+fn odd_basis(template: &Template, equations: &[OddCubic; 4]) -> Result<Vec<usize>, SolverError> {
+    let mut basis = Vec::with_capacity(SOLUTION_PAIRS);
+    for block in &template.odd_blocks {
+        let (mut matrix, width) = fill(block, equations, false);
+        let echelon = eliminate(&mut matrix, width, block)?;
+        basis.extend(echelon.standard.iter().map(|&c| block.top_offset + c));
+    }
+    basis.extend(template.odd_offsets[3]..template.odd_offsets[3] + 4);
+    Ok(basis)
 }
 
 /// Echelon form of one block: the pivots in elimination order and the top
@@ -334,13 +307,12 @@ struct Echelon {
 }
 
 /// Gaussian elimination with complete pivoting over the first `block.top_len`
-/// columns of the row-major `matrix` (rows × `block.width()`), stopping after
+/// columns of the row-major `matrix` (rows × `width`), stopping after
 /// `block.rank` pivots. Rows keep their storage position; after step `s`
 /// every row not yet used as a pivot is exactly zero in the first `s` pivot
 /// columns, so the pivot rows form an echelon in elimination order.
-fn eliminate(matrix: &mut [f64], block: &Block) -> Result<Echelon, SolverError> {
+fn eliminate(matrix: &mut [f64], width: usize, block: &Block) -> Result<Echelon, SolverError> {
     let rows = block.rows.len();
-    let width = block.width();
     let top = block.top_len;
     let mut row_used = vec![false; rows];
     let mut column_used = vec![false; top];
@@ -508,26 +480,17 @@ pub fn solve_direct(equations: &[OddCubic; 4]) -> Result<Solutions, SolverError>
     let template = &*TEMPLATE;
     let even_len = template.even_columns.len();
 
-    // 1. Eliminate each degree block (complete pivoting over its top columns).
+    // 1. Eliminate each even degree block (complete pivoting over its top
+    //    columns), and choose the odd basis the same way.
     let mut matrices = Vec::with_capacity(3);
     let mut echelons = Vec::with_capacity(3);
     for block in &template.blocks {
-        let width = block.width();
-        let mut matrix = vec![0.0; block.rows.len() * width];
-        for (r, row) in block.rows.iter().enumerate() {
-            let coefficients = &equations[row.equation];
-            let out = &mut matrix[r * width..(r + 1) * width];
-            for (t, &column) in row.top.iter().enumerate() {
-                out[usize::from(column)] = coefficients[t];
-            }
-            for (t, &column) in row.tail.iter().enumerate() {
-                out[block.top_len + usize::from(column)] = coefficients[CUBIC_COUNT + t];
-            }
-        }
-        let echelon = eliminate(&mut matrix, block)?;
+        let (mut matrix, width) = fill(block, equations, true);
+        let echelon = eliminate(&mut matrix, width, block)?;
         matrices.push(matrix);
         echelons.push(echelon);
     }
+    let basis = odd_basis(template, equations)?;
 
     // 2. The even basis (constant dropped): standard monomials of degree 8,
     //    6, 4 (from the eliminations), then all ten of degree 2.
@@ -553,7 +516,7 @@ pub fn solve_direct(equations: &[OddCubic; 4]) -> Result<Solutions, SolverError>
         std::array::from_fn(|_| DMatrix::zeros(SOLUTION_PAIRS, SOLUTION_PAIRS));
     for x in 0..4 {
         for i in 0..SOLUTION_PAIRS {
-            let column = template.targets[x][i];
+            let column = template.product_column[basis[i]][x];
             if normal_forms[column].is_none() {
                 work.iter_mut().for_each(|v| *v = 0.0);
                 work[column] = 1.0;
@@ -589,17 +552,11 @@ pub fn solve_direct(equations: &[OddCubic; 4]) -> Result<Solutions, SolverError>
         let lu = combine(form).lu();
         let diagonal = lu.u().diagonal().map(f64::abs);
         let rcond = diagonal.min() / diagonal.max();
-        if std::env::var("OPNP_DEBUG").is_ok() {
-            eprintln!("form {form:?} rcond {rcond:e}");
-        }
         if rcond.is_finite() && best.as_ref().is_none_or(|(b, _)| rcond > *b) {
             best = Some((rcond, lu));
         }
     }
     let (rcond, lu) = best.ok_or(SolverError::SingularDenominator)?;
-    if std::env::var("OPNP_DEBUG").is_ok() {
-        eprintln!("rcond {rcond:e}");
-    }
     if !(rcond > DENOMINATOR_RCOND) {
         return Err(SolverError::SingularDenominator);
     }
@@ -624,10 +581,7 @@ pub fn solve_direct(equations: &[OddCubic; 4]) -> Result<Solutions, SolverError>
             continue;
         };
         let vector = &orthogonal * local;
-        if std::env::var("OPNP_DEBUG").is_ok() {
-            eprintln!("eig {eigenvalue:e} pos {position} q {:?}", extract(template, &vector));
-        }
-        if let Some(q) = extract(template, &vector) {
+        if let Some(q) = extract(template, &basis, &vector) {
             solutions.real.push(RealSolution { q });
         }
     }
@@ -761,16 +715,21 @@ fn quasi_triangular_eigenvector(
 /// Reads `q` off an eigenvector `v ∝ (b(q))_{b∈B}`: the direction from the
 /// linear monomials, `|q|²` by least squares over the cubic ones. `None` when
 /// the pair is not real (`|q|² ≤ 0`) or the vector is unusable.
-fn extract(template: &Template, v: &DVector<f64>) -> Option<[f64; 4]> {
-    let linear = template.linear_positions.map(|i| v[i]);
+fn extract(template: &Template, basis: &[usize], v: &DVector<f64>) -> Option<[f64; 4]> {
+    // The linear monomials are the last four basis entries (see `odd_basis`).
+    let linear: [f64; 4] = std::array::from_fn(|k| v[SOLUTION_PAIRS - 4 + k]);
     let linear_norm = linear.iter().map(|x| x * x).sum::<f64>().sqrt();
     if !(linear_norm > 0.0) || !linear_norm.is_finite() {
         return None;
     }
     let direction = linear.map(|x| x / linear_norm);
     let (mut numerator, mut denominator) = (0.0, 0.0);
-    for &i in &template.cubic_positions {
-        let m = monomials::evaluate(&template.odd_basis[i], &direction);
+    for (i, &column) in basis.iter().enumerate() {
+        let monomial = &template.odd_columns[column];
+        if monomials::degree(monomial) != 3 {
+            continue;
+        }
+        let m = monomials::evaluate(monomial, &direction);
         numerator += v[i] * m;
         denominator += m * m;
     }
@@ -850,12 +809,10 @@ pub fn evaluate(equation: &OddCubic, q: &[f64; 4]) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use rand::Rng;
+    use rand::{Rng, SeedableRng};
 
     /// Four odd cubic equations that vanish at the given points: a basis of
     /// the null space of the evaluation conditions, randomly combined.
-    pub(super) fn system_through_pub(points: &[[f64; 4]], rng: &mut impl Rng) -> [OddCubic; 4] { system_through(points, rng) }
-    pub(super) fn dist(x: &[f64; 4], y: &[f64; 4]) -> f64 { distance_up_to_sign(x, y) }
     fn system_through(points: &[[f64; 4]], rng: &mut impl Rng) -> [OddCubic; 4] {
         let rows = points.len();
         let mut conditions = DMatrix::zeros(rows.max(1), EQUATION_TERMS);
@@ -899,11 +856,21 @@ mod tests {
         assert_eq!(template.even_columns.len(), 295);
         assert_eq!(template.block_sizes(), [(224, 249), (80, 119), (16, 45)]);
         assert_eq!(template.blocks.clone().map(|b| b.rank), [164, 74, 16]);
-        let basis = template.odd_basis();
+        assert_eq!(template.odd_blocks.clone().map(|b| b.rank), [116, 40, 4]);
+        assert_eq!(template.odd_columns.len(), 200);
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(2);
+        let equations: [OddCubic; 4] =
+            std::array::from_fn(|_| std::array::from_fn(|_| rng.random_range(-1.0..1.0)));
+        let basis = odd_basis(template, &equations).unwrap();
         assert_eq!(basis.len(), SOLUTION_PAIRS);
         let per_degree: Vec<usize> = [1, 3, 5, 7]
             .iter()
-            .map(|&d| basis.iter().filter(|m| monomials::degree(m) == d).count())
+            .map(|&d| {
+                basis
+                    .iter()
+                    .filter(|&&c| monomials::degree(&template.odd_columns[c]) == d)
+                    .count()
+            })
             .collect();
         assert_eq!(per_degree, vec![4, 16, 16, 4]);
     }
@@ -983,38 +950,5 @@ mod tests {
         let e: OddCubic = std::array::from_fn(|_| rng.random_range(-1.0..1.0));
         let err = solve(&[e, e, e, e]).unwrap_err();
         assert!(matches!(err, SolverError::RankDeficient { .. }), "{err}");
-    }
-}
-#[cfg(test)]
-mod debug_tests {
-    use super::*;
-    use rand::Rng;
-    #[test]
-    #[ignore]
-    fn debug_trial() {
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
-        for trial in 0..10 {
-            let roots: Vec<[f64; 4]> = (0..6)
-                .map(|_| std::array::from_fn(|_| rng.random_range(-1.5..1.5)))
-                .collect();
-            let equations = super::tests::system_through_pub(&roots, &mut rng);
-            if trial != 9 { continue; }
-            let solutions = solve(&equations).unwrap();
-            for root in &roots {
-                for s in &solutions.real {
-                    let d = super::tests::dist(&s.q, root);
-                    if d < 1e-2 {
-                        let p = newton_polish(&equations, &s.q, 8);
-                        let r: Vec<f64> = equations.iter().map(|e| evaluate(e, &p)).collect();
-                        let j = {
-                            let mut m = nalgebra::Matrix4::zeros();
-                            for (a, e) in equations.iter().enumerate() { let g = gradient(e, root); for k in 0..4 { m[(a,k)] = g[k]; } }
-                            m
-                        };
-                        eprintln!("root {root:?} raw {d:e} polished {:e} res {r:?} sv {:?}", super::tests::dist(&p, root), j.singular_values());
-                    }
-                }
-            }
-        }
     }
 }
