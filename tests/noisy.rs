@@ -110,3 +110,8 @@ fn other_solvers_return_finite_poses() {
         assert!(stats.rms_ratio.is_finite() && stats.rms_ratio >= 0.9);
     }
 }
+
+#[test]
+fn opnp_reaches_the_first_order_limit() {
+    check(Solver::Opnp, 0.10);
+}

@@ -22,6 +22,9 @@ pub enum Family {
     Random,
     /// Random noncoplanar points, n = 4 or 5.
     Minimal,
+    /// Random coplanar points (a square patch), n = 4…100, for the methods
+    /// that accept planar targets.
+    Planar,
 }
 
 /// Problem `case` of a family: depth/size ratio log-uniform in [2, 200]
@@ -32,6 +35,7 @@ pub fn problem(seed: u64, family: Family, case: u64, sigma_px: f64) -> Problem {
         Family::Biprism => 1,
         Family::Random => 2,
         Family::Minimal => 3,
+        Family::Planar => 4,
     };
     let camera = Camera::paper();
     let mut attempt = 0;
@@ -48,11 +52,22 @@ pub fn problem(seed: u64, family: Family, case: u64, sigma_px: f64) -> Problem {
                 let n = rng.random_range(4..=5);
                 (random_points(&mut rng, n, 100.0), 100.0)
             }
+            Family::Planar => {
+                let n = rng.random_range(4..=100);
+                let mut points = random_points(&mut rng, n, 100.0);
+                points.iter_mut().for_each(|p| p.z = 0.0);
+                (points, 100.0)
+            }
         };
         // General position: a well-spread set, not a sliver. Random 4–5 point
         // draws are often nearly coplanar, where every method is ill-posed.
+        // Planar sets must be well spread within their plane.
         let spread = Spread::of(&object);
-        if spread.extents[2] < MIN_THICKNESS * spread.extents[0] {
+        let thickness = match family {
+            Family::Planar => spread.extents[1],
+            _ => spread.extents[2],
+        };
+        if thickness < MIN_THICKNESS * spread.extents[0] {
             continue;
         }
         let ratio = if case % 2 == 0 {

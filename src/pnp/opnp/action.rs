@@ -299,44 +299,64 @@ fn odd_basis(template: &Template, equations: &[OddCubic; 4]) -> Result<Vec<usize
     Ok(basis)
 }
 
-/// Echelon form of one block: the pivots in elimination order and the top
-/// columns left without a pivot (this problem's standard monomials).
+/// Echelon form of one block after [`eliminate`]. Columns of the top part
+/// were permuted as pivots were taken: pivot `s` sits at position
+/// `top_len − 1 − s`, and `permutation[k]` is the original top column now at
+/// position `k`. Every row shares the permutation.
 struct Echelon {
-    pivots: Vec<(usize, usize)>,
+    /// Storage row of pivot `s`, in elimination order.
+    pivot_rows: Vec<usize>,
+    /// Original top column at each (permuted) position.
+    permutation: Vec<usize>,
+    /// Original top columns left without a pivot: this degree's standard
+    /// monomials.
     standard: Vec<usize>,
 }
 
 /// Gaussian elimination with complete pivoting over the first `block.top_len`
-/// columns of the row-major `matrix` (rows × `width`), stopping after
-/// `block.rank` pivots. Rows keep their storage position; after step `s`
-/// every row not yet used as a pivot is exactly zero in the first `s` pivot
-/// columns, so the pivot rows form an echelon in elimination order.
+/// columns of the row-major `matrix` (rows × `width`; the remaining columns,
+/// the block's tail, are carried along), stopping after `block.rank` pivots.
+///
+/// Each pivot column is swapped to the end of the still-active top columns,
+/// so the row updates touch only the active columns and the tail. Rows keep
+/// their storage position; a row whose entry in the pivot column is exactly
+/// zero is skipped (the template is sparse at first), and each row's largest
+/// active entry is tracked so the next pivot is found in O(rows).
 fn eliminate(matrix: &mut [f64], width: usize, block: &Block) -> Result<Echelon, SolverError> {
     let rows = block.rows.len();
     let top = block.top_len;
+    let mut permutation: Vec<usize> = (0..top).collect();
     let mut row_used = vec![false; rows];
-    let mut column_used = vec![false; top];
-    let mut pivots = Vec::with_capacity(block.rank);
-    let mut pivot_row_values = vec![0.0; width];
-
-    // Largest entry of the unused rows over the top columns.
-    let largest = |matrix: &[f64], row_used: &[bool]| {
-        let mut best = (0usize, 0usize, 0.0f64);
-        for r in (0..rows).filter(|&r| !row_used[r]) {
-            for (c, v) in matrix[r * width..r * width + top].iter().enumerate() {
-                if v.abs() > best.2 {
-                    best = (r, c, v.abs());
+    let mut pivot_rows = Vec::with_capacity(block.rank);
+    let mut pivot_values = vec![0.0; width];
+    // (largest |entry| over the active top columns, its position) per row.
+    let row_max = |row: &[f64]| {
+        row.iter()
+            .enumerate()
+            .fold((0.0f64, 0usize), |best, (c, v)| {
+                if v.abs() > best.0 {
+                    (v.abs(), c)
+                } else {
+                    best
                 }
-            }
-        }
-        best
+            })
     };
-    let mut next = largest(matrix, &row_used);
-    let first_pivot = next.2;
+    let mut maxima: Vec<(f64, usize)> = (0..rows)
+        .map(|r| row_max(&matrix[r * width..r * width + top]))
+        .collect();
+    let mut active = top;
+    let mut first_pivot = 0.0;
     let mut smallest_pivot = f64::INFINITY;
     for step in 0..block.rank {
-        let (pivot_row, pivot_column, magnitude) = next;
-        if !(magnitude > RANK_TOLERANCE * first_pivot) {
+        let pivot_row = (0..rows)
+            .filter(|&r| !row_used[r])
+            .max_by(|&a, &b| maxima[a].0.total_cmp(&maxima[b].0))
+            .unwrap_or(0);
+        let (magnitude, pivot_position) = maxima[pivot_row];
+        if step == 0 {
+            first_pivot = magnitude;
+        }
+        if row_used[pivot_row] || !(magnitude > RANK_TOLERANCE * first_pivot) {
             return Err(SolverError::RankDeficient {
                 degree: block.degree,
                 found: step,
@@ -345,40 +365,58 @@ fn eliminate(matrix: &mut [f64], width: usize, block: &Block) -> Result<Echelon,
         }
         smallest_pivot = smallest_pivot.min(magnitude);
         row_used[pivot_row] = true;
-        column_used[pivot_column] = true;
-        pivots.push((pivot_row, pivot_column));
-        pivot_row_values.copy_from_slice(&matrix[pivot_row * width..(pivot_row + 1) * width]);
-        let pivot = pivot_row_values[pivot_column];
-        next = (0, 0, 0.0);
+        pivot_rows.push(pivot_row);
+        // Move the pivot column to the end of the active columns.
+        let last = active - 1;
+        if pivot_position != last {
+            for r in 0..rows {
+                matrix.swap(r * width + pivot_position, r * width + last);
+            }
+            permutation.swap(pivot_position, last);
+        }
+        active = last;
+        pivot_values.copy_from_slice(&matrix[pivot_row * width..(pivot_row + 1) * width]);
+        let pivot = pivot_values[last];
         for r in 0..rows {
             if row_used[r] {
                 continue;
             }
             let row = &mut matrix[r * width..(r + 1) * width];
-            let factor = row[pivot_column] / pivot;
-            if factor != 0.0 {
-                for (a, b) in row.iter_mut().zip(&pivot_row_values) {
-                    *a -= factor * b;
+            let factor = row[last] / pivot;
+            if factor == 0.0 {
+                // Untouched row: only its maximum's position may have moved.
+                if maxima[r].1 == last {
+                    maxima[r].1 = pivot_position;
                 }
-                row[pivot_column] = 0.0;
+                continue;
             }
-            for (c, v) in row[..top].iter().enumerate() {
-                if v.abs() > next.2 {
-                    next = (r, c, v.abs());
-                }
+            for (a, b) in row[..active].iter_mut().zip(&pivot_values[..active]) {
+                *a -= factor * b;
             }
+            for (a, b) in row[top..].iter_mut().zip(&pivot_values[top..]) {
+                *a -= factor * b;
+            }
+            row[last] = 0.0;
+            maxima[r] = row_max(&row[..active]);
         }
-        let _ = step;
     }
-    if next.2 > RANK_GAP * smallest_pivot {
+    let remaining = (0..rows)
+        .filter(|&r| !row_used[r])
+        .map(|r| maxima[r].0)
+        .fold(0.0, f64::max);
+    if remaining > RANK_GAP * smallest_pivot {
         return Err(SolverError::RankDeficient {
             degree: block.degree,
             found: block.rank + 1,
             expected: block.rank,
         });
     }
-    let standard = (0..top).filter(|&c| !column_used[c]).collect();
-    Ok(Echelon { pivots, standard })
+    let standard = permutation[..active].to_vec();
+    Ok(Echelon {
+        pivot_rows,
+        permutation,
+        standard,
+    })
 }
 
 /// One real solution pair `±q` of the system (one representative), with the
@@ -512,6 +550,7 @@ pub fn solve_direct(equations: &[OddCubic; 4]) -> Result<Solutions, SolverError>
     //    reduced block by block; each distinct monomial once.
     let mut normal_forms: Vec<Option<Vec<f64>>> = vec![None; even_len];
     let mut work = vec![0.0; even_len];
+    let mut scratch = Vec::new();
     let mut multiplication: [DMatrix<f64>; 4] =
         std::array::from_fn(|_| DMatrix::zeros(SOLUTION_PAIRS, SOLUTION_PAIRS));
     for x in 0..4 {
@@ -520,7 +559,7 @@ pub fn solve_direct(equations: &[OddCubic; 4]) -> Result<Solutions, SolverError>
             if normal_forms[column].is_none() {
                 work.iter_mut().for_each(|v| *v = 0.0);
                 work[column] = 1.0;
-                reduce(&mut work, template, &matrices, &echelons);
+                reduce(&mut work, template, &matrices, &echelons, &mut scratch);
                 let coordinates = (0..even_len)
                     .filter(|&c| basis_of_column[c] != usize::MAX)
                     .map(|c| (basis_of_column[c], work[c]))
@@ -590,26 +629,45 @@ pub fn solve_direct(equations: &[OddCubic; 4]) -> Result<Solutions, SolverError>
 
 /// Reduces the even polynomial `g` (dense over the global even columns)
 /// modulo `I`, block by block: afterwards it is nonzero only on standard
-/// monomials and in degrees 2 and 0.
-fn reduce(g: &mut [f64], template: &Template, matrices: &[Vec<f64>], echelons: &[Echelon]) {
+/// monomials and in degrees 2 and 0. `scratch` holds one block row.
+fn reduce(
+    g: &mut [f64],
+    template: &Template,
+    matrices: &[Vec<f64>],
+    echelons: &[Echelon],
+    scratch: &mut Vec<f64>,
+) {
     for ((block, matrix), echelon) in template.blocks.iter().zip(matrices).zip(echelons) {
         let width = block.width();
+        let top = block.top_len;
         let span = &mut g[block.top_offset..block.top_offset + width];
-        if span[..block.top_len].iter().all(|&v| v == 0.0) {
+        if span[..top].iter().all(|&v| v == 0.0) {
             continue;
         }
-        for &(row, column) in &echelon.pivots {
-            let value = span[column];
+        // Into the block's permuted column order.
+        scratch.clear();
+        scratch.extend(echelon.permutation.iter().map(|&c| span[c]));
+        scratch.extend_from_slice(&span[top..]);
+        for (step, &row) in echelon.pivot_rows.iter().enumerate() {
+            let position = top - 1 - step;
+            let value = scratch[position];
             if value == 0.0 {
                 continue;
             }
             let pivot_row = &matrix[row * width..(row + 1) * width];
-            let factor = value / pivot_row[column];
-            for (a, b) in span.iter_mut().zip(pivot_row) {
+            let factor = value / pivot_row[position];
+            for (a, b) in scratch[..position].iter_mut().zip(&pivot_row[..position]) {
                 *a -= factor * b;
             }
-            span[column] = 0.0;
+            for (a, b) in scratch[top..].iter_mut().zip(&pivot_row[top..]) {
+                *a -= factor * b;
+            }
+            scratch[position] = 0.0;
         }
+        for (k, &c) in echelon.permutation.iter().enumerate() {
+            span[c] = scratch[k];
+        }
+        span[top..].copy_from_slice(&scratch[top..]);
     }
 }
 
