@@ -203,9 +203,17 @@ impl Solver {
 
     /// Whether the method needs noncoplanar object points.
     pub fn needs_noncoplanar(self) -> bool {
+        // Exhaustive, so every new method has to decide.
         match self {
             Solver::Opnp => false,
-            _ => true,
+            Solver::Dlt
+            | Solver::Epnp
+            | Solver::EpnpGn
+            | Solver::Iepnp
+            | Solver::Parallel
+            | Solver::ParallelGn
+            | Solver::ParallelWeighted
+            | Solver::Ml => true,
         }
     }
 

@@ -59,8 +59,8 @@ use super::{Candidates, PnpError};
 use crate::pose::Pose;
 use monomials::{Exponent, CUBIC, CUBIC_COUNT, QUADRATIC};
 use nalgebra::{
-    Matrix4, Quaternion, SMatrix, SVector, SymmetricEigen, UnitQuaternion, Vector2,
-    Vector3, Vector4,
+    Matrix4, Quaternion, SMatrix, SVector, SymmetricEigen, UnitQuaternion, Vector2, Vector3,
+    Vector4,
 };
 
 /// Human name used in errors.
@@ -166,8 +166,12 @@ impl AlgebraicCost {
     pub fn new(object: &[Vector3<f64>], image: &[Vector2<f64>]) -> Result<Self, PnpError> {
         let count = object.len() as f64;
         let centroid = object.iter().sum::<Vector3<f64>>() / count;
-        let object_radius =
-            (object.iter().map(|p| (p - centroid).norm_squared()).sum::<f64>() / count).sqrt();
+        let object_radius = (object
+            .iter()
+            .map(|p| (p - centroid).norm_squared())
+            .sum::<f64>()
+            / count)
+            .sqrt();
         let image_centroid = image.iter().sum::<Vector2<f64>>() / count;
         let image_radius = (image
             .iter()
@@ -175,7 +179,7 @@ impl AlgebraicCost {
             .sum::<f64>()
             / count)
             .sqrt();
-        if !(image_radius > IMAGE_SPREAD_TOLERANCE) {
+        if image_radius.is_nan() || image_radius <= IMAGE_SPREAD_TOLERANCE {
             return Err(PnpError::Degenerate {
                 solver: NAME,
                 reason: "the image points coincide",
@@ -298,7 +302,7 @@ impl AlgebraicCost {
             };
             let next = current - step;
             let next_gradient = self.gradient(&next);
-            if !(next_gradient.norm() < gradient.norm()) {
+            if next_gradient.norm().is_nan() || next_gradient.norm() >= gradient.norm() {
                 break;
             }
             current = next;
@@ -391,9 +395,9 @@ pub fn solve_with_report(
         if !cost.is_local_minimum(&q) {
             continue;
         }
-        let duplicate = minima.iter().any(|m| {
-            (m - q).norm().min((m + q).norm()) <= DUPLICATE_TOLERANCE * q.norm()
-        });
+        let duplicate = minima
+            .iter()
+            .any(|m| (m - q).norm().min((m + q).norm()) <= DUPLICATE_TOLERANCE * q.norm());
         if !duplicate {
             minima.push(q);
         }
@@ -419,7 +423,6 @@ mod tests {
         let image = object.iter().map(|p| pose.project_normalised(p)).collect();
         (object, image, pose)
     }
-
 
     #[test]
     fn derivatives_match_central_differences() {
@@ -465,7 +468,11 @@ mod tests {
         assert!(cost.gradient(&q).norm() < 1e-12 * scale);
         let recovered = cost.pose(&q);
         assert!(rotation_error_deg(&pose.rotation, &recovered.rotation) < 1e-10);
-        assert_relative_eq!(recovered.translation, pose.translation, max_relative = 1e-12);
+        assert_relative_eq!(
+            recovered.translation,
+            pose.translation,
+            max_relative = 1e-12
+        );
         let candidates = solve(&object, &image).unwrap();
         let best = super::super::best_candidate(NAME, &candidates, &object, &image).unwrap();
         assert!(rotation_error_deg(&pose.rotation, &best.rotation) < 1e-8);

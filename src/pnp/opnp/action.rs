@@ -267,7 +267,11 @@ fn block_rows(degree: usize, top: &[Exponent], tail: &[Exponent]) -> Vec<RowPatt
 /// the cubic coefficients into the top columns and, when `with_tail`, the
 /// linear ones into the tail columns.
 fn fill(block: &Block, equations: &[OddCubic; 4], with_tail: bool) -> (Vec<f64>, usize) {
-    let width = if with_tail { block.width() } else { block.top_len };
+    let width = if with_tail {
+        block.width()
+    } else {
+        block.top_len
+    };
     let mut matrix = vec![0.0; block.rows.len() * width];
     for (r, row) in block.rows.iter().enumerate() {
         let coefficients = &equations[row.equation];
@@ -356,7 +360,7 @@ fn eliminate(matrix: &mut [f64], width: usize, block: &Block) -> Result<Echelon,
         if step == 0 {
             first_pivot = magnitude;
         }
-        if row_used[pivot_row] || !(magnitude > RANK_TOLERANCE * first_pivot) {
+        if row_used[pivot_row] || magnitude.is_nan() || magnitude <= RANK_TOLERANCE * first_pivot {
             return Err(SolverError::RankDeficient {
                 degree: block.degree,
                 found: step,
@@ -540,8 +544,8 @@ pub fn solve_direct(equations: &[OddCubic; 4]) -> Result<Solutions, SolverError>
             basis_len += 1;
         }
     }
-    for column in template.degree_offsets[3]..template.degree_offsets[4] {
-        basis_of_column[column] = basis_len;
+    for slot in &mut basis_of_column[template.degree_offsets[3]..template.degree_offsets[4]] {
+        *slot = basis_len;
         basis_len += 1;
     }
     debug_assert_eq!(basis_len, SOLUTION_PAIRS);
@@ -553,9 +557,9 @@ pub fn solve_direct(equations: &[OddCubic; 4]) -> Result<Solutions, SolverError>
     let mut scratch = Vec::new();
     let mut multiplication: [DMatrix<f64>; 4] =
         std::array::from_fn(|_| DMatrix::zeros(SOLUTION_PAIRS, SOLUTION_PAIRS));
-    for x in 0..4 {
-        for i in 0..SOLUTION_PAIRS {
-            let column = template.product_column[basis[i]][x];
+    for (x, matrix) in multiplication.iter_mut().enumerate() {
+        for (i, &odd_column) in basis.iter().enumerate() {
+            let column = template.product_column[odd_column][x];
             if normal_forms[column].is_none() {
                 work.iter_mut().for_each(|v| *v = 0.0);
                 work[column] = 1.0;
@@ -571,7 +575,7 @@ pub fn solve_direct(equations: &[OddCubic; 4]) -> Result<Solutions, SolverError>
             }
             let coordinates = normal_forms[column].as_ref().unwrap();
             for (k, &v) in coordinates.iter().enumerate() {
-                multiplication[x][(k, i)] = v;
+                matrix[(k, i)] = v;
             }
         }
     }
@@ -591,12 +595,12 @@ pub fn solve_direct(equations: &[OddCubic; 4]) -> Result<Solutions, SolverError>
         let lu = combine(form).lu();
         let diagonal = lu.u().diagonal().map(f64::abs);
         let rcond = diagonal.min() / diagonal.max();
-        if rcond.is_finite() && best.as_ref().is_none_or(|(b, _)| rcond > *b) {
+        if rcond.is_finite() && best.as_ref().map_or(true, |(b, _)| rcond > *b) {
             best = Some((rcond, lu));
         }
     }
     let (rcond, lu) = best.ok_or(SolverError::SingularDenominator)?;
-    if !(rcond > DENOMINATOR_RCOND) {
+    if rcond.is_nan() || rcond <= DENOMINATOR_RCOND {
         return Err(SolverError::SingularDenominator);
     }
     let action = lu
@@ -777,7 +781,7 @@ fn extract(template: &Template, basis: &[usize], v: &DVector<f64>) -> Option<[f6
     // The linear monomials are the last four basis entries (see `odd_basis`).
     let linear: [f64; 4] = std::array::from_fn(|k| v[SOLUTION_PAIRS - 4 + k]);
     let linear_norm = linear.iter().map(|x| x * x).sum::<f64>().sqrt();
-    if !(linear_norm > 0.0) || !linear_norm.is_finite() {
+    if !linear_norm.is_finite() || linear_norm <= 0.0 {
         return None;
     }
     let direction = linear.map(|x| x / linear_norm);
@@ -792,7 +796,7 @@ fn extract(template: &Template, basis: &[usize], v: &DVector<f64>) -> Option<[f6
         denominator += m * m;
     }
     let norm_sq = numerator / (linear_norm * denominator);
-    if !(norm_sq > 0.0) || !norm_sq.is_finite() {
+    if !norm_sq.is_finite() || norm_sq <= 0.0 {
         return None;
     }
     let norm = norm_sq.sqrt();
@@ -827,7 +831,7 @@ pub fn newton_polish(equations: &[OddCubic; 4], q: &[f64; 4], iterations: usize)
         };
         let next = std::array::from_fn(|k| current[k] - step[k]);
         let next_norm = residual_norm(&next);
-        if !(next_norm < current_norm) {
+        if next_norm.is_nan() || next_norm >= current_norm {
             break;
         }
         current = next;
@@ -861,7 +865,10 @@ pub fn evaluate(equation: &OddCubic, q: &[f64; 4]) -> f64 {
         .zip(equation)
         .map(|(m, c)| c * monomials::evaluate(m, q))
         .sum();
-    cubic + (0..4).map(|k| equation[CUBIC_COUNT + k] * q[k]).sum::<f64>()
+    cubic
+        + (0..4)
+            .map(|k| equation[CUBIC_COUNT + k] * q[k])
+            .sum::<f64>()
 }
 
 #[cfg(test)]
@@ -884,7 +891,9 @@ mod tests {
         }
         // Null space from the SVD of the (padded) square system.
         let mut square = DMatrix::zeros(EQUATION_TERMS, EQUATION_TERMS);
-        square.view_mut((0, 0), (rows, EQUATION_TERMS)).copy_from(&conditions.rows(0, rows));
+        square
+            .view_mut((0, 0), (rows, EQUATION_TERMS))
+            .copy_from(&conditions.rows(0, rows));
         let svd = square.svd(false, true);
         let v_t = svd.v_t.unwrap();
         let mut order: Vec<usize> = (0..EQUATION_TERMS).collect();
@@ -952,7 +961,11 @@ mod tests {
                     assert!(residual.abs() < 1e-12, "residual {residual} at {q:?}");
                 }
                 let step: f64 = (0..4).map(|k| (q[k] - s.q[k]).powi(2)).sum::<f64>().sqrt();
-                assert!(step < 1e-3 * scale.cbrt().max(1.0), "polish moved {step} from {:?}", s.q);
+                assert!(
+                    step < 1e-3 * scale.cbrt().max(1.0),
+                    "polish moved {step} from {:?}",
+                    s.q
+                );
             }
         }
     }

@@ -95,7 +95,15 @@ mod tests {
 
     #[test]
     fn counts_and_order() {
-        for (degree, count) in [(0, 1), (1, 4), (2, 10), (3, 20), (5, 56), (8, 165), (9, 220)] {
+        for (degree, count) in [
+            (0, 1),
+            (1, 4),
+            (2, 10),
+            (3, 20),
+            (5, 56),
+            (8, 165),
+            (9, 220),
+        ] {
             assert_eq!(of_degree(degree).len(), count);
         }
         let quadratic = of_degree(2);
@@ -116,6 +124,9 @@ mod tests {
             ]
         );
         assert_eq!(CUBIC.len(), CUBIC_COUNT);
-        assert_eq!(evaluate(&[1, 2, 0, 1], &[2.0, 3.0, 5.0, 7.0]), 2.0 * 9.0 * 7.0);
+        assert_eq!(
+            evaluate(&[1, 2, 0, 1], &[2.0, 3.0, 5.0, 7.0]),
+            2.0 * 9.0 * 7.0
+        );
     }
 }
