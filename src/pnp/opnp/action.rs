@@ -1,13 +1,22 @@
 //! Real solutions of four *odd* cubic equations in four unknowns by an
-//! elimination template and a multiplication (action) matrix.
+//! elimination template and multiplication (action) matrices.
 //!
 //! **Problem.** `f_j(q) = C_j(q) + L_j(q) = 0`, `j = 1…4`, `q = (a, b, c, d)`,
 //! where `C_j` is a cubic form and `L_j` a linear form: every monomial has odd
 //! degree, so the solutions come in pairs `±q`, plus the trivial `q = 0`.
 //! When the cubic parts share no projective zero (no solutions at infinity),
 //! Bézout's bound is attained: 81 solutions, that is `q = 0` and 40 pairs.
-//! OPnP's optimality conditions have this form (Zheng et al., ICCV 2013,
-//! §3.2; their generated solver reports the same 81 = 1 + 2·40).
+//! OPnP's optimality conditions have this form (Zheng et al., ICCV 2013; their
+//! generated solver reports the same 81 = 1 + 2·40).
+//!
+//! **Chart (numerical device, same solutions).** OPnP on a marker with an
+//! isotropic point scatter (the biprism) has cubic parts close to
+//! `c·(q·q)·q_j`, which vanish on the whole isotropic cone: 36 of the 40
+//! pairs then sit near infinity and a monomial basis up to degree 8 cannot
+//! represent them in double precision. [`solve`] therefore first rewrites the
+//! system in the weighted-projective chart `pᵀAp + s = 1` ([`to_chart`]); the
+//! result is again an odd cubic system with the same solution pairs, mapped
+//! back exactly by `q = p/√(1 − pᵀAp)` ([`from_chart`]).
 //!
 //! **Quotient algebra.** Let `I = ⟨f_1…f_4⟩`. Because the `f_j` are odd,
 //! `ℂ[q]/I` splits into an even part (dimension 41: the 40 pairs and `q = 0`)
@@ -17,40 +26,49 @@
 //! 16, 10, 4, 1` in degrees 0…8, and the `f_j` are an H-basis: the part of
 //! `I` of degree ≤ D is spanned by the multiples `m·f_j`, `deg m ≤ D − 3`.
 //! Ask, Kuang & Åström (ICPR 2012, "Exploiting p-fold symmetries for faster
-//! polynomial equation solving") and the OPnP authors work in one parity
-//! class of the quotient; so do we.
+//! polynomial equation solving"), whose method the OPnP authors' solver uses,
+//! work in one parity class of the quotient; so do we.
 //!
 //! **Template.** Even polynomials up to degree 8 are reduced modulo `I`
 //! degree by degree. A multiple `m·f_j` with `deg m = k − 3` has a degree-`k`
 //! part `m·C_j` and a degree-`(k−2)` part `m·L_j`, so the Macaulay matrix is
 //! block bidiagonal by degree. Each block (top degree k = 8, 6, 4: 224, 80 and
 //! 16 rows over 165, 84 and 35 top columns) is brought to echelon form by
-//! Gaussian elimination with complete pivoting over its top columns (the
-//! adaptive basis choice of Byröd, Josephson & Åström, "Fast and stable
+//! Gaussian elimination with complete pivoting over its top columns — the
+//! adaptive basis choice of Byröd, Josephson & Åström ("Fast and stable
 //! polynomial equation solving and its application to computer vision",
 //! IJCV 2009). Its expected rank is the number of top monomials minus the
 //! Hilbert function (164, 74, 16); the unpivoted columns are this problem's
 //! standard monomials, 1 + 10 + 19 in degrees 8, 6, 4, plus every monomial of
-//! degree 2 and the constant: 41, a basis of the even quotient.
+//! degree 2 and the constant: 41, a basis of the even quotient. The odd basis
+//! (40 monomials) is chosen the same way from the odd blocks of top degree 7,
+//! 5, 3 (4 + 16 + 16, plus `a, b, c, d`); a basis fixed once for all
+//! problems (grevlex standard monomials of a random system) was tried first
+//! and lost the true solution in 2 of 1500 noise-free OPnP problems (a
+//! far-field biprism, an n = 5 set), where the adaptive choice lost none.
 //!
 //! **Action matrix without degree 9.** Multiplying the odd quotient by an
 //! even polynomial (the classical action matrix on a parity class) would need
 //! reductions in degree 9 — a 336-row block. Instead we use the four maps
 //! `M_x : odd quotient → even quotient`, `b ↦ NF(x·b)`, for `x ∈ {a, b, c, d}`,
-//! which need degree 8 only. With `B` a fixed basis of the odd quotient (40
-//! odd monomials, [`Template::odd_basis`]) and `v_k = (b(q_k))_{b∈B}`, every
-//! solution pair satisfies `ev_{q_k} · M_x = x(q_k) · v_kᵀ`. The row of `M_x`
-//! for the constant monomial is zero (`x·b` vanishes at `q = 0`); dropping it
-//! leaves 40×40 matrices with `M_x = W⁻¹ diag(x(q_k)) V` (V, W evaluation
-//! matrices). For two linear forms `ℓ₁, ℓ₂`, `A = M_{ℓ₂}⁻¹ M_{ℓ₁} = V⁻¹
-//! diag(ℓ₁(q_k)/ℓ₂(q_k)) V`: the eigenvectors of `Aᵀ` are the `v_k`, read off
-//! the real Schur form. `ℓ₂` is chosen per problem among a few fixed forms
-//! as the one whose `M_{ℓ₂}` is best conditioned.
+//! which need degree 8 only. With `B` the odd basis and `v_k = (b(q_k))_{b∈B}`,
+//! every solution pair satisfies `ev_{q_k} · M_x = x(q_k) · v_kᵀ`. The row of
+//! `M_x` for the constant monomial is zero (`x·b` vanishes at `q = 0`);
+//! dropping it leaves 40×40 matrices with `M_x = W⁻¹ diag(x(q_k)) V` (V, W
+//! evaluation matrices). For two linear forms `ℓ₁, ℓ₂`, `A = M_{ℓ₂}⁻¹ M_{ℓ₁}
+//! = V⁻¹ diag(ℓ₁(q_k)/ℓ₂(q_k)) V`: the eigenvectors of `Aᵀ` are the `v_k`,
+//! read off the real Schur form by back substitution. `ℓ₂` is chosen per
+//! problem among a few fixed forms as the one whose `M_{ℓ₂}` is best
+//! conditioned.
 //!
 //! **Extraction.** `B` holds `a, b, c, d`, so `v_k` gives the direction `u` of
-//! `q_k`; 16 cubic monomials of `B` give `|q_k|²` by least squares
-//! (`v(m) = s·|q|³ m(u)`, `v(x) = s·|q| u`). A negative `|q|²` means the pair is
-//! `±i·w` with `w` real: not a real solution.
+//! `q_k`; the 16 cubic monomials of `B` give `‖q_k‖²` by least squares
+//! (`v(m) = s·‖q‖³ m(u)`, `v(x) = s·‖q‖ u`). A negative `‖q‖²` means the pair
+//! is `±i·w` with `w` real: not a real solution. Over 1000 noisy OPnP
+//! problems (biprism, random, n = 4–5, planar) the estimate of the solution
+//! that polishes to the best minimum had relative error median 4e-14, 99th
+//! percentile 6e-11, worst 5e-4; callers polish (OPnP by Newton's method on
+//! its cost, [`newton_polish`] for a bare system).
 
 use super::monomials::{self, Exponent, CUBIC, CUBIC_COUNT, LINEAR};
 use nalgebra::{DMatrix, DVector};
@@ -423,8 +441,7 @@ fn eliminate(matrix: &mut [f64], width: usize, block: &Block) -> Result<Echelon,
     })
 }
 
-/// One real solution pair `±q` of the system (one representative), with the
-/// eigenvalue residual it came from.
+/// One real solution pair `±q` of the system (one representative).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RealSolution {
     /// The solution `q = (a, b, c, d)`; `−q` is a solution too.
@@ -995,23 +1012,6 @@ mod tests {
                 );
             }
         }
-    }
-
-    #[test]
-    #[ignore = "timing; run with --ignored --nocapture"]
-    fn timing() {
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
-        let systems: Vec<[OddCubic; 4]> = (0..200)
-            .map(|_| std::array::from_fn(|_| std::array::from_fn(|_| rng.random_range(-1.0..1.0))))
-            .collect();
-        let _ = solve(&systems[0]);
-        let start = std::time::Instant::now();
-        let mut count = 0;
-        for s in &systems {
-            count += solve(s).map(|x| x.real.len()).unwrap_or(0);
-        }
-        let elapsed = start.elapsed().as_secs_f64() / systems.len() as f64;
-        eprintln!("{:.3} ms per solve, {count} real solutions", elapsed * 1e3);
     }
 
     #[test]
