@@ -490,6 +490,39 @@ mod tests {
     }
 
     #[test]
+    fn coplanar_points_are_accepted_and_collinear_rejected() {
+        use crate::pnp::Solver;
+        let pose = Pose::new(
+            Rotation3::from_euler_angles(0.7, 0.3, -1.2),
+            Vector3::new(-15.0, 10.0, 300.0),
+        );
+        let plane: Vec<Vector3<f64>> = [
+            (0.0, 0.0),
+            (60.0, 5.0),
+            (10.0, 50.0),
+            (-40.0, 20.0),
+            (25.0, -35.0),
+        ]
+        .iter()
+        .map(|&(x, y)| Vector3::new(x, y, 0.0))
+        .collect();
+        let image: Vec<Vector2<f64>> = plane.iter().map(|p| pose.project_normalised(p)).collect();
+        assert!(!Solver::Opnp.needs_noncoplanar());
+        let best = Solver::Opnp.solve_best(&plane, &image).unwrap();
+        assert!(rotation_error_deg(&pose.rotation, &best.rotation) < 1e-8);
+        assert_relative_eq!(best.translation, pose.translation, max_relative = 1e-10);
+        let line: Vec<Vector3<f64>> = (0..5)
+            .map(|i| Vector3::new(i as f64, 2.0 * i as f64, 1.0))
+            .collect();
+        assert_eq!(
+            Solver::Opnp.solve(&line, &image).unwrap_err(),
+            PnpError::Collinear
+        );
+        let err = Solver::Opnp.solve(&plane[..3], &image[..3]).unwrap_err();
+        assert_eq!(err.to_string(), "OPnP needs at least 4 points, got 3");
+    }
+
+    #[test]
     fn rotation_coefficients_match_the_unit_quaternion_matrix() {
         let q = Vector4::new(0.3, -0.5, 0.7, 0.2);
         let m = quadratic_monomials(&q);

@@ -960,7 +960,7 @@ mod tests {
     }
 
     #[test]
-    fn random_systems_have_forty_pairs_and_solutions_satisfy_the_equations() {
+    fn random_systems_real_solutions_satisfy_the_equations() {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
         for _ in 0..20 {
             let equations: [OddCubic; 4] =
@@ -1012,6 +1012,35 @@ mod tests {
                 );
             }
         }
+    }
+
+    #[test]
+    fn chart_keeps_the_solutions() {
+        // g_j(p) = σ^{3/2} f_j(q) for q = p/√σ, σ = 1 − pᵀAp (up to the row scaling).
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(8);
+        let equations: [OddCubic; 4] =
+            std::array::from_fn(|_| std::array::from_fn(|_| rng.random_range(-1.0..1.0)));
+        let chart = to_chart(&equations);
+        let p = [0.3, -0.2, 0.4, 0.1];
+        let q = from_chart(&p).unwrap();
+        let sigma: f64 = 1.0 - (0..4).map(|k| CHART_DIAGONAL[k] * p[k] * p[k]).sum::<f64>();
+        for (f, g) in equations.iter().zip(&chart) {
+            let ratio = evaluate(g, &p) / (sigma.powf(1.5) * evaluate(f, &q));
+            // The ratio is the row's normalisation factor, the same at any point.
+            let p2 = [-0.1, 0.5, 0.2, -0.3];
+            let q2 = from_chart(&p2).unwrap();
+            let sigma2: f64 = 1.0
+                - (0..4)
+                    .map(|k| CHART_DIAGONAL[k] * p2[k] * p2[k])
+                    .sum::<f64>();
+            let ratio2 = evaluate(g, &p2) / (sigma2.powf(1.5) * evaluate(f, &q2));
+            assert!(
+                (ratio - ratio2).abs() < 1e-12 * ratio.abs(),
+                "{ratio} vs {ratio2}"
+            );
+        }
+        // Outside the ellipsoid pᵀAp < 1 the original pair is not real.
+        assert_eq!(from_chart(&[1.0, 1.0, 0.0, 0.0]), None);
     }
 
     #[test]
