@@ -337,7 +337,8 @@ struct Echelon {
 
 /// Gaussian elimination with complete pivoting over the first `block.top_len`
 /// columns of the row-major `matrix` (rows × `width`; the remaining columns,
-/// the block's tail, are carried along), stopping after `block.rank` pivots.
+/// the block's tail if present, are carried along), stopping after
+/// `block.rank` pivots.
 ///
 /// Each pivot column is swapped to the end of the still-active top columns,
 /// so the row updates touch only the active columns and the tail. Rows keep
@@ -351,20 +352,9 @@ fn eliminate(matrix: &mut [f64], width: usize, block: &Block) -> Result<Echelon,
     let mut row_used = vec![false; rows];
     let mut pivot_rows = Vec::with_capacity(block.rank);
     let mut pivot_values = vec![0.0; width];
-    // (largest |entry| over the active top columns, its position) per row.
-    let row_max = |row: &[f64]| {
-        row.iter()
-            .enumerate()
-            .fold((0.0f64, 0usize), |best, (c, v)| {
-                if v.abs() > best.0 {
-                    (v.abs(), c)
-                } else {
-                    best
-                }
-            })
-    };
-    let mut maxima: Vec<(f64, usize)> = (0..rows)
-        .map(|r| row_max(&matrix[r * width..r * width + top]))
+    // Largest |entry| over the active top columns, per row.
+    let mut maxima: Vec<f64> = (0..rows)
+        .map(|r| max_abs(&matrix[r * width..r * width + top]))
         .collect();
     let mut active = top;
     let mut first_pivot = 0.0;
@@ -372,9 +362,9 @@ fn eliminate(matrix: &mut [f64], width: usize, block: &Block) -> Result<Echelon,
     for step in 0..block.rank {
         let pivot_row = (0..rows)
             .filter(|&r| !row_used[r])
-            .max_by(|&a, &b| maxima[a].0.total_cmp(&maxima[b].0))
+            .max_by(|&a, &b| maxima[a].total_cmp(&maxima[b]))
             .unwrap_or(0);
-        let (magnitude, pivot_position) = maxima[pivot_row];
+        let magnitude = maxima[pivot_row];
         if step == 0 {
             first_pivot = magnitude;
         }
@@ -388,6 +378,10 @@ fn eliminate(matrix: &mut [f64], width: usize, block: &Block) -> Result<Echelon,
         smallest_pivot = smallest_pivot.min(magnitude);
         row_used[pivot_row] = true;
         pivot_rows.push(pivot_row);
+        let pivot_position = matrix[pivot_row * width..pivot_row * width + active]
+            .iter()
+            .position(|v| v.abs() == magnitude)
+            .unwrap_or(active - 1);
         // Move the pivot column to the end of the active columns.
         let last = active - 1;
         if pivot_position != last {
@@ -406,25 +400,19 @@ fn eliminate(matrix: &mut [f64], width: usize, block: &Block) -> Result<Echelon,
             let row = &mut matrix[r * width..(r + 1) * width];
             let factor = row[last] / pivot;
             if factor == 0.0 {
-                // Untouched row: only its maximum's position may have moved.
-                if maxima[r].1 == last {
-                    maxima[r].1 = pivot_position;
-                }
                 continue;
             }
-            for (a, b) in row[..active].iter_mut().zip(&pivot_values[..active]) {
-                *a -= factor * b;
-            }
+            row[last] = 0.0;
+            maxima[r] =
+                subtract_scaled_max_abs(&mut row[..active], &pivot_values[..active], factor);
             for (a, b) in row[top..].iter_mut().zip(&pivot_values[top..]) {
                 *a -= factor * b;
             }
-            row[last] = 0.0;
-            maxima[r] = row_max(&row[..active]);
         }
     }
     let remaining = (0..rows)
         .filter(|&r| !row_used[r])
-        .map(|r| maxima[r].0)
+        .map(|r| maxima[r])
         .fold(0.0, f64::max);
     if remaining > RANK_GAP * smallest_pivot {
         return Err(SolverError::RankDeficient {
@@ -439,6 +427,47 @@ fn eliminate(matrix: &mut [f64], width: usize, block: &Block) -> Result<Echelon,
         permutation,
         standard,
     })
+}
+
+/// Lanes of the hand-vectorised reductions below.
+const LANES: usize = 4;
+
+/// `max |x|` over a slice, in [`LANES`] independent lanes so that it
+/// vectorises without reassociating floating-point operations.
+fn max_abs(x: &[f64]) -> f64 {
+    let mut lanes = [0.0f64; LANES];
+    let chunks = x.chunks_exact(LANES);
+    let rest = chunks.remainder();
+    for chunk in chunks {
+        for k in 0..LANES {
+            lanes[k] = lanes[k].max(chunk[k].abs());
+        }
+    }
+    rest.iter()
+        .fold(lanes.into_iter().fold(0.0, f64::max), |m, v| m.max(v.abs()))
+}
+
+/// `a −= factor · b`, returning `max |a|` afterwards (fused, lane-wise).
+fn subtract_scaled_max_abs(a: &mut [f64], b: &[f64], factor: f64) -> f64 {
+    let mut lanes = [0.0f64; LANES];
+    let mut a_chunks = a.chunks_exact_mut(LANES);
+    let mut b_chunks = b.chunks_exact(LANES);
+    for (x, y) in (&mut a_chunks).zip(&mut b_chunks) {
+        for k in 0..LANES {
+            x[k] -= factor * y[k];
+            lanes[k] = lanes[k].max(x[k].abs());
+        }
+    }
+    let mut m = lanes.into_iter().fold(0.0, f64::max);
+    for (x, y) in a_chunks
+        .into_remainder()
+        .iter_mut()
+        .zip(b_chunks.remainder())
+    {
+        *x -= factor * y;
+        m = m.max(x.abs());
+    }
+    m
 }
 
 /// One real solution pair `±q` of the system (one representative).
