@@ -40,12 +40,21 @@
 //! IJCV 2009). Its expected rank is the number of top monomials minus the
 //! Hilbert function (164, 74, 16); the unpivoted columns are this problem's
 //! standard monomials, 1 + 10 + 19 in degrees 8, 6, 4, plus every monomial of
-//! degree 2 and the constant: 41, a basis of the even quotient. The odd basis
-//! (40 monomials) is chosen the same way from the odd blocks of top degree 7,
-//! 5, 3 (4 + 16 + 16, plus `a, b, c, d`); a basis fixed once for all
-//! problems (grevlex standard monomials of a random system) was tried first
-//! and lost the true solution in 2 of 1500 noise-free OPnP problems (a
-//! far-field biprism, an n = 5 set), where the adaptive choice lost none.
+//! degree 2 and the constant: 41, a basis of the even quotient.
+//!
+//! **Odd basis from the socle.** The 40 odd basis monomials are chosen per
+//! problem too, without eliminating any odd block: the graded quotient of
+//! the cubic parts is Gorenstein with a one-dimensional socle in degree 8,
+//! whose functional `φ` falls out of the degree-8 echelon form by back
+//! substitution; degree-k monomials form a basis of that degree exactly when
+//! their pairing matrix `[φ(u·m)]` with the degree-`(8−k)` monomials has full
+//! rank, and column pivoting picks well-conditioned ones (4 + 16 + 16 in
+//! degrees 7, 5, 3, plus `a, b, c, d`). History, measured on the same test
+//! problems: a basis fixed once for all problems (grevlex standard monomials
+//! of a random system) lost the true solution in 2 of 1500 noise-free OPnP
+//! problems (a far-field biprism, an n = 5 set); choosing it by complete
+//! pivoting on the odd Macaulay blocks lost none but cost 0.4 ms; the socle
+//! choice loses none either and costs a few microseconds.
 //!
 //! **Action matrix without degree 9.** Multiplying the odd quotient by an
 //! even polynomial (the classical action matrix on a parity class) would need
@@ -65,10 +74,11 @@
 //! `q_k`; the 16 cubic monomials of `B` give `‖q_k‖²` by least squares
 //! (`v(m) = s·‖q‖³ m(u)`, `v(x) = s·‖q‖ u`). A negative `‖q‖²` means the pair
 //! is `±i·w` with `w` real: not a real solution. Over 1000 noisy OPnP
-//! problems (biprism, random, n = 4–5, planar) the estimate of the solution
-//! that polishes to the best minimum had relative error median 4e-14, 99th
-//! percentile 6e-11, worst 5e-4; callers polish (OPnP by Newton's method on
-//! its cost, [`newton_polish`] for a bare system).
+//! problems (σ = 0.5 px; biprism, random n = 6…100, n = 4–5, planar) the
+//! estimate of the solution that polishes to the minimum nearest the truth
+//! had relative error median 3e-14, 99th percentile 5e-11, worst 2e-8;
+//! callers polish it (OPnP by Newton's method on its cost, [`newton_polish`]
+//! for a bare system).
 
 use super::monomials::{self, Exponent, CUBIC, CUBIC_COUNT, LINEAR};
 use nalgebra::{DMatrix, DVector};
@@ -182,12 +192,13 @@ pub struct Template {
     blocks: [Block; 3],
     /// Odd monomials of degree 7, 5, 3, 1, concatenated (200).
     odd_columns: Vec<Exponent>,
-    /// Odd blocks, top degree 7, 5, 3 (their top parts choose the odd basis).
-    odd_blocks: [Block; 3],
     /// Offsets of degrees 7, 5, 3, 1 in `odd_columns`.
     odd_offsets: [usize; 4],
     /// `product_column[i][x]`: global even column of `x · odd_columns[i]`.
     product_column: Vec<[usize; 4]>,
+    /// `cubic_quintic[c · 56 + m]`: global even column (degree 8) of the
+    /// product of the `c`-th cubic and the `m`-th quintic odd column.
+    cubic_quintic: Vec<usize>,
 }
 
 /// The solver structure, built on first use.
@@ -231,7 +242,6 @@ impl Template {
         let (even_columns, degree_offsets) = concatenated([8, 6, 4, 2, 0]);
         let blocks = [(8, 0), (6, 1), (4, 2)].map(|(d, slot)| block(d, degree_offsets[slot]));
         let (odd_columns, odd_offsets) = concatenated([7, 5, 3, 1]);
-        let odd_blocks = [(7, 0), (5, 1), (3, 2)].map(|(d, slot)| block(d, odd_offsets[slot]));
         let product_column = odd_columns
             .iter()
             .map(|m| {
@@ -240,14 +250,24 @@ impl Template {
                 })
             })
             .collect();
+        let quintics = &odd_columns[odd_offsets[1]..odd_offsets[2]];
+        let cubics = &odd_columns[odd_offsets[2]..odd_offsets[3]];
+        let cubic_quintic = cubics
+            .iter()
+            .flat_map(|c| {
+                quintics
+                    .iter()
+                    .map(|m| monomials::position(&even_columns, &monomials::product(c, m)).unwrap())
+            })
+            .collect();
         Template {
             even_columns,
             degree_offsets,
             blocks,
             odd_columns,
-            odd_blocks,
             odd_offsets,
             product_column,
+            cubic_quintic,
         }
     }
 
@@ -306,19 +326,138 @@ fn fill(block: &Block, equations: &[OddCubic; 4], with_tail: bool) -> (Vec<f64>,
     (matrix, width)
 }
 
-/// This problem's basis of the odd quotient, as indices into
-/// `odd_columns`: in each odd degree 7, 5, 3 the top columns left without a
-/// pivot by complete pivoting on the top-degree part of the odd block
-/// (4 + 16 + 16, the Hilbert function), plus the four linear monomials.
-fn odd_basis(template: &Template, equations: &[OddCubic; 4]) -> Result<Vec<usize>, SolverError> {
+/// Relative size below which a candidate column of a pairing matrix counts
+/// as dependent when choosing the odd basis ([`odd_basis_from_socle`]).
+pub const PAIRING_RANK_TOLERANCE: f64 = 1e-10;
+
+/// This problem's basis of the odd quotient from the socle of the graded
+/// quotient, without eliminating the odd blocks.
+///
+/// The cubic parts span a complete intersection, so their graded quotient
+/// `A` is Gorenstein with one-dimensional socle `A₈`, and multiplication
+/// `A_k × A_{8−k} → A₈` is a perfect pairing. The linear functional `φ` on
+/// degree-8 forms that vanishes on the top parts of the degree-8 rows
+/// (normalised to 1 on the standard monomial `s₈`) is read off the echelon
+/// form by back substitution. Degree-k monomials `m` then form a basis of
+/// `A_k` exactly when the pairing matrix `[φ(u·m)]`, `u` over the monomials of
+/// degree `8 − k`, has full rank on them; we pick them greedily by column
+/// pivoting (largest residual first): 4 of degree 7 (paired with `a…d`), 16
+/// of degree 5 and 16 of degree 3 (paired with each other). A basis of every
+/// graded piece is a basis of the (affine) odd quotient.
+fn odd_basis_from_socle(
+    template: &Template,
+    matrix: &[f64],
+    echelon: &Echelon,
+) -> Result<Vec<usize>, SolverError> {
+    let phi = socle_functional(&template.blocks[0], matrix, echelon);
+    let offsets = template.odd_offsets;
+    let (septics, quintics, cubics) = (
+        offsets[0]..offsets[1],
+        offsets[1]..offsets[2],
+        offsets[2]..offsets[3],
+    );
     let mut basis = Vec::with_capacity(SOLUTION_PAIRS);
-    for block in &template.odd_blocks {
-        let (mut matrix, width) = fill(block, equations, false);
-        let echelon = eliminate(&mut matrix, width, block)?;
-        basis.extend(echelon.standard.iter().map(|&c| block.top_offset + c));
-    }
-    basis.extend(template.odd_offsets[3]..template.odd_offsets[3] + 4);
+    // Degree 7: rows a…d, columns the degree-7 monomials.
+    let pairing: Vec<f64> = (0..4)
+        .flat_map(|x| {
+            septics
+                .clone()
+                .map(move |m| template.product_column[m][x])
+                .map(|c| phi[c])
+        })
+        .collect();
+    let chosen = select_columns(&pairing, 4, septics.len(), HILBERT[7], 7)?;
+    basis.extend(chosen.into_iter().map(|k| septics.start + k));
+    // Degree 5 against degree 3, and its transpose.
+    let (n3, n5) = (cubics.len(), quintics.len());
+    let pairing: Vec<f64> = template.cubic_quintic.iter().map(|&c| phi[c]).collect();
+    let chosen = select_columns(&pairing, n3, n5, HILBERT[5], 5)?;
+    basis.extend(chosen.into_iter().map(|k| quintics.start + k));
+    let transposed: Vec<f64> = (0..n5)
+        .flat_map(|m| (0..n3).map(move |c| (c, m)))
+        .map(|(c, m)| pairing[c * n5 + m])
+        .collect();
+    let chosen = select_columns(&transposed, n5, n3, HILBERT[3], 3)?;
+    basis.extend(chosen.into_iter().map(|k| cubics.start + k));
+    basis.extend(offsets[3]..offsets[3] + 4);
     Ok(basis)
+}
+
+/// The socle functional `φ` on the degree-8 monomials (indexed by the
+/// block's original top columns): zero on the top part of every degree-8
+/// row, 1 on the standard monomial `s₈`. In the permuted order of the
+/// echelon, `s₈` sits at position 0 and pivot `s` at `top − 1 − s`, whose row
+/// has entries only at positions up to its own: back substitution.
+fn socle_functional(block: &Block, matrix: &[f64], echelon: &Echelon) -> Vec<f64> {
+    let (top, width) = (block.top_len, block.width());
+    let mut phi_permuted = vec![0.0; top];
+    phi_permuted[0] = 1.0;
+    for (step, &row) in echelon.pivot_rows.iter().enumerate().rev() {
+        let position = top - 1 - step;
+        let u = &matrix[row * width..row * width + position + 1];
+        let dot: f64 = u[..position]
+            .iter()
+            .zip(&phi_permuted[..position])
+            .map(|(a, b)| a * b)
+            .sum();
+        phi_permuted[position] = -dot / u[position];
+    }
+    let mut phi = vec![0.0; top];
+    for (position, &column) in echelon.permutation.iter().enumerate() {
+        phi[column] = phi_permuted[position];
+    }
+    phi
+}
+
+/// Greedy column pivoting (modified Gram–Schmidt, largest residual first)
+/// on the row-major `rows × cols` matrix: the indices of `count` columns.
+/// Fails with `RankDeficient` for `degree` when fewer are independent.
+fn select_columns(
+    matrix: &[f64],
+    rows: usize,
+    cols: usize,
+    count: usize,
+    degree: usize,
+) -> Result<Vec<usize>, SolverError> {
+    let mut columns: Vec<Vec<f64>> = (0..cols)
+        .map(|c| (0..rows).map(|r| matrix[r * cols + c]).collect())
+        .collect();
+    let mut norms: Vec<f64> = columns
+        .iter()
+        .map(|v| v.iter().map(|x| x * x).sum())
+        .collect();
+    let mut chosen = Vec::with_capacity(count);
+    let mut first = 0.0;
+    for step in 0..count {
+        let best = (0..cols)
+            .filter(|c| !chosen.contains(c))
+            .max_by(|&a, &b| norms[a].total_cmp(&norms[b]))
+            .unwrap_or(0);
+        let norm = norms[best].sqrt();
+        if step == 0 {
+            first = norm;
+        }
+        if norm.is_nan() || norm <= PAIRING_RANK_TOLERANCE * first {
+            return Err(SolverError::RankDeficient {
+                degree,
+                found: step,
+                expected: count,
+            });
+        }
+        chosen.push(best);
+        let pivot: Vec<f64> = columns[best].iter().map(|x| x / norm).collect();
+        for c in 0..cols {
+            if chosen.contains(&c) {
+                continue;
+            }
+            let projection: f64 = columns[c].iter().zip(&pivot).map(|(a, b)| a * b).sum();
+            for (a, b) in columns[c].iter_mut().zip(&pivot) {
+                *a -= projection * b;
+            }
+            norms[c] = columns[c].iter().map(|x| x * x).sum();
+        }
+    }
+    Ok(chosen)
 }
 
 /// Echelon form of one block after [`eliminate`]. Columns of the top part
@@ -578,7 +717,7 @@ pub fn solve_direct(equations: &[OddCubic; 4]) -> Result<Solutions, SolverError>
         matrices.push(matrix);
         echelons.push(echelon);
     }
-    let basis = odd_basis(template, equations)?;
+    let basis = odd_basis_from_socle(template, &matrices[0], &echelons[0])?;
 
     // 2. The even basis (constant dropped): standard monomials of degree 8,
     //    6, 4 (from the eliminations), then all ten of degree 2.
@@ -969,12 +1108,15 @@ mod tests {
         assert_eq!(template.even_columns.len(), 295);
         assert_eq!(template.block_sizes(), [(224, 249), (80, 119), (16, 45)]);
         assert_eq!(template.blocks.clone().map(|b| b.rank), [164, 74, 16]);
-        assert_eq!(template.odd_blocks.clone().map(|b| b.rank), [116, 40, 4]);
         assert_eq!(template.odd_columns.len(), 200);
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(2);
         let equations: [OddCubic; 4] =
             std::array::from_fn(|_| std::array::from_fn(|_| rng.random_range(-1.0..1.0)));
-        let basis = odd_basis(template, &equations).unwrap();
+        let block = &template.blocks[0];
+        let (mut matrix, width) = fill(block, &equations, true);
+        let echelon = eliminate(&mut matrix, width, block).unwrap();
+        assert_eq!(echelon.standard.len(), 1);
+        let basis = odd_basis_from_socle(template, &matrix, &echelon).unwrap();
         assert_eq!(basis.len(), SOLUTION_PAIRS);
         let per_degree: Vec<usize> = [1, 3, 5, 7]
             .iter()
@@ -986,6 +1128,29 @@ mod tests {
             })
             .collect();
         assert_eq!(per_degree, vec![4, 16, 16, 4]);
+    }
+
+    #[test]
+    fn socle_functional_annihilates_every_degree_8_row() {
+        let template = &*TEMPLATE;
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(4);
+        let equations: [OddCubic; 4] =
+            std::array::from_fn(|_| std::array::from_fn(|_| rng.random_range(-1.0..1.0)));
+        let block = &template.blocks[0];
+        let (mut matrix, width) = fill(block, &equations, true);
+        let echelon = eliminate(&mut matrix, width, block).unwrap();
+        let phi = socle_functional(block, &matrix, &echelon);
+        assert_eq!(phi[echelon.standard[0]], 1.0);
+        let scale = phi.iter().map(|v| v.abs()).fold(0.0, f64::max);
+        for row in &block.rows {
+            let value: f64 = row
+                .top
+                .iter()
+                .zip(&equations[row.equation])
+                .map(|(&c, e)| phi[usize::from(c)] * e)
+                .sum();
+            assert!(value.abs() < 1e-12 * scale, "φ(row) = {value}");
+        }
     }
 
     #[test]
