@@ -1,14 +1,21 @@
 //! OPnP: Zheng, Kuang, Sugimoto, Åström & Okutomi, "Revisiting the PnP
 //! Problem: A Fast, General and Optimal Solution", ICCV 2013.
 //!
-//! **Parameterisation (paper §3.1).** The rotation is written with a
+//! The steps below follow the paper and the authors' public MATLAB code
+//! (`OPnP.m`, `PnP_Polish.m`, and a solver generated with the automatic
+//! generator of Kukelova, Bujnak & Pajdla, ECCV 2008), read for
+//! understanding; the derivations here are ours, and steps are named by
+//! content rather than by the paper's equation numbers.
+//!
+//! **Parameterisation.** The rotation is written with a
 //! *non-unit* quaternion `q = (a, b, c, d)`: `R = R̄(q)/‖q‖²`, where `R̄(q)`
 //! is the usual quaternion matrix with entries quadratic in `q` (e.g.
 //! `R̄₁₁ = a² + b² − c² − d²`, `R̄₁₂ = 2(bc − ad)`). The free scale of `q` is
 //! the depth gauge: `‖q‖² = L / z̄`, with `z̄ = r₃·X̄ + t₃` the depth of the
-//! object-point centroid `X̄` and `L` a fixed length (below). For centred,
-//! scaled points `X̂ᵢ = (Xᵢ − X̄)/L`, the projection `uᵢ = (r₁Xᵢ + t₁)/(r₃Xᵢ +
-//! t₃)`, multiplied through by `‖q‖²/z̄`, becomes
+//! object-point centroid `X̄` and `L` a fixed length (below). With centred,
+//! scaled points `X̂ᵢ = (Xᵢ − X̄)/L` and the centroid's camera position `c`,
+//! the projection `uᵢ (r₃Xᵢ + t₃) = r₁Xᵢ + t₁` divided by `z̄` (so that
+//! `r₃(Xᵢ − X̄)/z̄ = r̄₃·X̂ᵢ`) becomes
 //!
 //! `uᵢ (r̄₃·X̂ᵢ + 1) − r̄₁·X̂ᵢ − t̃₁ = 0`,  `vᵢ (r̄₃·X̂ᵢ + 1) − r̄₂·X̂ᵢ − t̃₂ = 0`,
 //!
@@ -18,13 +25,13 @@
 //! residual is the reprojection error weighted by `zᵢ/z̄` (point depth over
 //! centroid depth): this is the paper's algebraic cost.
 //!
-//! **Translation eliminated (paper eq. 9–11).** `t̃` enters with coefficient
+//! **Translation eliminated in closed form.** `t̃` enters with coefficient
 //! −1 in every residual, so its least-squares value is the mean over the
 //! points; substituting it back leaves `f(q) = zᵀ Q z` with an 11×11 positive
 //! semidefinite `Q` (we accumulate the centred scatter directly, which avoids
 //! the cancellation of `NᵀN − n·ḡḡᵀ`).
 //!
-//! **Optimality conditions (paper eq. 13).** `q` is unconstrained, so the
+//! **First-order optimality conditions.** `q` is unconstrained, so the
 //! minimisers are among the stationary points `∇f(q) = 0`: four cubic
 //! equations in `(a, b, c, d)` whose monomials all have odd degree (3 and 1).
 //! They have 81 solutions: `q = 0` and 40 pairs `±q`. [`action`] solves them
@@ -41,6 +48,9 @@
 //! turned into `R = R̄(q)/‖q‖²`, `z̄ = L/‖q‖²`, `c = z̄·(t̃₁, t̃₂, 1)`,
 //! `t = c − R X̄`. Every such pose is returned; [`super::best_candidate`]
 //! picks the lowest reprojection error among those in front of the camera.
+//! (The authors' code, for n > 6, keeps only the candidates of least
+//! algebraic cost; we return every minimum and let the project's common
+//! selection rule decide.)
 //!
 //! **Scale `L`.** The gauge fixes `‖q‖² = L/z̄`; we take `L` = RMS object
 //! radius / RMS image radius, the weak-perspective depth estimate, so the
@@ -116,7 +126,7 @@ fn derivatives() -> Vec<Derivative> {
 }
 
 /// `R̄(q)` as a linear map of `m(q)`: `ROTATION_COEFFICIENTS[j][k][l]` is the
-/// coefficient of `m_l` in entry `(j, k)` (paper eq. 4).
+/// coefficient of `m_l` in entry `(j, k)`.
 const ROTATION_COEFFICIENTS: [[[f64; 10]; 3]; 3] = {
     // m = a², ab, ac, ad, b², bc, bd, c², cd, d²
     [
@@ -162,7 +172,7 @@ pub struct AlgebraicCost {
 }
 
 impl AlgebraicCost {
-    /// Builds `Q` (paper eqs. 9–11) for `object`/`image` (validated).
+    /// Builds `Q` for `object`/`image` (validated).
     pub fn new(object: &[Vector3<f64>], image: &[Vector2<f64>]) -> Result<Self, PnpError> {
         let count = object.len() as f64;
         let centroid = object.iter().sum::<Vector3<f64>>() / count;
@@ -187,7 +197,7 @@ impl AlgebraicCost {
         }
         let length_scale = object_radius / image_radius;
 
-        // Residual rows g (eq. 8): x-row [u, u·P₃(X̂) − P₁(X̂)], y-row likewise.
+        // Residual rows g: x-row [u, u·P₃(X̂) − P₁(X̂)], y-row likewise.
         let rows = |p: &Vector3<f64>, m: &Vector2<f64>| -> [Lifted; 2] {
             let x = (p - centroid) / length_scale;
             let third = rotation_row(2, &x);
@@ -267,7 +277,7 @@ impl AlgebraicCost {
     }
 
     /// The four optimality conditions `½ ∂f/∂q_p = 0` as odd cubic equations
-    /// (paper eq. 13), each scaled to unit coefficient norm.
+    /// (the optimality conditions), each scaled to unit coefficient norm.
     pub fn equations(&self) -> [action::OddCubic; 4] {
         let mut equations = [[0.0; action::EQUATION_TERMS]; 4];
         let cubic_index = |e: &Exponent| monomials::position(&CUBIC, e).unwrap();
@@ -330,7 +340,7 @@ impl AlgebraicCost {
         Vector4::new(unit.w, unit.i, unit.j, unit.k) * (self.length_scale / depth).sqrt()
     }
 
-    /// The pose for a real `q ≠ 0` (paper eq. 14): `R = R̄(q)/‖q‖²`,
+    /// The pose for a real `q ≠ 0`: `R = R̄(q)/‖q‖²`,
     /// `z̄ = L/‖q‖²`, centroid `c = z̄ (t̃₁, t̃₂, 1)`, `t = c − R X̄`.
     pub fn pose(&self, q: &Vector4<f64>) -> Pose {
         let z = Self::lifted(q);
