@@ -10,10 +10,10 @@
 //! depth/size log-uniform in 2–200, random attitude, off-axis up to 40%,
 //! σ = 0.5 px on the paper's camera; every draw seeded.
 //!
-//! Timing is the CPU time of this thread (Linux `/proc/thread-self/schedstat`,
-//! nanoseconds; wall clock elsewhere), so other load on the machine inflates
-//! it less. Each problem is solved repeatedly and divided; the median over
-//! problems is reported. Single thread.
+//! Timing is wall clock, single thread: each problem is timed in `REPEATS`
+//! batches (one OPnP solve, or 50 EPnP solves, per batch) and the fastest
+//! batch counts, which discounts interruptions from other load on the
+//! machine; the median over problems is reported.
 
 use layout_opt::camera::Camera;
 use layout_opt::pnp::{opnp, Solver, Spread};
@@ -50,22 +50,6 @@ fn problem(count: Option<usize>, case: u64) -> Problem {
             return p;
         }
     }
-}
-
-/// CPU time of this thread, in seconds.
-fn cpu_seconds() -> f64 {
-    std::fs::read_to_string("/proc/thread-self/schedstat")
-        .ok()
-        .and_then(|s| s.split_whitespace().next()?.parse::<u64>().ok())
-        .map(|ns| ns as f64 * 1e-9)
-        .unwrap_or_else(|| {
-            use std::sync::OnceLock;
-            static START: OnceLock<std::time::Instant> = OnceLock::new();
-            START
-                .get_or_init(std::time::Instant::now)
-                .elapsed()
-                .as_secs_f64()
-        })
 }
 
 fn median(values: &mut [f64]) -> f64 {
@@ -125,24 +109,33 @@ fn counts() {
     summary("candidates with all points in front", &in_front);
 }
 
-/// Median CPU seconds per solve of `solver` over `problems`, each solved
-/// `repeats` times.
-fn time(solver: Solver, problems: &[Problem], repeats: usize) -> f64 {
+/// Timed batches per problem; the fastest counts.
+const REPEATS: usize = 5;
+
+/// Median over `problems` of the fastest per-solve time of `solver`, in
+/// seconds, timing batches of `batch` solves.
+fn time(solver: Solver, problems: &[Problem], batch: usize) -> f64 {
     let mut per_problem: Vec<f64> = problems
         .iter()
         .map(|p| {
-            let start = cpu_seconds();
-            for _ in 0..repeats {
-                std::hint::black_box(solver.solve(&p.object, &p.normalised).ok());
-            }
-            (cpu_seconds() - start) / repeats as f64
+            (0..REPEATS)
+                .map(|_| {
+                    let start = std::time::Instant::now();
+                    for _ in 0..batch {
+                        std::hint::black_box(solver.solve(&p.object, &p.normalised).ok());
+                    }
+                    start.elapsed().as_secs_f64() / batch as f64
+                })
+                .fold(f64::INFINITY, f64::min)
         })
         .collect();
     median(&mut per_problem)
 }
 
 fn timings() {
-    println!("Median CPU time per solve (single thread; 100 problems per row):");
+    println!(
+        "Median over 100 problems of the fastest of {REPEATS} timings per solve (single thread):"
+    );
     println!(
         "  {:<16} {:>12} {:>12} {:>10}",
         "points", "EPnP", "OPnP", "OPnP/EPnP"
@@ -158,8 +151,8 @@ fn timings() {
         let problems: Vec<Problem> = (0..100).map(|case| problem(count, case)).collect();
         // Warm up (builds OPnP's template once).
         let _ = Solver::Opnp.solve(&problems[0].object, &problems[0].normalised);
-        let epnp = time(Solver::Epnp, &problems, 200);
-        let opnp = time(Solver::Opnp, &problems, 3);
+        let epnp = time(Solver::Epnp, &problems, 50);
+        let opnp = time(Solver::Opnp, &problems, 1);
         println!(
             "  {label:<16} {:>9.2} µs {:>9.3} ms {:>9.0}×",
             epnp * 1e6,
