@@ -52,6 +52,12 @@
 //! algebraic cost; we return every minimum and let the project's common
 //! selection rule decide.)
 //!
+//! **Candidate counts** (`cargo run --release --example opnp_report`, 1000
+//! seeded problems, biprism and random n = 6…100, depth/size 2–200,
+//! σ = 0.5 px): the action matrix had median 4 real eigenvalues (max 8),
+//! giving median 2 real pairs `±q` (max 4), of which OPnP returned median 1
+//! local minimum (max 2), all with every point in front.
+//!
 //! **Scale `L`.** The gauge fixes `‖q‖² = L/z̄`; we take `L` = RMS object
 //! radius / RMS image radius, the weak-perspective depth estimate, so the
 //! sought solution has `‖q‖ ≈ 1`, which keeps the monomials of the

@@ -708,7 +708,7 @@ pub fn solve_direct(equations: &[OddCubic; 4]) -> Result<Solutions, SolverError>
     let even_len = template.even_columns.len();
 
     // 1. Eliminate each even degree block (complete pivoting over its top
-    //    columns), and choose the odd basis the same way.
+    //    columns); the odd basis follows from the degree-8 echelon's socle.
     let mut matrices = Vec::with_capacity(3);
     let mut echelons = Vec::with_capacity(3);
     for block in &template.blocks {
