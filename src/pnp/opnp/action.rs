@@ -35,7 +35,7 @@
 //! block bidiagonal by degree. The equations are first interreduced so that
 //! each has its own leading cubic monomial `LMᵢ` ([`interreduce`]); the rows
 //! `m·f_j` with `LMᵢ | m` for some `i < j` are Koszul redundancies (the F5
-//! criterion, Faugère 2002) and are left out: 48–51 of the 224 rows of
+//! criterion, Faugère 2002) and are left out: 48 to 60 of the 224 rows of
 //! degree 8 and 6 of the 80 of degree 6, which made the solver about a
 //! quarter faster at the same accuracy. Each block (top degree k = 8, 6, 4;
 //! 165, 84 and 35 top columns) is brought to echelon form by
