@@ -33,7 +33,7 @@
 //! degree by degree. A multiple `m·f_j` with `deg m = k − 3` has a degree-`k`
 //! part `m·C_j` and a degree-`(k−2)` part `m·L_j`, so the Macaulay matrix is
 //! block bidiagonal by degree. The equations are first interreduced so that
-//! each has its own leading cubic monomial `LMᵢ` ([`interreduce`]); the rows
+//! each has its own leading cubic monomial `LMᵢ` (`interreduce`); the rows
 //! `m·f_j` with `LMᵢ | m` for some `i < j` are Koszul redundancies (the F5
 //! criterion, Faugère 2002) and are left out: 48 to 60 of the 224 rows of
 //! degree 8 and 6 of the 80 of degree 6, which made the solver about a
@@ -396,7 +396,7 @@ fn fill(block: &Block, equations: &[OddCubic; 4], leading: &[Exponent; 4]) -> (V
 }
 
 /// Relative size below which a candidate column of a pairing matrix counts
-/// as dependent when choosing the odd basis ([`odd_basis_from_socle`]).
+/// as dependent when choosing the odd basis (`odd_basis_from_socle`).
 pub const PAIRING_RANK_TOLERANCE: f64 = 1e-10;
 
 /// This problem's basis of the odd quotient from the socle of the graded
