@@ -17,7 +17,9 @@ use std::time::Instant;
 
 fn main() {
     let mut args = std::env::args().skip(1);
-    let count: usize = args.next().map_or(1000, |a| a.parse().expect("problem count"));
+    let count: usize = args
+        .next()
+        .map_or(1000, |a| a.parse().expect("problem count"));
     let seed: u64 = args.next().map_or(2026, |a| a.parse().expect("seed"));
     let camera = Camera::paper();
     let sigma_px = 0.5;
@@ -26,8 +28,11 @@ fn main() {
             let mut rng = stream_rng(seed, 42, case);
             let depth = rng.random_range(200.0..1000.0);
             let truth = random_pose(&mut rng, depth, 0.2);
-            let p = project_with_noise(&mut rng, &camera, biprism_points(50.0), truth, sigma_px).expect("in front");
-            let limit = pose_covariance_isotropic(&camera, &p.truth, &p.object, sigma_px).unwrap().rms_rotation_deg();
+            let p = project_with_noise(&mut rng, &camera, biprism_points(50.0), truth, sigma_px)
+                .expect("in front");
+            let limit = pose_covariance_isotropic(&camera, &p.truth, &p.object, sigma_px)
+                .unwrap()
+                .rms_rotation_deg();
             (p, limit)
         })
         .collect();
@@ -61,7 +66,8 @@ fn main() {
                         ratio_sq += (r / limit).powi(2);
                     }
                     rotation.push(r);
-                    translation_sq += translation_error_percent(&p.truth.translation, &pose.translation).powi(2);
+                    translation_sq +=
+                        translation_error_percent(&p.truth.translation, &pose.translation).powi(2);
                 }
                 Err(_) => errors += 1,
             }
@@ -70,7 +76,10 @@ fn main() {
         let mean = rotation.iter().sum::<f64>() / n;
         rotation.sort_by(f64::total_cmp);
         micros.sort_by(f64::total_cmp);
-        let median = rotation.get(rotation.len() / 2).copied().unwrap_or(f64::NAN);
+        let median = rotation
+            .get(rotation.len() / 2)
+            .copied()
+            .unwrap_or(f64::NAN);
         let kept = (rotation.len() - gross).max(1) as f64;
         println!(
             "| `{}` | {:.4} | {:.4} | {:.4} | {} | {} | {:.3} | {:.2} |",

@@ -87,6 +87,13 @@ macro_rules! noise_free_tests {
 // GN settles in wrong minima (the paper's §2.1 claim that "EPnP+GN performs
 // erratically when n = 4 or 5"; seen here: 142 of 500 cases missed). EPnP
 // without GN is not exact at n = 4 (its N = 4 case is an approximation).
+/// OPnP accepts coplanar points (`needs_noncoplanar` is false): exact
+/// recovery on random planar sets, n = 4…100, too.
+#[test]
+fn opnp_planar() {
+    check(Solver::Opnp, Family::Planar, CASES);
+}
+
 noise_free_tests! {
     dlt: Solver::Dlt, minimal = false;
     epnp: Solver::Epnp, minimal = false;
@@ -99,6 +106,7 @@ noise_free_tests! {
     lhm: Solver::Lhm, minimal = true;
     rpnp: Solver::Rpnp, minimal = true;
     sqpnp: Solver::Sqpnp, minimal = true;
+    opnp: Solver::Opnp, minimal = true;
     ml: Solver::Ml, minimal = true;
 }
 

@@ -139,3 +139,8 @@ fn rpnp_is_within_30_percent_of_the_limit() {
 fn lhm_is_within_20_percent_of_the_limit() {
     check(Solver::Lhm, 0.20);
 }
+
+#[test]
+fn opnp_reaches_the_first_order_limit() {
+    check(Solver::Opnp, 0.10);
+}

@@ -105,7 +105,10 @@ pub struct SearchArgs {
     compare_trials: usize,
     /// Solvers of the winner's full sensitivity report (`all` or a list; the
     /// polynomial solvers DLS and OPnP take 0.3–2 ms per solve).
-    #[arg(long, default_value = "parallel-weighted,parallel-gn,epnp-gn,sqpnp,lhm,ml")]
+    #[arg(
+        long,
+        default_value = "parallel-weighted,parallel-gn,epnp-gn,sqpnp,lhm,ml"
+    )]
     validate_solvers: String,
     /// Name of the result. Default: <family>-search.
     #[arg(long)]

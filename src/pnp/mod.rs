@@ -24,6 +24,7 @@ pub mod gauss_newton;
 pub mod iepnp;
 pub mod lhm;
 pub mod ml;
+pub mod opnp;
 pub mod parallel;
 pub mod polynomial;
 pub mod rpnp;
@@ -148,6 +149,9 @@ pub enum Solver {
     /// over the nine rotation entries from the null-space starts; handles
     /// coplanar points.
     Sqpnp,
+    /// OPnP: every local minimum of the algebraic cost in a non-unit
+    /// quaternion, by a Gröbner-basis solver (Zheng et al., ICCV 2013).
+    Opnp,
     /// Levenberg–Marquardt on reprojection error from the best closed-form
     /// start: the maximum-likelihood estimate under isotropic Gaussian noise.
     Ml,
@@ -167,6 +171,7 @@ impl Solver {
         Solver::Lhm,
         Solver::Rpnp,
         Solver::Sqpnp,
+        Solver::Opnp,
         Solver::Ml,
     ];
 
@@ -184,6 +189,7 @@ impl Solver {
             Solver::Lhm => "lhm",
             Solver::Rpnp => "rpnp",
             Solver::Sqpnp => "sqpnp",
+            Solver::Opnp => "opnp",
             Solver::Ml => "ml",
         }
     }
@@ -202,6 +208,7 @@ impl Solver {
             Solver::Lhm => "LHM",
             Solver::Rpnp => "RPnP",
             Solver::Sqpnp => "SQPnP",
+            Solver::Opnp => opnp::NAME,
             Solver::Ml => "ML (Levenberg-Marquardt)",
         }
     }
@@ -220,6 +227,7 @@ impl Solver {
             Solver::Lhm => "orthogonal iteration on the object-space error from a weak-perspective start (Lu, Hager & Mjolsness 2000)",
             Solver::Rpnp => "RPnP: every local minimum of the degree-7 cost about the widest edge, then 3D alignment (Li, Xu & Xie 2012)",
             Solver::Sqpnp => "SQPnP: SQP over the rotation entries from the null-space starts, all local minima; coplanar points allowed (Terzakis & Lourakis 2020)",
+            Solver::Opnp => "OPnP: all minima of the algebraic cost in a non-unit quaternion, Gröbner-basis solver (Zheng et al. 2013)",
             Solver::Ml => "Levenberg-Marquardt on reprojection error from the best closed-form start (maximum likelihood)",
         }
     }
@@ -234,15 +242,16 @@ impl Solver {
         match self {
             Solver::Dlt => dlt::MIN_POINTS,
             Solver::Dls => dls::MIN_POINTS,
+            Solver::Opnp => opnp::MIN_POINTS,
             _ => 4,
         }
     }
 
     /// Whether the method needs noncoplanar object points.
     pub fn needs_noncoplanar(self) -> bool {
+        // Exhaustive, so every new method has to decide.
         match self {
-            Solver::Dls => false,
-            Solver::Sqpnp => false,
+            Solver::Dls | Solver::Sqpnp | Solver::Opnp => false,
             Solver::Dlt
             | Solver::Epnp
             | Solver::EpnpGn
@@ -275,6 +284,7 @@ impl Solver {
             Solver::Lhm => lhm::solve(object, image)?,
             Solver::Rpnp => rpnp::solve(object, image)?,
             Solver::Sqpnp => sqpnp::solve(object, image)?,
+            Solver::Opnp => opnp::solve(object, image)?,
             Solver::Ml => ml::solve(object, image)?,
         };
         Ok(candidates)
