@@ -20,6 +20,7 @@ pub mod noise;
 pub mod pnp;
 pub mod pose;
 pub mod report;
+pub mod reproduce;
 pub mod scenario;
 pub mod synthetic;
 pub mod validate;

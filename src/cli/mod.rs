@@ -3,6 +3,7 @@
 
 mod common;
 mod progress;
+mod reproduce;
 mod solve;
 mod validate;
 
@@ -39,6 +40,9 @@ enum Command {
     /// Sensitivity report of a layout: Monte-Carlo error of every solver
     /// against the first-order and transfer-model predictions.
     Validate(Box<validate::ValidateArgs>),
+    /// The seed paper's simulation experiments, regenerated on our solvers
+    /// and checked claim by claim.
+    Reproduce(reproduce::ReproduceArgs),
 }
 
 /// Parses the command line and runs the chosen subcommand.
@@ -54,5 +58,6 @@ pub fn run() -> anyhow::Result<()> {
     match cli.command {
         Command::Solve(args) => solve::run(args, &cli.global),
         Command::Validate(args) => validate::run(*args, &cli.global),
+        Command::Reproduce(args) => reproduce::run(args, &cli.global),
     }
 }
