@@ -62,6 +62,9 @@ use std::path::Path;
 use std::str::FromStr;
 use std::time::Instant;
 
+/// Noise draws per pose of the simulated protocol by default.
+pub const PROTOCOL_DEFAULT_TRIALS: usize = 100;
+
 /// The paper's noise level "variance 0.2", in px².
 pub const PAPER_VARIANCE_PX2: f64 = 0.2;
 
@@ -156,18 +159,24 @@ impl Experiment {
         }
     }
 
-    /// The paper's trial count (repetitions for timing). The protocol's real
-    /// images have one shot per pose; we simulate 100 noise draws per pose.
-    pub fn paper_trials(self) -> usize {
+    /// The paper's trial count (repetitions for timing); `None` for the
+    /// protocol, whose real images have one shot per pose.
+    pub fn paper_trials(self) -> Option<usize> {
         match self {
-            Experiment::Points => 200,
-            Experiment::Noise => 500,
-            Experiment::Timing => 500,
-            Experiment::Depth => 100,
-            Experiment::OffAxis => 100,
-            Experiment::Tilt => 100,
-            Experiment::Protocol => 100,
+            Experiment::Points => Some(200),
+            Experiment::Noise => Some(500),
+            Experiment::Timing => Some(500),
+            Experiment::Depth => Some(100),
+            Experiment::OffAxis => Some(100),
+            Experiment::Tilt => Some(100),
+            Experiment::Protocol => None,
         }
+    }
+
+    /// Default trials: the paper's count; for the protocol, 100 noise draws
+    /// per pose.
+    pub fn default_trials(self) -> usize {
+        self.paper_trials().unwrap_or(PROTOCOL_DEFAULT_TRIALS)
     }
 
     /// Trials under `--quick` (same grids, fewer trials).
@@ -263,7 +272,7 @@ impl Config {
         self.trials.unwrap_or(if self.quick {
             experiment.quick_trials()
         } else {
-            experiment.paper_trials()
+            experiment.default_trials()
         })
     }
 }
@@ -275,8 +284,8 @@ pub struct TrialCount {
     pub experiment: Experiment,
     /// Trials run (repetitions for timing).
     pub trials: usize,
-    /// The paper's count.
-    pub paper_trials: usize,
+    /// The paper's count (`None`: one real image per pose).
+    pub paper_trials: Option<usize>,
 }
 
 /// Where every number came from.
@@ -552,13 +561,13 @@ fn markdown(reproduction: &Reproduction) -> String {
     let trials: Vec<String> = h
         .trials
         .iter()
-        .map(|t| {
-            format!(
-                "{} {} (paper {})",
+        .map(|t| match t.paper_trials {
+            Some(paper) => format!("{} {} (paper {paper})", t.experiment.name(), t.trials),
+            None => format!(
+                "{} {} (paper: one real image per pose)",
                 t.experiment.name(),
-                t.trials,
-                t.paper_trials
-            )
+                t.trials
+            ),
         })
         .collect();
     let _ = writeln!(out, "| trials per setting | {} |", trials.join("; "));
@@ -603,12 +612,13 @@ fn markdown(reproduction: &Reproduction) -> String {
                 Verdict::DoesNotHold => 1,
                 Verdict::NotEvaluated => 2,
             }] += 1;
+            let cell = |text: &str| text.replace('|', "\\|");
             glance.row([
                 format!("`{}`", claim.id),
-                claim.statement.clone(),
-                claim.source.clone(),
+                cell(&claim.statement),
+                cell(&claim.source),
                 verdict_badge(claim.verdict).to_string(),
-                claim.evidence.clone(),
+                cell(&claim.evidence),
             ]);
         }
     }
@@ -670,9 +680,16 @@ fn markdown(reproduction: &Reproduction) -> String {
     let _ = writeln!(out, "- `<experiment>.csv`: long format, one row per (panel, x, solver) with trials, poses, errors, gross failures, mean and median E_rot, mean and RMS geodesic error, mean and median E_t, and the first-order limit;");
     let _ = writeln!(out, "- `<figure>_rotation.svg`, `<figure>_translation.svg`: one plot per figure of the paper, log y axis;");
     let _ = writeln!(out, "- `timing.csv`, `timing_claims.csv`, `timing.json`, `run.json`: machine-dependent (timings, wall times); everything else is bit-identical for the same seed at any thread count.");
+    let walls: Vec<String> = reproduction
+        .wall_seconds
+        .iter()
+        .map(|(e, s)| format!("{} {s:.1} s", e.name()))
+        .collect();
     let _ = writeln!(
         out,
-        "\nTables show 3 significant digits; the CSV files hold 7. Wall times are in `run.json`."
+        "\nTables show 3 significant digits; the CSV files hold 7. Wall time of this run on {} rayon threads: {} (also in `run.json`).",
+        rayon::current_num_threads(),
+        walls.join(", ")
     );
     out
 }

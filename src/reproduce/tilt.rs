@@ -94,7 +94,7 @@ pub(crate) fn run(
         id: "figS3_tilt".into(),
         figure: "Fig. S3".into(),
         title: "Accuracy vs rotation about Y, biprism at 500 mm".into(),
-        x_label: "rotation about Y, θ (deg); β = |θ|".into(),
+        x_label: "rotation about Y, θ (deg)".into(),
         x: angles,
         solvers: context.solvers.clone(),
         cells,
