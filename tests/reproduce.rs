@@ -120,7 +120,7 @@ fn check_structure(dir: &Path) {
         "| command | `layout-opt reproduce --quick",
         "| seed | 11 |",
         "| layout-opt | ",
-        "| trials per setting | points 20 (paper 200)",
+        "| trials per setting | points 10 (paper 200)",
         "σ = √0.2 = 0.4472 px",
         "## Claims at a glance",
         "## 1. Number of points (Fig. 7)",

@@ -21,10 +21,10 @@ pub struct ReproduceArgs {
     #[arg(long, value_name = "DIR", default_value = "reports/paper")]
     out: PathBuf,
     /// Trials per setting for every experiment (repetitions for timing).
-    /// Default: the paper's counts (protocol: 100 noise draws per pose).
+    /// Default: the paper's counts (protocol: 30 noise draws per pose).
     #[arg(long)]
     trials: Option<usize>,
-    /// Few trials on the same grids (a smoke run, about a minute or less).
+    /// Few trials on the same grids (a smoke run of well under a minute).
     #[arg(long)]
     quick: bool,
 }

@@ -3,7 +3,8 @@
 //!
 //! Protocol: the paper's biprism (L = 50 mm, 10 mm spheres) at depths
 //! 200…1000 mm in steps of 200, X offsets 0, 50 and 100 mm, tilted about X
-//! from −90° to 90° in steps of 2°, σ = √0.2 px, 100 noise draws per pose.
+//! from −90° to 90° in steps of 2°, σ = √0.2 px, 30 noise draws per pose by
+//! default.
 //! Like the paper's tables, each cell averages the errors over the poses at
 //! one (depth, offset); we average over the poses in which no sphere's image
 //! overlaps a nearer sphere's (an occluded centre cannot be measured).
