@@ -22,6 +22,7 @@ pub mod noise;
 pub mod pnp;
 pub mod pose;
 pub mod report;
+pub mod reproduce;
 pub mod scenario;
 pub mod search;
 pub mod synthetic;

@@ -3,6 +3,7 @@
 
 mod common;
 mod progress;
+mod reproduce;
 mod search;
 mod solve;
 mod validate;
@@ -42,6 +43,9 @@ enum Command {
     Validate(Box<validate::ValidateArgs>),
     /// Optimise a layout family over a scenario grid with argmin.
     Search(Box<search::SearchArgs>),
+    /// The seed paper's simulation experiments, regenerated on our solvers
+    /// and checked claim by claim.
+    Reproduce(reproduce::ReproduceArgs),
 }
 
 /// Parses the command line and runs the chosen subcommand.
@@ -58,5 +62,6 @@ pub fn run() -> anyhow::Result<()> {
         Command::Solve(args) => solve::run(args, &cli.global),
         Command::Validate(args) => validate::run(*args, &cli.global),
         Command::Search(args) => search::run(*args, &cli.global),
+        Command::Reproduce(args) => reproduce::run(args, &cli.global),
     }
 }

@@ -1,0 +1,445 @@
+//! Curves: one panel is one figure of the paper (one x axis, one line per
+//! solver), with the statistics of every solver at every x.
+
+use super::stats::Stat;
+use crate::montecarlo::{FirstOrderPrediction, SolverOutcome};
+use crate::pnp::Solver;
+use crate::report::{plots, significant, ReportError, Table};
+use serde::Serialize;
+use std::path::Path;
+
+/// Which error a curve shows.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Metric {
+    /// The paper's E_rot (eq. 33), degrees.
+    Rotation,
+    /// The paper's E_t, percent of |t|.
+    Translation,
+}
+
+impl Metric {
+    /// Axis label.
+    pub fn label(self) -> &'static str {
+        match self {
+            Metric::Rotation => "mean E_rot, eq. 33 (deg)",
+            Metric::Translation => "mean E_t (%)",
+        }
+    }
+
+    /// Short name for files.
+    pub fn file_suffix(self) -> &'static str {
+        match self {
+            Metric::Rotation => "rotation",
+            Metric::Translation => "translation",
+        }
+    }
+
+    /// Unit.
+    pub fn unit(self) -> &'static str {
+        match self {
+            Metric::Rotation => "°",
+            Metric::Translation => "%",
+        }
+    }
+}
+
+/// One solver at one setting.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Cell {
+    /// The solver.
+    pub solver: Solver,
+    /// False when the setting has fewer points than the solver accepts (the
+    /// solver is not run there).
+    pub applicable: bool,
+    /// Trials run.
+    pub attempts: usize,
+    /// Trials in which the solver returned an error (no pose).
+    pub solver_errors: usize,
+    /// The first error message, if any.
+    pub first_error: Option<String>,
+    /// The paper's E_rot (eq. 33), degrees.
+    pub rotation_deg: Stat,
+    /// Geodesic rotation error, degrees.
+    pub geodesic_deg: Stat,
+    /// The paper's E_t, percent.
+    pub translation_percent: Stat,
+    /// Trials with a geodesic rotation error above the gross threshold.
+    pub gross_failures: usize,
+}
+
+impl Cell {
+    /// A cell for a solver that is not run at this setting.
+    pub fn not_applicable(solver: Solver) -> Cell {
+        Cell {
+            solver,
+            applicable: false,
+            attempts: 0,
+            solver_errors: 0,
+            first_error: None,
+            rotation_deg: Stat::default(),
+            geodesic_deg: Stat::default(),
+            translation_percent: Stat::default(),
+            gross_failures: 0,
+        }
+    }
+
+    /// From one scenario of the Monte-Carlo engine.
+    pub fn from_outcome(outcome: &SolverOutcome, trials: usize) -> Cell {
+        Cell {
+            solver: outcome.solver,
+            applicable: true,
+            attempts: trials,
+            solver_errors: outcome.solver_errors,
+            first_error: outcome.first_error.clone(),
+            rotation_deg: Stat::from_summary(&outcome.paper_rotation_deg),
+            geodesic_deg: Stat::from_summary(&outcome.rotation_deg),
+            translation_percent: Stat::from_summary(&outcome.translation_percent),
+            gross_failures: outcome.gross_failures,
+        }
+    }
+
+    /// Pools cells of the same solver.
+    pub fn pool<'a>(solver: Solver, cells: impl IntoIterator<Item = &'a Cell> + Clone) -> Cell {
+        let applicable: Vec<&Cell> = cells.into_iter().filter(|c| c.applicable).collect();
+        Cell {
+            solver,
+            applicable: !applicable.is_empty(),
+            attempts: applicable.iter().map(|c| c.attempts).sum(),
+            solver_errors: applicable.iter().map(|c| c.solver_errors).sum(),
+            first_error: applicable.iter().find_map(|c| c.first_error.clone()),
+            rotation_deg: Stat::pool(applicable.iter().map(|c| &c.rotation_deg)),
+            geodesic_deg: Stat::pool(applicable.iter().map(|c| &c.geodesic_deg)),
+            translation_percent: Stat::pool(applicable.iter().map(|c| &c.translation_percent)),
+            gross_failures: applicable.iter().map(|c| c.gross_failures).sum(),
+        }
+    }
+
+    /// The statistics of `metric`.
+    pub fn stat(&self, metric: Metric) -> &Stat {
+        match metric {
+            Metric::Rotation => &self.rotation_deg,
+            Metric::Translation => &self.translation_percent,
+        }
+    }
+
+    /// Fraction of trials that failed: a solver error or a gross rotation error.
+    pub fn failure_rate(&self) -> Option<f64> {
+        (self.attempts > 0)
+            .then(|| (self.solver_errors + self.gross_failures) as f64 / self.attempts as f64)
+    }
+}
+
+/// The first-order (Cramér–Rao) limit at one setting: RMS over the trials'
+/// geometries of the per-geometry prediction.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct FirstOrderLine {
+    /// RMS geodesic rotation error, degrees.
+    pub rms_rotation_deg: f64,
+    /// RMS translation error, percent of |t|.
+    pub rms_translation_percent: f64,
+}
+
+impl From<FirstOrderPrediction> for FirstOrderLine {
+    fn from(p: FirstOrderPrediction) -> Self {
+        FirstOrderLine {
+            rms_rotation_deg: p.rms_rotation_deg,
+            rms_translation_percent: p.rms_translation_percent,
+        }
+    }
+}
+
+/// One figure: a line per solver over one x axis. Serialises as its curves
+/// ([`PanelSummary`]).
+#[derive(Debug, Clone)]
+pub struct Panel {
+    /// File stem, e.g. `fig7_points`.
+    pub id: String,
+    /// The paper's figure, e.g. "Fig. 7".
+    pub figure: String,
+    /// Plot title.
+    pub title: String,
+    /// X axis label (with unit).
+    pub x_label: String,
+    /// The x values.
+    pub x: Vec<f64>,
+    /// Solvers, in report order.
+    pub solvers: Vec<Solver>,
+    /// `cells[i][j]`: solver j at x[i].
+    pub cells: Vec<Vec<Cell>>,
+    /// First-order limit at each x, when defined.
+    pub first_order: Vec<Option<FirstOrderLine>>,
+    /// An extra model curve for the rotation plot (name, points), e.g. the
+    /// paper's `1/(sinβ √cosβ)` scaled to the data.
+    pub model_rotation: Option<(String, Vec<(f64, f64)>)>,
+}
+
+/// One solver's line on a figure, as written to `summary.json`.
+#[derive(Debug, Clone, Serialize)]
+pub struct SolverCurve {
+    /// Stable solver name.
+    pub solver: String,
+    /// Mean E_rot per x (None where the solver is not run or returned no pose).
+    pub mean_erot_deg: Vec<Option<f64>>,
+    /// Median E_rot per x.
+    pub median_erot_deg: Vec<Option<f64>>,
+    /// Mean E_t per x.
+    pub mean_et_percent: Vec<Option<f64>>,
+    /// Trials that returned a pose, per x.
+    pub poses: Vec<usize>,
+    /// Solver errors plus gross failures, per x.
+    pub failures: Vec<usize>,
+}
+
+/// A figure's curves, as written to `summary.json`.
+#[derive(Debug, Clone, Serialize)]
+pub struct PanelSummary<'a> {
+    /// File stem.
+    pub id: &'a str,
+    /// The paper's figure.
+    pub figure: &'a str,
+    /// Title.
+    pub title: &'a str,
+    /// X axis label.
+    pub x_label: &'a str,
+    /// The x values.
+    pub x: &'a [f64],
+    /// First-order RMS rotation limit per x, degrees.
+    pub first_order_rms_rotation_deg: Vec<Option<f64>>,
+    /// First-order RMS translation limit per x, percent.
+    pub first_order_rms_translation_percent: Vec<Option<f64>>,
+    /// One curve per solver.
+    pub solvers: Vec<SolverCurve>,
+}
+
+impl Serialize for Panel {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        self.summary().serialize(serializer)
+    }
+}
+
+impl Panel {
+    /// The curves of this figure.
+    pub fn summary(&self) -> PanelSummary<'_> {
+        let column = |j: usize, f: &dyn Fn(&Cell) -> Option<f64>| -> Vec<Option<f64>> {
+            self.cells.iter().map(|row| f(&row[j])).collect()
+        };
+        PanelSummary {
+            id: &self.id,
+            figure: &self.figure,
+            title: &self.title,
+            x_label: &self.x_label,
+            x: &self.x,
+            first_order_rms_rotation_deg: self
+                .first_order
+                .iter()
+                .map(|f| f.map(|f| f.rms_rotation_deg))
+                .collect(),
+            first_order_rms_translation_percent: self
+                .first_order
+                .iter()
+                .map(|f| f.map(|f| f.rms_translation_percent))
+                .collect(),
+            solvers: self
+                .solvers
+                .iter()
+                .enumerate()
+                .map(|(j, solver)| SolverCurve {
+                    solver: solver.name().to_string(),
+                    mean_erot_deg: column(j, &|c| c.rotation_deg.mean()),
+                    median_erot_deg: column(j, &|c| c.rotation_deg.median),
+                    mean_et_percent: column(j, &|c| c.translation_percent.mean()),
+                    poses: self
+                        .cells
+                        .iter()
+                        .map(|row| row[j].rotation_deg.count)
+                        .collect(),
+                    failures: self
+                        .cells
+                        .iter()
+                        .map(|row| row[j].solver_errors + row[j].gross_failures)
+                        .collect(),
+                })
+                .collect(),
+        }
+    }
+
+    /// The column of `solver`, if it ran.
+    pub fn index(&self, solver: Solver) -> Option<usize> {
+        self.solvers.iter().position(|&s| s == solver)
+    }
+
+    /// The curve of `solver` for `metric`: (x, statistic) where the solver
+    /// applies and returned poses.
+    pub fn curve(&self, solver: Solver, metric: Metric) -> Vec<(f64, Stat)> {
+        let Some(j) = self.index(solver) else {
+            return Vec::new();
+        };
+        self.x
+            .iter()
+            .zip(&self.cells)
+            .filter(|(_, row)| row[j].applicable && row[j].stat(metric).count > 0)
+            .map(|(&x, row)| (x, *row[j].stat(metric)))
+            .collect()
+    }
+
+    /// Means of `curve`, split into xs and ys.
+    pub fn means(&self, solver: Solver, metric: Metric) -> (Vec<f64>, Vec<f64>) {
+        self.curve(solver, metric)
+            .into_iter()
+            .map(|(x, s)| (x, s.mean))
+            .unzip()
+    }
+
+    /// The cell of `solver` at x index `i`.
+    pub fn cell(&self, i: usize, solver: Solver) -> Option<&Cell> {
+        self.index(solver).map(|j| &self.cells[i][j])
+    }
+
+    /// `solver` pooled over the x values that pass `keep`.
+    pub fn pooled(&self, solver: Solver, keep: impl Fn(f64) -> bool) -> Option<Cell> {
+        let j = self.index(solver)?;
+        let cells: Vec<&Cell> = self
+            .x
+            .iter()
+            .zip(&self.cells)
+            .filter(|(&x, _)| keep(x))
+            .map(|(_, row)| &row[j])
+            .collect();
+        let pooled = Cell::pool(solver, cells.iter().copied());
+        pooled.applicable.then_some(pooled)
+    }
+
+    /// Rows of the long-format CSV shared by every experiment.
+    pub fn csv_rows(&self, experiment: &str, table: &mut Table) {
+        let number = |v: Option<f64>| v.map_or(String::new(), |v| format!("{v:.6e}"));
+        for (i, &x) in self.x.iter().enumerate() {
+            for cell in &self.cells[i] {
+                let first_order = self.first_order[i];
+                table.row([
+                    experiment.to_string(),
+                    self.id.clone(),
+                    x.to_string(),
+                    cell.solver.name().to_string(),
+                    cell.applicable.to_string(),
+                    cell.attempts.to_string(),
+                    cell.rotation_deg.count.to_string(),
+                    cell.solver_errors.to_string(),
+                    cell.gross_failures.to_string(),
+                    number(cell.rotation_deg.mean()),
+                    number(cell.rotation_deg.median),
+                    number(cell.geodesic_deg.mean()),
+                    number((cell.geodesic_deg.count > 0).then_some(cell.geodesic_deg.rms)),
+                    number(cell.translation_percent.mean()),
+                    number(cell.translation_percent.median),
+                    number(first_order.map(|f| f.rms_rotation_deg)),
+                    number(first_order.map(|f| f.rms_translation_percent)),
+                ]);
+            }
+        }
+    }
+
+    /// The header of [`Panel::csv_rows`].
+    pub fn csv_header() -> Table {
+        Table::new([
+            "experiment",
+            "panel",
+            "x",
+            "solver",
+            "applicable",
+            "trials",
+            "poses",
+            "solver_errors",
+            "gross_failures",
+            "mean_erot_deg",
+            "median_erot_deg",
+            "mean_geodesic_deg",
+            "rms_geodesic_deg",
+            "mean_et_percent",
+            "median_et_percent",
+            "first_order_rms_rot_deg",
+            "first_order_rms_trans_percent",
+        ])
+    }
+
+    /// Writes `<id>_rotation.svg` and `<id>_translation.svg`.
+    pub fn write_plots(&self, dir: &Path) -> Result<(), ReportError> {
+        for metric in [Metric::Rotation, Metric::Translation] {
+            let mut series: Vec<plots::Series> = self
+                .solvers
+                .iter()
+                .map(|&solver| plots::Series {
+                    name: solver.name().to_string(),
+                    points: self
+                        .curve(solver, metric)
+                        .into_iter()
+                        .map(|(x, s)| (x, s.mean))
+                        .collect(),
+                    dashed: false,
+                })
+                .collect();
+            let limit: Vec<(f64, f64)> = self
+                .x
+                .iter()
+                .zip(&self.first_order)
+                .filter_map(|(&x, f)| {
+                    f.map(|f| match metric {
+                        Metric::Rotation => (x, f.rms_rotation_deg),
+                        Metric::Translation => (x, f.rms_translation_percent),
+                    })
+                })
+                .collect();
+            if !limit.is_empty() {
+                series.push(plots::Series {
+                    name: "first-order limit (RMS)".into(),
+                    points: limit,
+                    dashed: true,
+                });
+            }
+            if let (Metric::Rotation, Some((name, points))) = (metric, &self.model_rotation) {
+                series.push(plots::Series {
+                    name: name.clone(),
+                    points: points.clone(),
+                    dashed: true,
+                });
+            }
+            plots::line_plot(
+                &dir.join(format!("{}_{}.svg", self.id, metric.file_suffix())),
+                &format!("{} ({})", self.title, self.figure),
+                &self.x_label,
+                metric.label(),
+                &series,
+            )?;
+        }
+        Ok(())
+    }
+
+    /// A markdown table of mean `metric` at (at most) every `stride`-th x.
+    pub fn markdown_table(&self, metric: Metric, stride: usize) -> String {
+        let mut table = Table::new(
+            std::iter::once(self.x_label.clone())
+                .chain(self.solvers.iter().map(|s| format!("`{}`", s.name())))
+                .chain(std::iter::once("first-order (RMS)".to_string())),
+        );
+        for (i, &x) in self.x.iter().enumerate() {
+            if i % stride.max(1) != 0 && i + 1 != self.x.len() {
+                continue;
+            }
+            let limit = self.first_order[i].map(|f| match metric {
+                Metric::Rotation => f.rms_rotation_deg,
+                Metric::Translation => f.rms_translation_percent,
+            });
+            table.row(
+                std::iter::once(x.to_string())
+                    .chain(self.cells[i].iter().map(|c| {
+                        if c.applicable {
+                            significant(c.stat(metric).mean(), 3)
+                        } else {
+                            "n/a".to_string()
+                        }
+                    }))
+                    .chain(std::iter::once(significant(limit, 3))),
+            );
+        }
+        table.markdown()
+    }
+}
