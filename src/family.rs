@@ -547,7 +547,7 @@ impl Family {
             FamilyKind::Custom {
                 start: Some(layout),
                 ..
-            } => layout.points.iter().map(|p| p.sigma_px).collect(),
+            } => layout.point_sigmas(),
             _ => vec![None; self.point_count()],
         };
         Layout {

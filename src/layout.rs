@@ -220,6 +220,11 @@ impl Layout {
         self.points.iter().map(|p| p.position).collect()
     }
 
+    /// Each point's own pixel noise (σ, px), in file order.
+    pub fn point_sigmas(&self) -> Vec<Option<f64>> {
+        self.points.iter().map(|p| p.sigma_px).collect()
+    }
+
     /// Sphere radius, mm.
     pub fn sphere_radius_mm(&self) -> f64 {
         0.5 * self.sphere_diameter_mm

@@ -160,7 +160,7 @@ pub fn run(
 ) -> Result<Validation, ValidateError> {
     layout.validate()?;
     let object = layout.positions();
-    let sigmas: Vec<Option<f64>> = layout.points.iter().map(|p| p.sigma_px).collect();
+    let sigmas = layout.point_sigmas();
     let target = Target {
         camera,
         object: &object,

@@ -172,14 +172,7 @@ pub struct CostMatrices {
 impl CostMatrices {
     /// Builds `M` and `T` from the correspondences (O(n)).
     pub fn new(object: &[Vector3<f64>], image: &[Vector2<f64>]) -> Result<Self, PnpError> {
-        let count = object.len() as f64;
-        let centroid = object.iter().sum::<Vector3<f64>>() / count;
-        let scale = (object
-            .iter()
-            .map(|p| (p - centroid).norm_squared())
-            .sum::<f64>()
-            / count)
-            .sqrt();
+        let (centroid, scale) = super::centroid_and_rms_radius(object);
         let mut ray_sum = Matrix3::zeros();
         let mut v = SMatrix::<f64, 3, 9>::zeros();
         let mut quadratic = SMatrix::<f64, 9, 9>::zeros();

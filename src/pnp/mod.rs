@@ -343,6 +343,20 @@ pub fn best_candidate(
         .ok_or(PnpError::BehindCamera { solver })
 }
 
+/// Centroid of a non-empty point set and the RMS distance of the points
+/// from it (the scale several solvers normalise by).
+pub fn centroid_and_rms_radius(points: &[Vector3<f64>]) -> (Vector3<f64>, f64) {
+    let count = points.len() as f64;
+    let centroid = points.iter().sum::<Vector3<f64>>() / count;
+    let rms = (points
+        .iter()
+        .map(|p| (p - centroid).norm_squared())
+        .sum::<f64>()
+        / count)
+        .sqrt();
+    (centroid, rms)
+}
+
 /// Principal spread of a point set: centroid and the singular values
 /// (square roots of the scatter eigenvalues, largest first) with their axes
 /// as columns.

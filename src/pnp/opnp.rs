@@ -187,13 +187,7 @@ impl AlgebraicCost {
     /// Builds `Q` for `object`/`image` (validated).
     pub fn new(object: &[Vector3<f64>], image: &[Vector2<f64>]) -> Result<Self, PnpError> {
         let count = object.len() as f64;
-        let centroid = object.iter().sum::<Vector3<f64>>() / count;
-        let object_radius = (object
-            .iter()
-            .map(|p| (p - centroid).norm_squared())
-            .sum::<f64>()
-            / count)
-            .sqrt();
+        let (centroid, object_radius) = super::centroid_and_rms_radius(object);
         let image_centroid = image.iter().sum::<Vector2<f64>>() / count;
         let image_radius = (image
             .iter()

@@ -120,13 +120,7 @@ impl SqpnpSystem {
     /// object points and scaling them to unit RMS radius.
     pub fn new(object: &[Vector3<f64>], image: &[Vector2<f64>]) -> Result<Self, PnpError> {
         let count = object.len() as f64;
-        let centroid = object.iter().sum::<Vector3<f64>>() / count;
-        let scale = (object
-            .iter()
-            .map(|p| (p - centroid).norm_squared())
-            .sum::<f64>()
-            / count)
-            .sqrt();
+        let (centroid, scale) = super::centroid_and_rms_radius(object);
         let mut sum_q = Matrix3::zeros();
         let mut sum_qa = SMatrix::<f64, 3, 9>::zeros();
         let mut omega = Matrix9::zeros();

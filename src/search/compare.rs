@@ -170,7 +170,7 @@ pub fn monte_carlo_outcomes(
     noise: NoiseModel,
 ) -> Result<Vec<ScenarioOutcome>, MonteCarloError> {
     let object = layout.positions();
-    let sigmas: Vec<Option<f64>> = layout.points.iter().map(|p| p.sigma_px).collect();
+    let sigmas = layout.point_sigmas();
     let target = Target {
         camera,
         object: &object,
@@ -248,7 +248,7 @@ pub fn compare(
         .iter()
         .zip(&outcomes)
         .map(|((name, layout), mine)| {
-            let sigmas: Vec<Option<f64>> = layout.points.iter().map(|p| p.sigma_px).collect();
+            let sigmas = layout.point_sigmas();
             DesignRow {
                 name: name.clone(),
                 layout: layout.clone(),

@@ -486,12 +486,7 @@ pub fn run(
         ));
     }
     let bounds = family.bounds();
-    let point_sigma: Vec<Option<f64>> = family
-        .layout("", &family.initial())
-        .points
-        .iter()
-        .map(|p| p.sigma_px)
-        .collect();
+    let point_sigma = family.layout("", &family.initial()).point_sigmas();
     let shared = Shared {
         best: Mutex::new(None),
         evaluations: Arc::new(AtomicUsize::new(0)),
