@@ -15,6 +15,7 @@ pub mod batch;
 pub mod camera;
 pub mod error_model;
 pub mod layout;
+pub mod mesh;
 pub mod pnp;
 pub mod pose;
 pub mod synthetic;
