@@ -423,8 +423,7 @@ impl Layout {
             .collect();
         let faced = models.iter().filter(|m| has_faces(m)).count();
         let (points, diameter) = if faced >= MIN_POINTS && spheres.len() == faced {
-            let mean_radius =
-                spheres.iter().map(|(_, _, r)| r).sum::<f64>() / spheres.len() as f64;
+            let mean_radius = spheres.iter().map(|(_, _, r)| r).sum::<f64>() / spheres.len() as f64;
             let points = spheres
                 .into_iter()
                 .map(|(name, centre, _)| LayoutPoint::new(name, centre))
@@ -495,7 +494,9 @@ fn obj_sphere(model: &tobj::Model) -> Option<(Vector3<f64>, f64)> {
     let mean = distances.iter().sum::<f64>() / distances.len() as f64;
     let (min, max) = distances
         .iter()
-        .fold((f64::INFINITY, 0.0f64), |(lo, hi), &d| (lo.min(d), hi.max(d)));
+        .fold((f64::INFINITY, 0.0f64), |(lo, hi), &d| {
+            (lo.min(d), hi.max(d))
+        });
     (mean > 0.0 && max - min <= OBJ_SPHERE_TOLERANCE * mean).then_some((centre, mean))
 }
 

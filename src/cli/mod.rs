@@ -1,6 +1,7 @@
 //! Argument parsing and dispatch. Each subcommand lives in its own file and
 //! turns its flags into library configurations before any work starts.
 
+mod export;
 mod progress;
 mod solve;
 
@@ -34,6 +35,9 @@ pub struct GlobalOptions {
 enum Command {
     /// PnP on a batch of correspondences (JSON), with any solver.
     Solve(solve::SolveArgs),
+    /// Printable watertight marker mesh (STL, OBJ, glTF, GLB) and a
+    /// fabrication sheet.
+    Export(export::ExportArgs),
 }
 
 /// Parses the command line and runs the chosen subcommand.
@@ -48,5 +52,6 @@ pub fn run() -> anyhow::Result<()> {
     }
     match cli.command {
         Command::Solve(args) => solve::run(args, &cli.global),
+        Command::Export(args) => export::run(args, &cli.global),
     }
 }

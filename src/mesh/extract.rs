@@ -31,14 +31,14 @@ use fast_surface_nets::ndshape::{ConstShape, ConstShape3u32};
 use fast_surface_nets::{surface_nets, SurfaceNetsBuffer};
 use nalgebra::Vector3;
 use rayon::prelude::*;
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 
 /// Cubes per chunk along each axis.
 pub const CHUNK_CUBES: u32 = 32;
 /// Rounds of ambiguity resolution at most (see [`resolve_ambiguities`]);
 /// also the halo of extra samples around each chunk that keeps the rounds
 /// identical in neighbouring chunks.
-pub const AMBIGUITY_ROUNDS: u32 = 3;
+pub const AMBIGUITY_ROUNDS: u32 = 4;
 /// Samples per chunk along each axis: the chunk's cubes, one more on each
 /// side, and the halo.
 const CHUNK_POINTS: u32 = CHUNK_CUBES + 2 + 2 * AMBIGUITY_ROUNDS;
@@ -327,6 +327,8 @@ const CUBE_CORNERS: [[u32; 3]; 8] = [
 fn resolve_ambiguities(sdf: &mut [f32], near: f32, field: impl Fn([f64; 3]) -> f64) {
     let n = CHUNK_POINTS;
     let at = |p: [u32; 3]| ChunkShape::linearize(p) as usize;
+    // A corner is moved at most once, so rounds cannot undo each other.
+    let mut moved: HashSet<usize> = HashSet::new();
     for _ in 0..AMBIGUITY_ROUNDS {
         let mut flips: Vec<(usize, f32)> = Vec::new();
         // Faces: for each axis, faces spanned by the two other axes.
@@ -364,9 +366,11 @@ fn resolve_ambiguities(sdf: &mut [f32], near: f32, field: impl Fn([f64; 3]) -> f
                         // across (positive if the inside connects).
                         let flip = (0..4)
                             .filter(|&k| negative[k] != inside_connects)
-                            .min_by(|&a, &b| values[a].abs().total_cmp(&values[b].abs()))
-                            .expect("a checkerboard has both signs");
-                        flips.push((at(corners[flip]), values[flip]));
+                            .filter(|&k| !moved.contains(&at(corners[k])))
+                            .min_by(|&a, &b| values[a].abs().total_cmp(&values[b].abs()));
+                        if let Some(flip) = flip {
+                            flips.push((at(corners[flip]), values[flip]));
+                        }
                     }
                 }
             }
@@ -406,13 +410,34 @@ fn resolve_ambiguities(sdf: &mut [f32], near: f32, field: impl Fn([f64; 3]) -> f
                     if pieces(true) <= 1 && pieces(false) <= 1 {
                         continue;
                     }
+                    // A checkerboard face of this cube is the face rule's to
+                    // resolve; acting here too could undo it.
+                    let checkerboard_face = [
+                        (0, 1, 3, 2),
+                        (4, 5, 7, 6),
+                        (0, 1, 5, 4),
+                        (2, 3, 7, 6),
+                        (0, 2, 6, 4),
+                        (1, 3, 7, 5),
+                    ]
+                    .iter()
+                    .any(|&(a, b, c, d)| {
+                        negative[a] == negative[c]
+                            && negative[b] == negative[d]
+                            && negative[a] != negative[b]
+                    });
+                    if checkerboard_face {
+                        continue;
+                    }
                     let inside_connects =
                         field([x as f64 + 0.5, y as f64 + 0.5, z as f64 + 0.5]) < 0.0;
                     let flip = (0..8)
                         .filter(|&k| negative[k] != inside_connects)
-                        .min_by(|&a, &b| values[a].abs().total_cmp(&values[b].abs()))
-                        .expect("an ambiguous cube has both signs");
-                    flips.push((at(corners[flip]), values[flip]));
+                        .filter(|&k| !moved.contains(&at(corners[k])))
+                        .min_by(|&a, &b| values[a].abs().total_cmp(&values[b].abs()));
+                    if let Some(flip) = flip {
+                        flips.push((at(corners[flip]), values[flip]));
+                    }
                 }
             }
         }
@@ -420,6 +445,9 @@ fn resolve_ambiguities(sdf: &mut [f32], near: f32, field: impl Fn([f64; 3]) -> f
             break;
         }
         for (index, value) in flips {
+            if !moved.insert(index) {
+                continue; // already moved this round
+            }
             // Just across the surface: the sign changes, the crossing stays
             // at this corner.
             sdf[index] = if value < 0.0 {

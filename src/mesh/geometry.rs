@@ -51,7 +51,9 @@ pub const DEFAULT_MIN_FEATURE_MM: f64 = 1.0;
 pub const STUB_DIAMETER_FACTOR: f64 = 2.0;
 /// Length of the stub when the mount axis is the viewing direction, mm.
 pub const STUB_LENGTH_MM: f64 = 10.0;
-/// Thickness of the base plate, mm.
+/// Thickness of the base plate, mm, at least (it is made thicker than the
+/// stub's radius plus twice the minimum feature, so that the stub's round
+/// end stays inside it).
 pub const PLATE_THICKNESS_MM: f64 = 4.0;
 /// Smallest side of the square base plate, mm.
 pub const PLATE_MIN_SIDE_MM: f64 = 24.0;
@@ -586,7 +588,7 @@ impl Marker {
                 .filter(|s| s.ends.contains(&Node::Foot(k)))
                 .map(|s| s.radius)
                 .fold(0.0, f64::max),
-            Node::Plate => 0.5 * PLATE_THICKNESS_MM,
+            Node::Plate => self.plate.half_extents.dot(&self.mount.vector().abs()),
         }
     }
 
@@ -743,7 +745,16 @@ impl Marker {
         for (a, b, radius) in &junction.pieces {
             blend(sdf::capsule(p, a, b, *radius));
         }
-        value.expect("every junction has a member")
+        let value = value.expect("every junction has a member");
+        if junction.plate {
+            // The bed face stays flat: the stub's fillet must not bulge
+            // through the plate.
+            let m = self.mount.vector();
+            let bed = self.plate.centre.dot(&m) + self.plate.half_extents.dot(&m.abs());
+            sdf::max(value, sdf::half_space(p, &m, bed))
+        } else {
+            value
+        }
     }
 
     /// The signed distance of the marker (negative inside) and its gradient
@@ -1026,8 +1037,10 @@ impl Router<'_> {
     /// Step 1: a post back along the view from every sphere, unless it
     /// would pass within the clearance (plus the swell of the fillet where
     /// it leaves its sphere) of a sphere behind; then a link to the first
-    /// sphere behind, among those whose disc overlaps this one's in the main
-    /// view, to which a straight link keeps clear of every other sphere.
+    /// sphere behind whose disc overlaps this one's in the main view (or,
+    /// failing those, the nearest sphere behind) to which a straight link
+    /// keeps clear of every other sphere and meets that sphere's struts at
+    /// an open angle.
     fn posts_and_links(&mut self) -> Result<(), GeometryError> {
         let depth = |i: usize| self.spheres[i].centre.dot(&self.view);
         // Behind the rearmost sphere, far enough that the fillets where its
@@ -1036,17 +1049,21 @@ impl Router<'_> {
             .map(depth)
             .fold(f64::NEG_INFINITY, f64::max)
             + self.radius
-            + self.clearance.max(2.0 * self.blend)
-            + if self.mount_along_view {
-                self.strut_radius
-            } else {
-                self.stub_radius
-            };
+            + 2.0 * self.blend
+            + self.clearance
+            + self.stub_radius;
         let growth = junction_growth(self.blend);
         let reach = self.radius + self.strut_radius + growth + self.clearance;
         let overlap = reach.max(2.0 * self.radius);
+        // Decide from the back to the front, so that when a sphere picks a
+        // sphere behind it, that sphere's own strut and the links already
+        // arriving at it are known (to keep the junction open).
+        let mut order: Vec<usize> = (0..self.spheres.len()).collect();
+        order.sort_by(|&a, &b| depth(b).total_cmp(&depth(a)));
+        let mut link_to: Vec<Option<usize>> = vec![None; self.spheres.len()];
         let mut posts = Vec::new();
-        for (i, sphere) in self.spheres.iter().enumerate() {
+        for i in order {
+            let sphere = &self.spheres[i];
             // (index, distance behind, distance across the view)
             let behind: Vec<(usize, f64, f64)> = self
                 .spheres
@@ -1064,12 +1081,22 @@ impl Router<'_> {
                 posts.push(i);
                 continue;
             }
+            // First the spheres whose disc overlaps this one's in the main
+            // view, nearest first (a link to them hides best); failing
+            // those, any sphere behind, by distance.
             let mut candidates: Vec<(usize, f64)> = behind
                 .iter()
                 .filter(|&&(_, _, across)| across < overlap)
                 .map(|&(j, along, _)| (j, along))
                 .collect();
             candidates.sort_by(|a, b| a.1.total_cmp(&b.1));
+            let mut others: Vec<(usize, f64)> = behind
+                .iter()
+                .filter(|&&(_, _, across)| across >= overlap)
+                .map(|&(j, along, across)| (j, along.hypot(across)))
+                .collect();
+            others.sort_by(|a, b| a.1.total_cmp(&b.1));
+            candidates.extend(others);
             let clear = |j: usize| {
                 let (a, b) = (sphere.centre, self.spheres[j].centre);
                 self.spheres.iter().enumerate().all(|(k, other)| {
@@ -1080,22 +1107,49 @@ impl Router<'_> {
                     }
                 })
             };
+            // The struts already at j: its own (a post along the view or a
+            // link further back) and the links arriving from the front.
+            let open_at = |j: usize| {
+                let centre = self.spheres[j].centre;
+                let arriving = (sphere.centre - centre).normalize();
+                let own = match link_to[j] {
+                    Some(k) => (self.spheres[k].centre - centre).normalize(),
+                    None => self.view,
+                };
+                std::iter::once(own)
+                    .chain(
+                        (0..self.spheres.len())
+                            .filter(|&k| link_to[k] == Some(j))
+                            .map(|k| (self.spheres[k].centre - centre).normalize()),
+                    )
+                    .all(|u| {
+                        let angle = arriving.dot(&u).clamp(-1.0, 1.0).acos();
+                        2.0 * self.radius * (0.5 * angle).sin() - 2.0 * self.strut_radius
+                            >= self.clearance
+                    })
+            };
             let j = candidates
                 .iter()
                 .map(|&(j, _)| j)
-                .find(|&j| clear(j))
+                .find(|&j| clear(j) && open_at(j))
                 .ok_or_else(|| GeometryError::RoutingFailed {
                     from: format!("sphere {}", sphere.name),
-                    reason: "its post would pass too close to a sphere behind it, and no straight link to a sphere behind it keeps clear of the others".into(),
+                    reason: "its post would pass too close to a sphere behind it, and no straight link to a sphere behind it keeps clear of the others and meets that sphere's struts at an open angle".into(),
                 })?;
-            self.struts.push(Strut {
-                kind: StrutKind::Link,
-                ends: [Node::Sphere(i), Node::Sphere(j)],
-                a: sphere.centre,
-                b: self.spheres[j].centre,
-                radius: self.strut_radius,
-            });
+            link_to[i] = Some(j);
         }
+        for (i, target) in link_to.iter().enumerate() {
+            if let Some(j) = *target {
+                self.struts.push(Strut {
+                    kind: StrutKind::Link,
+                    ends: [Node::Sphere(i), Node::Sphere(j)],
+                    a: self.spheres[i].centre,
+                    b: self.spheres[j].centre,
+                    radius: self.strut_radius,
+                });
+            }
+        }
+        posts.sort_unstable();
         for i in posts {
             let centre = self.spheres[i].centre;
             let foot = centre + self.view * (back_depth - depth(i));
@@ -1250,9 +1304,13 @@ impl Router<'_> {
         let mount_foot = self.mount_foot(hub);
         let start = self.feet[mount_foot].position;
         let m = self.mount;
-        // The plate's inner face: beyond every other part by the clearance.
+        // The plate's inner face: beyond every other part by the clearance,
+        // and far enough out that the stub between the foot's fillets and
+        // the plate's stays exposed for two blend radii plus the clearance
+        // (so the two junctions, and their fillets, stay apart).
+        let shortest = start.dot(&m) + self.stub_radius + 2.0 * self.blend + self.clearance;
         let inner = if self.mount_along_view {
-            start.dot(&m) + STUB_LENGTH_MM
+            (start.dot(&m) + STUB_LENGTH_MM).max(shortest)
         } else {
             let spheres = self
                 .spheres
@@ -1264,15 +1322,19 @@ impl Router<'_> {
                 .iter()
                 .flat_map(|s| [s.a.dot(&m) + s.radius, s.b.dot(&m) + s.radius])
                 .fold(f64::NEG_INFINITY, f64::max);
-            spheres.max(struts) + self.clearance
+            (spheres.max(struts) + self.clearance).max(shortest)
         };
+        let thickness = PLATE_THICKNESS_MM.max(self.stub_radius + 2.0 * self.clearance);
         let face_point = start + m * (inner - start.dot(&m));
-        let centre = face_point + m * (0.5 * PLATE_THICKNESS_MM);
+        let centre = face_point + m * (0.5 * thickness);
+        // The stub ends on the plate's inner face; its round end sinks into
+        // the plate (thicker than the stub's radius) and leaves the bed face
+        // flat.
         self.struts.push(Strut {
             kind: StrutKind::Stub,
             ends: [Node::Foot(mount_foot), Node::Plate],
             a: start,
-            b: centre,
+            b: face_point,
             radius: self.stub_radius,
         });
 
@@ -1301,7 +1363,7 @@ impl Router<'_> {
         let side = side.max(PLATE_MIN_SIDE_MM).max(4.0 * self.stub_radius);
         let half_extents = Vector3::from_fn(|k, _| {
             if m[k] != 0.0 {
-                0.5 * PLATE_THICKNESS_MM
+                0.5 * thickness
             } else {
                 0.5 * side
             }

@@ -134,6 +134,23 @@ pub fn smooth_subtract(a: Sample, b: Sample, blend_mm: f64) -> Sample {
     negated(smooth_min(negated(a), b, blend_mm))
 }
 
+/// Half-space `{p : normal·p ≤ level}` (unit `normal`).
+pub fn half_space(p: &Vector3<f64>, normal: &Vector3<f64>, level: f64) -> Sample {
+    Sample {
+        value: normal.dot(p) - level,
+        gradient: *normal,
+    }
+}
+
+/// Exact maximum (the value and gradient of the larger): intersection.
+pub fn max(a: Sample, b: Sample) -> Sample {
+    if a.value >= b.value {
+        a
+    } else {
+        b
+    }
+}
+
 /// Exact minimum (the value and gradient of the smaller).
 pub fn min(a: Sample, b: Sample) -> Sample {
     if a.value <= b.value {
