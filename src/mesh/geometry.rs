@@ -1,40 +1,48 @@
 //! The printable marker as a solid: a sphere at each feature point, struts
 //! that carry every sphere to a hub, and a mounting stub ending in a base
 //! plate, optionally with screw holes. The solid is the zero sublevel set of
-//! one analytic signed-distance function ([`Marker::sample`]).
+//! one analytic signed-distance function ([`Marker::sample`]); sphere
+//! centres are exactly the layout's coordinates.
 //!
 //! **Routing.** The main viewing direction `view` (default `+z`: DESIGN.md's
 //! base attitude puts the camera on the marker's −z side, looking along +z)
-//! decides the layout of the struts, so that in the main (orthographic) view
-//! no strut covers another sphere:
+//! decides where the struts go, so that in the main (orthographic) view no
+//! strut covers another sphere:
 //! 1. Each sphere gets a *post* running straight back along `view`, which in
-//!    the main view hides behind the sphere itself (posts are thinner than
-//!    spheres). When a post would pass through or within the clearance of a
-//!    sphere further back, it ends in that sphere's centre instead (a
-//!    *link*), and that sphere's post carries it on.
+//!    the main view hides behind the sphere itself (struts are thinner than
+//!    spheres). When a post would pass within the clearance of a sphere
+//!    further back, the sphere is instead *linked* to the centre of a sphere
+//!    behind it — the nearest whose disc overlaps its own in the main view,
+//!    else the nearest at all — whose own strut carries it on. Links are
+//!    chosen from the back to the front, so that each keeps clear of the
+//!    other spheres and meets the struts already at its target at an open
+//!    angle.
 //! 2. The posts end on a *back plane* behind every sphere. There *back
 //!    struts* join each post foot to the hub (the foot nearest the centroid
-//!    of the feet), straight when the way is clear, otherwise through
-//!    another foot (a shortest-path tree that keeps every strut clear of the
-//!    feet it does not join and every junction angle open). Everything in the
-//!    back plane lies behind every sphere, so it covers none.
+//!    of the feet): a shortest-path tree grown one foot at a time, whose
+//!    struts keep clear of the feet they do not join and meet at open
+//!    angles. Everything in the back plane lies behind every sphere.
 //! 3. A *stub* of twice the strut diameter runs from the foot furthest along
 //!    the mount axis (or from the hub, when the mount axis is `view`) out
 //!    beyond all other parts to a rounded *base plate* perpendicular to the
-//!    mount axis, with optional clearance holes for screws.
+//!    mount axis, with optional clearance holes for screws. The plate's
+//!    outer face is flat: it goes on the print bed.
 //!
-//! **Blending.** Primitives that meet at a junction (a sphere with its
-//! struts, a foot with its struts, the stub with the plate) are joined with a
-//! quadratic smooth minimum of radius [`Marker::blend_mm`], which puts a
-//! fillet in every joint; parts that do not meet are combined with the exact
-//! minimum, so gaps between them keep their width. The spheres stay exact
-//! spheres away from their own struts' fillets, centred on the layout's
-//! coordinates.
+//! **Blending.** Where parts meet (a sphere and its struts, a foot and its
+//! struts, the stub and the plate: a *junction*), the pieces of the struts
+//! near the junction are joined with a quadratic smooth minimum of radius
+//! [`Marker::blend_mm`], which puts a fillet in every joint; whole struts and
+//! junctions are then combined with the exact minimum, so blending acts only
+//! near junctions and gaps between parts that do not meet keep their width.
+//! Junctions joined by a strut too short for two fillets are merged into one.
 //!
-//! **Checks.** Struts at least `min_feature` thick, spheres at least
-//! `min_feature` apart, every pair of parts that do not join at least
-//! `min_feature` apart, junction angles open. Bad input is a
-//! [`GeometryError`], never a silently altered part.
+//! **Checks.** Struts at least `min_feature` thick and thinner than the
+//! spheres by twice that; spheres at least `min_feature` apart; every pair
+//! of parts that do not join, and every junction's fillets (grown by
+//! [`junction_growth`]) and parts that do not join it, at least
+//! `min_feature` apart; struts leaving a sphere parted by `min_feature` at
+//! its surface. Bad input is a [`GeometryError`], never a silently altered
+//! part.
 
 use super::sdf::{self, Sample};
 use crate::layout::{Layout, LayoutError};
@@ -200,11 +208,6 @@ impl Axis {
     /// The opposite axis.
     pub fn opposite(self) -> Axis {
         Axis::new(self.index, !self.positive)
-    }
-
-    /// Whether the two axes are parallel (same or opposite).
-    pub fn is_parallel(self, other: Axis) -> bool {
-        self.index == other.index
     }
 }
 
@@ -1551,11 +1554,11 @@ mod tests {
         assert!(names.contains(&"link O0-P1".to_string()), "{names:?}");
         assert_eq!(marker.feet.len(), 5);
         assert_eq!(marker.spheres[marker.feet[marker.hub].sphere].name, "P1");
+        // On the +x side of every sphere, away from its struts, the surface
+        // is exactly the sphere.
         for s in &marker.spheres {
-            assert_eq!(
-                marker.signed_distance(&(s.centre + Vector3::new(0.0, 0.0, -s.radius))),
-                0.0
-            );
+            let p = s.centre + Vector3::new(s.radius, 0.0, 0.0);
+            assert_eq!(marker.signed_distance(&p), 0.0, "{}", s.name);
         }
     }
 

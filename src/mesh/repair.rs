@@ -190,14 +190,19 @@ impl<'a> Editor<'a> {
             .filter(|(_, &alive)| alive)
             .map(|(t, _)| *t)
             .collect();
-        let mut new_index = vec![u32::MAX; mesh.positions.len()];
-        let mut positions = Vec::new();
+        // Keep the surviving vertices in their original order.
+        let mut used = vec![false; mesh.positions.len()];
         for t in &triangles {
             for &v in t {
-                if new_index[v as usize] == u32::MAX {
-                    new_index[v as usize] = positions.len() as u32;
-                    positions.push(mesh.positions[v as usize]);
-                }
+                used[v as usize] = true;
+            }
+        }
+        let mut new_index = vec![u32::MAX; mesh.positions.len()];
+        let mut positions = Vec::new();
+        for (v, &keep) in used.iter().enumerate() {
+            if keep {
+                new_index[v] = positions.len() as u32;
+                positions.push(mesh.positions[v]);
             }
         }
         mesh.triangles = triangles

@@ -210,9 +210,10 @@ mod tests {
             rounded_box(&Vector3::new(0.0, 0.0, 0.0), &o, &half, 0.5).value,
             -2.0
         );
-        // Corner: distance to the rounding sphere.
-        let corner = rounded_box(&Vector3::new(3.0, 4.0, 4.0), &o, &half, 0.5);
-        assert_relative_eq!(corner.value, (3f64).sqrt() * 1.5 - 0.5, epsilon = 1e-12);
+        // Corner: distance to the rounding sphere centred at the inner
+        // corner (1.5, 2.5, 3.5).
+        let corner = rounded_box(&Vector3::new(3.0, 4.0, 5.0), &o, &half, 0.5);
+        assert_relative_eq!(corner.value, 3f64.sqrt() * 1.5 - 0.5, epsilon = 1e-12);
     }
 
     #[test]
