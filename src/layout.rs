@@ -167,6 +167,22 @@ pub struct Layout {
     pub provenance: Option<Value>,
 }
 
+/// Serialises in the file format (so a layout can be embedded in reports).
+impl Serialize for Layout {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        self.to_file().serialize(s)
+    }
+}
+
+/// Deserialises from the file format, with the checks and defaults of
+/// [`Layout::from_json`].
+impl<'de> Deserialize<'de> for Layout {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Layout, D::Error> {
+        let file = LayoutFile::deserialize(d)?;
+        Layout::from_file(file, "custom").map_err(serde::de::Error::custom)
+    }
+}
+
 /// The file form of a layout: optional fields get their defaults here.
 #[derive(Debug, Deserialize, Serialize)]
 struct LayoutFile {
@@ -240,6 +256,10 @@ impl Layout {
     fn parse(text: &str, default_name: &str) -> Result<Layout, LayoutError> {
         let file: LayoutFile =
             serde_json::from_str(text).map_err(|e| LayoutError::Malformed(e.to_string()))?;
+        Layout::from_file(file, default_name)
+    }
+
+    fn from_file(file: LayoutFile, default_name: &str) -> Result<Layout, LayoutError> {
         if let Some(units) = &file.units {
             if units != LAYOUT_UNITS {
                 return Err(LayoutError::Units(units.clone()));
@@ -256,6 +276,17 @@ impl Layout {
         })
     }
 
+    fn to_file(&self) -> LayoutFile {
+        LayoutFile {
+            name: Some(self.name.clone()),
+            units: Some(LAYOUT_UNITS.to_string()),
+            points: self.points.clone(),
+            sphere_diameter_mm: Some(self.sphere_diameter_mm),
+            family: self.family.clone(),
+            provenance: self.provenance.clone(),
+        }
+    }
+
     /// Reads a layout file (JSON). A missing `name` becomes the file stem.
     /// Checks the structure and units only, like [`Layout::from_json`].
     pub fn load(path: &Path) -> Result<Layout, LayoutError> {
@@ -269,15 +300,7 @@ impl Layout {
 
     /// The layout as pretty JSON in the file format.
     pub fn to_json(&self) -> String {
-        let file = LayoutFile {
-            name: Some(self.name.clone()),
-            units: Some(LAYOUT_UNITS.to_string()),
-            points: self.points.clone(),
-            sphere_diameter_mm: Some(self.sphere_diameter_mm),
-            family: self.family.clone(),
-            provenance: self.provenance.clone(),
-        };
-        serde_json::to_string_pretty(&file).expect("a layout always serialises") + "\n"
+        serde_json::to_string_pretty(&self.to_file()).expect("a layout always serialises") + "\n"
     }
 
     /// Writes the layout so that readers never see a partial file: the JSON
@@ -605,6 +628,18 @@ mod tests {
         let again = Layout::from_json(&layout.to_json()).unwrap();
         assert_eq!(again, layout);
         assert!(layout.to_json().contains("\"units\": \"mm\""));
+    }
+
+    #[test]
+    fn embeds_in_other_json_through_serde() {
+        let layout = Layout::paper_biprism();
+        let wrapped = serde_json::json!({ "layout": layout });
+        assert_eq!(wrapped["layout"]["units"], "mm");
+        let back: Layout = serde_json::from_value(wrapped["layout"].clone()).unwrap();
+        assert_eq!(back, layout);
+        let bad = serde_json::json!({"units": "cm", "points": []});
+        let e = serde_json::from_value::<Layout>(bad).unwrap_err();
+        assert!(e.to_string().contains("layout units must be \"mm\""), "{e}");
     }
 
     #[test]

@@ -17,6 +17,7 @@ pub mod error_model;
 pub mod family;
 pub mod layout;
 pub mod linalg;
+pub mod mesh;
 pub mod montecarlo;
 pub mod noise;
 pub mod pnp;

@@ -2,6 +2,7 @@
 //! turns its flags into library configurations before any work starts.
 
 mod common;
+mod export;
 mod progress;
 mod reproduce;
 mod search;
@@ -46,6 +47,9 @@ enum Command {
     /// The seed paper's simulation experiments, regenerated on our solvers
     /// and checked claim by claim.
     Reproduce(reproduce::ReproduceArgs),
+    /// Printable watertight marker mesh (STL, OBJ, glTF, GLB) and a
+    /// fabrication sheet.
+    Export(export::ExportArgs),
 }
 
 /// Parses the command line and runs the chosen subcommand.
@@ -63,5 +67,6 @@ pub fn run() -> anyhow::Result<()> {
         Command::Validate(args) => validate::run(*args, &cli.global),
         Command::Search(args) => search::run(*args, &cli.global),
         Command::Reproduce(args) => reproduce::run(args, &cli.global),
+        Command::Export(args) => export::run(args, &cli.global),
     }
 }

@@ -1,0 +1,160 @@
+//! `layout-opt export`: a printable, watertight marker mesh (STL, OBJ,
+//! glTF, GLB) and its fabrication sheet.
+
+use super::{progress, GlobalOptions};
+use anyhow::Context;
+use clap::Args;
+use layout_opt::layout::{Layout, ObjImport};
+use layout_opt::mesh::geometry::{DEFAULT_MIN_FEATURE_MM, DEFAULT_STRUT_DIAMETER_MM};
+use layout_opt::mesh::{export, Axis, ExportOptions, Format, MarkerOptions, MountHoles};
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+/// Flags of `export`.
+#[derive(Debug, Args)]
+pub struct ExportArgs {
+    /// Layout file: JSON (see README), or OBJ (a point set, or one object
+    /// per sphere). Without it, the paper's biprism.
+    #[arg(value_name = "LAYOUT")]
+    layout: Option<PathBuf>,
+    /// Formats to write, comma-separated: stl (mm, Z up), obj (mm, marker
+    /// frame), gltf (.gltf + .bin, m, Y up), glb (m, Y up).
+    #[arg(long, value_delimiter = ',', default_value = "stl,obj,gltf,glb")]
+    format: Vec<Format>,
+    /// Output directory (created if missing).
+    #[arg(long, value_name = "DIR", default_value = "build")]
+    out: PathBuf,
+    /// Strut diameter, mm.
+    #[arg(long, value_name = "MM", default_value_t = DEFAULT_STRUT_DIAMETER_MM)]
+    strut_diameter: f64,
+    /// Smallest printable feature (struts, gaps, clearances), mm.
+    #[arg(long, value_name = "MM", default_value_t = DEFAULT_MIN_FEATURE_MM)]
+    min_feature: f64,
+    /// Meshing grid spacing, mm (default 0.5, finer if a feature needs it).
+    #[arg(long, value_name = "MM")]
+    resolution: Option<f64>,
+    /// Main viewing direction: the camera looks along it (+z: DESIGN.md's
+    /// base attitude). Struts are routed so as not to cover spheres seen
+    /// from there.
+    #[arg(
+        long,
+        value_name = "AXIS",
+        default_value = "+z",
+        allow_hyphen_values = true
+    )]
+    view: Axis,
+    /// Mount axis: the stub and base plate go this way; it points down on
+    /// the print bed.
+    #[arg(
+        long,
+        value_name = "AXIS",
+        default_value = "-y",
+        allow_hyphen_values = true
+    )]
+    mount: Axis,
+    /// Clearance holes through the base plate, e.g. M3 (two) or M3x4 (four).
+    #[arg(long, value_name = "SCREW")]
+    mount_holes: Option<MountHoles>,
+    /// Sphere diameter, mm: for OBJ point sets, or to override the layout's.
+    #[arg(long, value_name = "MM")]
+    sphere_diameter: Option<f64>,
+}
+
+fn load_layout(args: &ExportArgs) -> anyhow::Result<(Layout, String)> {
+    let Some(path) = &args.layout else {
+        let mut layout = Layout::paper_biprism();
+        if let Some(d) = args.sphere_diameter {
+            layout.sphere_diameter_mm = d;
+        }
+        return Ok((layout, "the paper's biprism (built in)".to_string()));
+    };
+    let is_obj = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("obj"));
+    let mut layout = if is_obj {
+        Layout::from_obj(
+            path,
+            &ObjImport {
+                sphere_diameter_mm: args.sphere_diameter,
+                name: None,
+            },
+        )?
+    } else {
+        Layout::load(path)?
+    };
+    if let Some(d) = args.sphere_diameter {
+        layout.sphere_diameter_mm = d;
+    }
+    Ok((layout, path.display().to_string()))
+}
+
+fn megabytes(bytes: u64) -> String {
+    if bytes >= 1 << 20 {
+        format!("{:.1} MB", bytes as f64 / (1u64 << 20) as f64)
+    } else {
+        format!("{:.1} kB", bytes as f64 / 1024.0)
+    }
+}
+
+pub fn run(args: ExportArgs, global: &GlobalOptions) -> anyhow::Result<()> {
+    let (layout, source) = load_layout(&args)?;
+    let options = ExportOptions {
+        formats: args.format.clone(),
+        marker: MarkerOptions {
+            strut_diameter_mm: args.strut_diameter,
+            min_feature_mm: args.min_feature,
+            view: args.view,
+            mount: args.mount,
+            mount_holes: args.mount_holes.clone(),
+        },
+        resolution_mm: args.resolution,
+    };
+    let bar = progress::bar(1, "exporting", global.quiet);
+    bar.enable_steady_tick(Duration::from_millis(100));
+    let result = export(&layout, &options, &args.out);
+    bar.finish_and_clear();
+    let report = result.with_context(|| format!("cannot export {source}"))?;
+
+    let m = &report.mesh;
+    let t = &m.topology;
+    println!(
+        "{}: {} triangles, {} vertices, volume {:.1} mm³, grid {} mm, meshed in {:.2} s",
+        report.name, t.faces, t.vertices, t.signed_volume_mm3, m.resolution_mm, m.seconds
+    );
+    println!(
+        "watertight: all {} edges shared by exactly 2 faces in opposite directions; {} body; Euler characteristic {} (2 - 2 x {} holes); no degenerate or inverted faces; max surface error {:.3} mm",
+        t.edges, t.components, t.euler_characteristic, m.holes, m.max_surface_error_mm
+    );
+    for file in &report.files {
+        let timing = match file.format {
+            Some(format) => format!(", {format} in {:.2} s", file.seconds),
+            None => String::new(),
+        };
+        println!(
+            "wrote {} ({}{timing})",
+            display(&file.path),
+            megabytes(file.bytes)
+        );
+    }
+    let covered: Vec<String> = report
+        .main_view_coverage
+        .iter()
+        .filter(|c| c.covered_by_struts > 0.0)
+        .map(|c| format!("{} {:.1} %", c.sphere, 100.0 * c.covered_by_struts))
+        .collect();
+    println!(
+        "main view ({}): {}; identification margin {:.3} mm",
+        report.view,
+        if covered.is_empty() {
+            "no strut covers a sphere".to_string()
+        } else {
+            format!("struts cover {}", covered.join(", "))
+        },
+        report.identification_margin_mm
+    );
+    Ok(())
+}
+
+fn display(path: &Path) -> String {
+    path.display().to_string()
+}

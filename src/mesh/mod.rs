@@ -1,0 +1,446 @@
+//! Printable marker meshes (DESIGN.md, "Export for fabrication"): one
+//! watertight, outward-wound, manifold solid — a sphere per feature point,
+//! struts to a hub, a mounting stub and base plate — written as STL, OBJ,
+//! glTF or GLB, with a fabrication sheet.
+//!
+//! The pipeline ([`build`], then [`export`]):
+//! 1. [`geometry::Marker::design`] routes the struts and checks every
+//!    clearance; the solid is the zero sublevel set of an analytic signed
+//!    distance ([`geometry`], [`sdf`]).
+//! 2. [`extract::extract`] meshes it with Surface Nets and moves every
+//!    vertex onto the exact surface; [`repair`] removes slivers.
+//! 3. The mesh is checked ([`trimesh::Topology`]): closed, consistently
+//!    wound, manifold, one body, positive volume, no degenerate faces, and
+//!    Euler characteristic 2 − 2·(screw holes). A mesh that fails is an
+//!    error, never a file.
+//! 4. One writer per format ([`MeshWriter`]) and the sheet ([`sheet`]).
+//!
+//! **Frames.** Sphere centres sit exactly at the layout's coordinates (mm)
+//! in the marker frame.
+//! * OBJ: the marker frame, millimetres.
+//! * STL: the print frame ([`geometry::print_rotation`]): millimetres,
+//!   Z up, the mount axis pointing down onto the bed; a pure rotation of the
+//!   marker frame (for the default mount −y: (x, y, z) → (x, −z, y)).
+//! * glTF / GLB: metres, Y up ([`geometry::gltf_rotation`]): the print
+//!   frame turned Y-up, so again the mount axis points down; for the default
+//!   mount −y this is the marker frame itself, scaled to metres.
+
+pub mod extract;
+pub mod geometry;
+pub mod gltf;
+pub mod obj;
+pub mod quality;
+pub mod repair;
+pub mod sdf;
+pub mod sheet;
+pub mod stl;
+pub mod trimesh;
+
+pub use geometry::{Axis, GeometryError, Marker, MarkerOptions, MountHoles};
+pub use trimesh::{Topology, TriangleMesh};
+
+use crate::layout::Layout;
+use nalgebra::Vector3;
+use serde::Serialize;
+use std::fmt;
+use std::path::{Path, PathBuf};
+use std::str::FromStr;
+use std::time::Instant;
+
+/// Grid spacing when none is asked for (and the features allow it), mm.
+pub const DEFAULT_RESOLUTION_MM: f64 = 0.5;
+/// The grid spacing may be at most this fraction of the finest feature
+/// (strut radius, fillet radius, hole radius, minimum feature).
+pub const RESOLUTION_PER_FEATURE: f64 = 0.5;
+
+/// Why an export failed.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum ExportError {
+    /// The marker cannot be built (layout or geometry options).
+    #[error(transparent)]
+    Geometry(#[from] GeometryError),
+    /// The resolution is not a positive finite number.
+    #[error("--resolution must be positive and finite, got {0}")]
+    BadResolution(f64),
+    /// The grid is too coarse for the finest feature.
+    #[error("--resolution {resolution_mm} mm is too coarse for the finest feature ({finest_mm} mm); use at most {max_mm} mm")]
+    ResolutionTooCoarse {
+        /// Resolution asked for, mm.
+        resolution_mm: f64,
+        /// Finest feature of the marker, mm.
+        finest_mm: f64,
+        /// Largest resolution allowed, mm.
+        max_mm: f64,
+    },
+    /// The mesh failed a soundness check.
+    #[error("the mesh is not a watertight solid ({0}); try a finer --resolution")]
+    NotWatertight(String),
+    /// A format name is unknown.
+    #[error("unknown format \"{0}\": expected stl, obj, gltf or glb")]
+    UnknownFormat(String),
+    /// No format was asked for.
+    #[error("no output format given; expected stl, obj, gltf or glb")]
+    NoFormat,
+    /// A file could not be written.
+    #[error("cannot write {path}: {source}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The cause.
+        source: std::io::Error,
+    },
+    /// glTF serialisation failed.
+    #[error("cannot encode glTF: {0}")]
+    Gltf(String),
+}
+
+/// An output mesh format.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Format {
+    /// Binary STL, mm, print frame (Z up).
+    Stl,
+    /// Wavefront OBJ, mm, marker frame.
+    Obj,
+    /// glTF 2.0 JSON + .bin, metres, Y up.
+    Gltf,
+    /// Binary glTF 2.0, metres, Y up.
+    Glb,
+}
+
+impl Format {
+    /// Every format, in the order files are written.
+    pub const ALL: &'static [Format] = &[Format::Stl, Format::Obj, Format::Gltf, Format::Glb];
+
+    /// Its CLI name and file extension.
+    pub fn name(self) -> &'static str {
+        match self {
+            Format::Stl => "stl",
+            Format::Obj => "obj",
+            Format::Gltf => "gltf",
+            Format::Glb => "glb",
+        }
+    }
+
+    /// The writer for this format.
+    pub fn writer(self) -> &'static dyn MeshWriter {
+        match self {
+            Format::Stl => &stl::StlWriter,
+            Format::Obj => &obj::ObjWriter,
+            Format::Gltf => &gltf::GltfWriter { binary: false },
+            Format::Glb => &gltf::GltfWriter { binary: true },
+        }
+    }
+}
+
+impl fmt::Display for Format {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl FromStr for Format {
+    type Err = ExportError;
+    fn from_str(text: &str) -> Result<Format, ExportError> {
+        let lower = text.trim().to_ascii_lowercase();
+        Format::ALL
+            .iter()
+            .copied()
+            .find(|f| f.name() == lower)
+            .ok_or_else(|| ExportError::UnknownFormat(text.to_string()))
+    }
+}
+
+/// A writer of one mesh format.
+pub trait MeshWriter: Sync {
+    /// The format it writes.
+    fn format(&self) -> Format;
+    /// Writes `solid` into `dir` as `<name>.<extension>` (and any companion
+    /// files); returns the files written.
+    fn write(&self, solid: &Solid, dir: &Path) -> Result<Vec<PathBuf>, ExportError>;
+}
+
+/// Everything an export needs besides the layout.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ExportOptions {
+    /// Formats to write.
+    pub formats: Vec<Format>,
+    /// Struts, clearances, view and mount.
+    pub marker: MarkerOptions,
+    /// Grid spacing, mm; `None`: [`DEFAULT_RESOLUTION_MM`], or finer when
+    /// a feature needs it.
+    pub resolution_mm: Option<f64>,
+}
+
+impl Default for ExportOptions {
+    fn default() -> Self {
+        ExportOptions {
+            formats: Format::ALL.to_vec(),
+            marker: MarkerOptions::default(),
+            resolution_mm: None,
+        }
+    }
+}
+
+/// Soundness and accuracy figures of a mesh.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct MeshReport {
+    /// Grid spacing used, mm.
+    pub resolution_mm: f64,
+    /// Topology counts.
+    pub topology: Topology,
+    /// Largest distance of a face from the exact surface, mm.
+    pub max_surface_error_mm: f64,
+    /// Faces pointing against the surface normal.
+    pub inverted_faces: usize,
+    /// Screw holes through the plate (each lowers χ by 2).
+    pub holes: usize,
+    /// The Euler characteristic a sound mesh must have: 2 − 2·holes.
+    pub expected_euler_characteristic: i64,
+    /// Axis-aligned bounds of the mesh in the marker frame, mm.
+    pub bounds_mm: [[f64; 3]; 2],
+    /// Wall time of design + meshing + checks, seconds.
+    pub seconds: f64,
+}
+
+/// A built marker: its design, its checked mesh (marker frame, mm) and
+/// the vertex normals.
+#[derive(Debug, Clone)]
+pub struct Solid {
+    /// The design the mesh was made from.
+    pub marker: Marker,
+    /// The mesh, marker frame, mm, outward-wound.
+    pub mesh: TriangleMesh,
+    /// Unit outward vertex normals (the field's gradient).
+    pub normals: Vec<Vector3<f64>>,
+    /// Soundness and accuracy.
+    pub report: MeshReport,
+}
+
+impl Solid {
+    /// The layout's name as used in file names: characters other than
+    /// ASCII letters, digits, `.`, `_` and `-` become `_`.
+    pub fn name(&self) -> String {
+        file_stem(&self.marker.name)
+    }
+}
+
+/// A layout name made safe for file names (and glTF buffer URIs).
+pub fn file_stem(name: &str) -> String {
+    let stem: String = name
+        .chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || matches!(c, '.' | '_' | '-') {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect();
+    if stem.is_empty() || stem.starts_with('.') {
+        format!("marker{stem}")
+    } else {
+        stem
+    }
+}
+
+/// The resolution to use: the one asked for (checked against the finest
+/// feature), else [`DEFAULT_RESOLUTION_MM`] or finer.
+pub fn resolution_for(marker: &Marker, asked_mm: Option<f64>) -> Result<f64, ExportError> {
+    let finest_mm = marker.finest_feature_mm();
+    let max_mm = RESOLUTION_PER_FEATURE * finest_mm;
+    match asked_mm {
+        None => Ok(DEFAULT_RESOLUTION_MM.min(max_mm)),
+        Some(r) if !(r.is_finite() && r > 0.0) => Err(ExportError::BadResolution(r)),
+        Some(r) if r > max_mm * (1.0 + 1e-12) => Err(ExportError::ResolutionTooCoarse {
+            resolution_mm: r,
+            finest_mm,
+            max_mm,
+        }),
+        Some(r) => Ok(r),
+    }
+}
+
+/// Designs and meshes the marker for `layout`, and checks the mesh.
+pub fn build(layout: &Layout, options: &ExportOptions) -> Result<Solid, ExportError> {
+    let start = Instant::now();
+    let marker = Marker::design(layout, &options.marker)?;
+    let resolution_mm = resolution_for(&marker, options.resolution_mm)?;
+    let mesh = extract::extract(&marker, resolution_mm);
+    let topology = mesh.topology();
+    let holes = marker.plate.holes.len();
+    let expected_euler_characteristic = 2 - 2 * holes as i64;
+    let inverted_faces = quality::inverted_faces(&marker, &mesh);
+    let mut problems = Vec::new();
+    let mut count = |n: usize, what: &str| {
+        if n > 0 {
+            problems.push(format!("{n} {what}"));
+        }
+    };
+    count(topology.boundary_edges, "open edges");
+    count(
+        topology.non_manifold_edges,
+        "edges shared by more than two faces",
+    );
+    count(topology.misoriented_edges, "inconsistently wound edges");
+    count(topology.non_manifold_vertices, "pinched vertices");
+    count(topology.degenerate_faces, "degenerate faces");
+    count(inverted_faces, "inverted faces");
+    if topology.components != 1 {
+        problems.push(format!("{} separate bodies", topology.components));
+    }
+    if topology.signed_volume_mm3 <= 0.0 {
+        problems.push("non-positive volume".to_string());
+    }
+    if topology.euler_characteristic != expected_euler_characteristic {
+        problems.push(format!(
+            "Euler characteristic {} instead of {expected_euler_characteristic}",
+            topology.euler_characteristic
+        ));
+    }
+    if !problems.is_empty() {
+        return Err(ExportError::NotWatertight(problems.join(", ")));
+    }
+    let max_surface_error_mm = quality::max_surface_error(&marker, &mesh);
+    let normals = quality::vertex_normals(&marker, &mesh);
+    let (lo, hi) = mesh.bounds();
+    Ok(Solid {
+        report: MeshReport {
+            resolution_mm,
+            topology,
+            max_surface_error_mm,
+            inverted_faces,
+            holes,
+            expected_euler_characteristic,
+            bounds_mm: [lo.into(), hi.into()],
+            seconds: start.elapsed().as_secs_f64(),
+        },
+        marker,
+        mesh,
+        normals,
+    })
+}
+
+/// One file written.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct WrittenFile {
+    /// Its format, or `None` for the fabrication sheet.
+    pub format: Option<Format>,
+    /// Where.
+    pub path: PathBuf,
+    /// Size, bytes.
+    pub bytes: u64,
+    /// Wall time to write it (with its companions), seconds.
+    pub seconds: f64,
+}
+
+/// What [`export`] did, for the CLI summary and `<name>-export.json`.
+#[derive(Debug, Clone, Serialize)]
+pub struct ExportReport {
+    /// The layout's name.
+    pub name: String,
+    /// The mesh's figures.
+    pub mesh: MeshReport,
+    /// Every file written.
+    pub files: Vec<WrittenFile>,
+    /// The smallest difference between two pairwise sphere distances, mm.
+    pub identification_margin_mm: f64,
+    /// How much the marker hides each sphere in the main view.
+    pub main_view_coverage: Vec<quality::Coverage>,
+    /// Strut diameter, mm.
+    pub strut_diameter_mm: f64,
+    /// Minimum feature size, mm.
+    pub min_feature_mm: f64,
+    /// Main viewing direction.
+    pub view: Axis,
+    /// Mount axis.
+    pub mount: Axis,
+    /// Screw holes, if any.
+    pub mount_holes: Option<MountHoles>,
+}
+
+/// Builds the marker for `layout` and writes every requested format, the
+/// fabrication sheet (`<name>-fabrication.md`, `.csv`, `<name>-views.svg`)
+/// and this report as `<name>-export.json` into `out_dir` (created if
+/// missing).
+pub fn export(
+    layout: &Layout,
+    options: &ExportOptions,
+    out_dir: &Path,
+) -> Result<ExportReport, ExportError> {
+    if options.formats.is_empty() {
+        return Err(ExportError::NoFormat);
+    }
+    let solid = build(layout, options)?;
+    std::fs::create_dir_all(out_dir).map_err(|source| ExportError::Io {
+        path: out_dir.to_path_buf(),
+        source,
+    })?;
+    let mut files = Vec::new();
+    let mut formats = options.formats.clone();
+    formats.sort();
+    formats.dedup();
+    for format in formats {
+        let start = Instant::now();
+        let written = format.writer().write(&solid, out_dir)?;
+        let seconds = start.elapsed().as_secs_f64();
+        for path in written {
+            files.push(WrittenFile {
+                format: Some(format),
+                bytes: file_size(&path),
+                path,
+                seconds,
+            });
+        }
+    }
+    let coverage = quality::main_view_coverage(&solid.marker);
+    let start = Instant::now();
+    let sheet_files = sheet::write(&solid, &coverage, out_dir)?;
+    let seconds = start.elapsed().as_secs_f64();
+    for path in sheet_files {
+        files.push(WrittenFile {
+            format: None,
+            bytes: file_size(&path),
+            path,
+            seconds,
+        });
+    }
+    let mut report = ExportReport {
+        name: solid.marker.name.clone(),
+        mesh: solid.report.clone(),
+        files,
+        identification_margin_mm: sheet::identification_margin(&solid.marker).0,
+        main_view_coverage: coverage,
+        strut_diameter_mm: options.marker.strut_diameter_mm,
+        min_feature_mm: options.marker.min_feature_mm,
+        view: options.marker.view,
+        mount: options.marker.mount,
+        mount_holes: options.marker.mount_holes.clone(),
+    };
+    let json_path = out_dir.join(format!("{}-export.json", solid.name()));
+    report.files.push(WrittenFile {
+        format: None,
+        path: json_path.clone(),
+        bytes: 0,
+        seconds: 0.0,
+    });
+    let json = serde_json::to_string_pretty(&report).expect("the report serialises") + "\n";
+    write_file(&json_path, json.as_bytes())?;
+    if let Some(last) = report.files.last_mut() {
+        last.bytes = json.len() as u64;
+    }
+    Ok(report)
+}
+
+fn file_size(path: &Path) -> u64 {
+    std::fs::metadata(path).map(|m| m.len()).unwrap_or(0)
+}
+
+/// Writes a whole file atomically, mapping errors to [`ExportError::Io`].
+pub(crate) fn write_file(path: &Path, bytes: &[u8]) -> Result<(), ExportError> {
+    crate::layout::write_atomic(path, bytes).map_err(|source| ExportError::Io {
+        path: path.to_path_buf(),
+        source,
+    })
+}

@@ -1,0 +1,42 @@
+//! Binary STL for printers (`stl_io`): millimetres, in the print frame —
+//! Z up, the mount axis pointing down onto the bed
+//! ([`super::geometry::print_rotation`]), a pure rotation of the marker
+//! frame so that sphere centres keep their distances and map exactly.
+
+use super::geometry::print_rotation;
+use super::{write_file, ExportError, Format, MeshWriter, Solid};
+use std::path::{Path, PathBuf};
+
+/// Writes `<name>.stl`.
+#[derive(Debug, Clone, Copy)]
+pub struct StlWriter;
+
+impl MeshWriter for StlWriter {
+    fn format(&self) -> Format {
+        Format::Stl
+    }
+
+    fn write(&self, solid: &Solid, dir: &Path) -> Result<Vec<PathBuf>, ExportError> {
+        let rotation = print_rotation(solid.marker.mount);
+        let mesh = solid.mesh.transformed(|p| rotation * p);
+        let triangles: Vec<stl_io::Triangle> = (0..mesh.triangles.len())
+            .map(|f| {
+                let normal = mesh.face_cross(f).normalize();
+                stl_io::Triangle {
+                    normal: stl_io::Normal::new(normal.map(|v| v as f32).into()),
+                    vertices: mesh
+                        .face(f)
+                        .map(|p| stl_io::Vertex::new(p.map(|v| v as f32).into())),
+                }
+            })
+            .collect();
+        let mut bytes = Vec::with_capacity(84 + 50 * triangles.len());
+        stl_io::write_stl(&mut bytes, triangles.iter()).map_err(|source| ExportError::Io {
+            path: dir.to_path_buf(),
+            source,
+        })?;
+        let path = dir.join(format!("{}.stl", solid.name()));
+        write_file(&path, &bytes)?;
+        Ok(vec![path])
+    }
+}
