@@ -23,6 +23,26 @@ use serde::Serialize;
 /// Largest tilt of a biprism arm from its nominal axis, per angle, degrees.
 pub const MAX_ARM_TILT_DEG: f64 = 60.0;
 
+/// Directions (in units of the envelope's half sizes) for spread-out starts:
+/// four alternating corners (a regular tetrahedron inscribed in the box), the
+/// other four corners, then the six face centres.
+pub const SPREAD_DIRECTIONS: [[f64; 3]; 14] = [
+    [1.0, 1.0, 1.0],
+    [1.0, -1.0, -1.0],
+    [-1.0, 1.0, -1.0],
+    [-1.0, -1.0, 1.0],
+    [-1.0, -1.0, -1.0],
+    [-1.0, 1.0, 1.0],
+    [1.0, -1.0, 1.0],
+    [1.0, 1.0, -1.0],
+    [1.0, 0.0, 0.0],
+    [-1.0, 0.0, 0.0],
+    [0.0, 1.0, 0.0],
+    [0.0, -1.0, 0.0],
+    [0.0, 0.0, 1.0],
+    [0.0, 0.0, -1.0],
+];
+
 /// Biprism arms of the spread start differ in length by this much, mm.
 pub const SPREAD_STAGGER_MM: f64 = 1.5;
 
@@ -297,18 +317,10 @@ impl Family {
                 }
                 params
             }
-            FamilyKind::Tetrahedron { .. } => {
-                let signs = [
-                    [1.0, 1.0, 1.0],
-                    [1.0, -1.0, -1.0],
-                    [-1.0, 1.0, -1.0],
-                    [-1.0, -1.0, 1.0],
-                ];
-                signs
-                    .iter()
-                    .flat_map(|s| (0..3).map(move |k| s[k] * half[k]))
-                    .collect()
-            }
+            FamilyKind::Tetrahedron { .. } => SPREAD_DIRECTIONS[..4]
+                .iter()
+                .flat_map(|s| (0..3).map(move |k| s[k] * half[k]))
+                .collect(),
             FamilyKind::Custom {
                 start: Some(layout),
                 ..
@@ -319,24 +331,9 @@ impl Family {
                 .flat_map(|p| [p.position.x, p.position.y, p.position.z])
                 .collect(),
             FamilyKind::Custom { count, .. } => {
-                // Corners first (alternating like a tetrahedron, then the
-                // rest), then face centres: well spread and noncoplanar.
-                let corners = [
-                    [1.0, 1.0, 1.0],
-                    [1.0, -1.0, -1.0],
-                    [-1.0, 1.0, -1.0],
-                    [-1.0, -1.0, 1.0],
-                    [-1.0, -1.0, -1.0],
-                    [-1.0, 1.0, 1.0],
-                    [1.0, -1.0, 1.0],
-                    [1.0, 1.0, -1.0],
-                    [1.0, 0.0, 0.0],
-                    [-1.0, 0.0, 0.0],
-                    [0.0, 1.0, 0.0],
-                    [0.0, -1.0, 0.0],
-                    [0.0, 0.0, 1.0],
-                    [0.0, 0.0, -1.0],
-                ];
+                // Corners first, then face centres: well spread and
+                // noncoplanar; further rounds shrink by 10%.
+                let corners = SPREAD_DIRECTIONS;
                 (0..*count)
                     .flat_map(|i| {
                         let c = corners[i % corners.len()];
@@ -400,16 +397,7 @@ impl Family {
             }
             FamilyKind::Custom { count, start: None } => {
                 let half = self.envelope.half();
-                let corners = [
-                    [1.0, 1.0, 1.0],
-                    [1.0, -1.0, -1.0],
-                    [-1.0, 1.0, -1.0],
-                    [-1.0, -1.0, 1.0],
-                    [-1.0, -1.0, -1.0],
-                    [-1.0, 1.0, 1.0],
-                    [1.0, -1.0, 1.0],
-                    [1.0, 1.0, -1.0],
-                ];
+                let corners = &SPREAD_DIRECTIONS[..8];
                 let mut params = self.initial();
                 for (i, corner) in corners.iter().enumerate().take(*count) {
                     for k in 0..3 {

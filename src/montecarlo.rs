@@ -63,6 +63,28 @@ pub struct MonteCarloConfig {
     pub gross_threshold_deg: f64,
 }
 
+/// Median of sorted, non-empty values.
+pub fn median_of_sorted(sorted: &[f64]) -> f64 {
+    let n = sorted.len();
+    if n % 2 == 1 {
+        sorted[n / 2]
+    } else {
+        0.5 * (sorted[n / 2 - 1] + sorted[n / 2])
+    }
+}
+
+/// The `q`-quantile (0 < q ≤ 1) of sorted, non-empty values by nearest rank.
+pub fn nearest_rank_of_sorted(sorted: &[f64], q: f64) -> f64 {
+    let n = sorted.len();
+    sorted[((q * n as f64).ceil() as usize).clamp(1, n) - 1]
+}
+
+/// Median of `values` (sorted in place); `None` when empty.
+pub fn median(values: &mut [f64]) -> Option<f64> {
+    values.sort_by(f64::total_cmp);
+    (!values.is_empty()).then(|| median_of_sorted(values))
+}
+
 /// Statistics of one error over the trials that returned a pose.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
 pub struct Summary {
@@ -90,16 +112,11 @@ impl Summary {
         let count = values.len();
         let sum: f64 = values.iter().sum();
         let sum_sq: f64 = values.iter().map(|v| v * v).sum();
-        let rank = ((0.95 * count as f64).ceil() as usize).clamp(1, count) - 1;
         Summary {
             count,
             mean: sum / count as f64,
-            median: if count % 2 == 1 {
-                values[count / 2]
-            } else {
-                0.5 * (values[count / 2 - 1] + values[count / 2])
-            },
-            p95: values[rank],
+            median: median_of_sorted(values),
+            p95: nearest_rank_of_sorted(values, 0.95),
             rms: (sum_sq / count as f64).sqrt(),
             max: values[count - 1],
         }

@@ -13,7 +13,9 @@
 
 use crate::camera::Camera;
 use crate::layout::{Layout, LayoutError};
-use crate::montecarlo::{self, MonteCarloConfig, MonteCarloError, Pooled, ScenarioOutcome, Target};
+use crate::montecarlo::{
+    self, median, MonteCarloConfig, MonteCarloError, Pooled, ScenarioOutcome, Target,
+};
 use crate::pnp::parallel::reference_index;
 use crate::report::{plots, significant, write_text, ReportError, Table};
 use crate::scenario::{Scenario, ScenarioGrid};
@@ -238,19 +240,6 @@ fn visibility_counts(layout: &Layout, outcomes: &[ScenarioOutcome]) -> Visibilit
         availability: visible as f64 / outcomes.len().max(1) as f64,
         occlusion_examples,
     }
-}
-
-fn median(values: &mut [f64]) -> Option<f64> {
-    if values.is_empty() {
-        return None;
-    }
-    values.sort_by(f64::total_cmp);
-    let n = values.len();
-    Some(if n % 2 == 1 {
-        values[n / 2]
-    } else {
-        0.5 * (values[n / 2 - 1] + values[n / 2])
-    })
 }
 
 fn solver_rows(outcomes: &[ScenarioOutcome], solver_count: usize) -> Vec<SolverRow> {

@@ -21,7 +21,7 @@ use super::claims::{self, describe, num, Claim};
 use super::engine::{
     from_camera_points, random_rotation, run_random, unit_noise, Context, Instance,
 };
-use super::panel::{Cell, Metric, Panel};
+use super::panel::{two_worst, Cell, Metric, Panel};
 use super::stats::{knee_fit, median, spearman};
 use super::{find, group, paper_sigma_px, stream, Experiment, ExperimentResult, PAPER_SOLVERS};
 use crate::layout::PAPER_ARM_MM;
@@ -254,32 +254,8 @@ fn claims(context: &Context, panels: &[Panel]) -> Vec<Claim> {
     );
     match (find(context, "dlt"), find(context, "epnp")) {
         (Some(dlt), Some(epnp)) => {
-            let mut holds = true;
-            let mut parts = Vec::new();
-            for panel in far {
-                let mut ranked: Vec<(Solver, f64)> = paper
-                    .iter()
-                    .filter_map(|&s| pooled_mean(panel, s).map(|m| (s, m)))
-                    .collect();
-                ranked.sort_by(|a, b| b.1.total_cmp(&a.1));
-                let top: Vec<Solver> = ranked.iter().take(2).map(|r| r.0).collect();
-                holds &= top.contains(&dlt) && top.contains(&epnp);
-                parts.push(format!(
-                    "{}: {}",
-                    panel.figure,
-                    ranked
-                        .iter()
-                        .take(4)
-                        .map(|(s, m)| format!("{} {}°", s.name(), num(*m)))
-                        .collect::<Vec<_>>()
-                        .join(" > ")
-                ));
-            }
-            out.push(
-                claim
-                    .judge(holds, parts.join("; "))
-                    .missing(missing.clone()),
-            );
+            let (holds, evidence) = two_worst(far, &paper, dlt, epnp);
+            out.push(claim.judge(holds, evidence).missing(missing.clone()));
         }
         _ => out.push(claim.solvers_missing(vec!["dlt".into(), "epnp".into()])),
     }

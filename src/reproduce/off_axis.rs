@@ -12,10 +12,9 @@
 
 use super::claims::{self, describe, num, Claim};
 use super::engine::{run_scenarios, scenario_cells, Context};
-use super::panel::{Metric, Panel};
+use super::panel::{two_worst, Metric, Panel};
 use super::{find, group, paper_sigma_px, stream, Experiment, ExperimentResult, PAPER_SOLVERS};
 use crate::layout::{Layout, PAPER_ARM_MM};
-use crate::pnp::Solver;
 use crate::scenario::Scenario;
 
 /// Depths of Figs. S1 and S2, mm.
@@ -125,37 +124,8 @@ fn claims(context: &Context, panels: &[Panel]) -> Vec<Claim> {
     );
     match (find(context, "dlt"), find(context, "epnp")) {
         (Some(dlt), Some(epnp)) => {
-            let mut holds = true;
-            let mut parts = Vec::new();
-            for panel in panels {
-                let mut ranked: Vec<(Solver, f64)> = paper
-                    .iter()
-                    .filter_map(|&s| {
-                        panel
-                            .pooled(s, |_| true)
-                            .and_then(|c| c.rotation_deg.mean())
-                            .map(|m| (s, m))
-                    })
-                    .collect();
-                ranked.sort_by(|a, b| b.1.total_cmp(&a.1));
-                let top: Vec<Solver> = ranked.iter().take(2).map(|r| r.0).collect();
-                holds &= top.contains(&dlt) && top.contains(&epnp);
-                parts.push(format!(
-                    "{}: {}",
-                    panel.figure,
-                    ranked
-                        .iter()
-                        .take(4)
-                        .map(|(s, m)| format!("{} {}°", s.name(), num(*m)))
-                        .collect::<Vec<_>>()
-                        .join(" > ")
-                ));
-            }
-            out.push(
-                claim
-                    .judge(holds, parts.join("; "))
-                    .missing(missing.clone()),
-            );
+            let (holds, evidence) = two_worst(panels, &paper, dlt, epnp);
+            out.push(claim.judge(holds, evidence).missing(missing.clone()));
         }
         _ => out.push(claim.solvers_missing(vec!["dlt".into(), "epnp".into()])),
     }

@@ -443,3 +443,41 @@ impl Panel {
         table.markdown()
     }
 }
+
+/// Whether `first` and `second` have the two largest mean E_rot (pooled over
+/// each panel's points) among `solvers` in every panel, with the per-panel
+/// ranking (worst first, four shown) as evidence.
+pub fn two_worst<'a>(
+    panels: impl IntoIterator<Item = &'a Panel>,
+    solvers: &[Solver],
+    first: Solver,
+    second: Solver,
+) -> (bool, String) {
+    let mut holds = true;
+    let mut parts = Vec::new();
+    for panel in panels {
+        let mut ranked: Vec<(Solver, f64)> = solvers
+            .iter()
+            .filter_map(|&s| {
+                panel
+                    .pooled(s, |_| true)
+                    .and_then(|c| c.rotation_deg.mean())
+                    .map(|m| (s, m))
+            })
+            .collect();
+        ranked.sort_by(|a, b| b.1.total_cmp(&a.1));
+        let top: Vec<Solver> = ranked.iter().take(2).map(|r| r.0).collect();
+        holds &= top.contains(&first) && top.contains(&second);
+        parts.push(format!(
+            "{}: {}",
+            panel.figure,
+            ranked
+                .iter()
+                .take(4)
+                .map(|(s, m)| format!("{} {}°", s.name(), super::claims::num(*m)))
+                .collect::<Vec<_>>()
+                .join(" > ")
+        ));
+    }
+    (holds, parts.join("; "))
+}

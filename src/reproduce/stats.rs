@@ -257,17 +257,7 @@ pub fn mean(values: &[f64]) -> Option<f64> {
 
 /// Median of a slice (`None` when empty).
 pub fn median(values: &[f64]) -> Option<f64> {
-    if values.is_empty() {
-        return None;
-    }
-    let mut sorted = values.to_vec();
-    sorted.sort_by(f64::total_cmp);
-    let n = sorted.len();
-    Some(if n % 2 == 1 {
-        sorted[n / 2]
-    } else {
-        0.5 * (sorted[n / 2 - 1] + sorted[n / 2])
-    })
+    crate::montecarlo::median(&mut values.to_vec())
 }
 
 #[cfg(test)]

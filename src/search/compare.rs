@@ -5,7 +5,7 @@
 
 use super::{Evaluation, Evaluator};
 use crate::camera::Camera;
-use crate::family::Envelope;
+use crate::family::{Envelope, SPREAD_DIRECTIONS};
 use crate::layout::{Layout, LayoutPoint};
 use crate::montecarlo::{
     self, MonteCarloConfig, MonteCarloError, ScenarioOutcome, Target, DEFAULT_GROSS_THRESHOLD_DEG,
@@ -136,21 +136,16 @@ pub fn hand_designs(envelope: &Envelope, sphere_diameter_mm: f64) -> Vec<Layout>
         )
     })
     .collect();
-    let mut tetrahedron: Vec<(String, Vector3<f64>)> = [
-        [1.0, 1.0, 1.0],
-        [1.0, -1.0, -1.0],
-        [-1.0, 1.0, -1.0],
-        [-1.0, -1.0, 1.0],
-    ]
-    .iter()
-    .enumerate()
-    .map(|(i, c)| {
-        (
-            format!("V{}", i + 1),
-            Vector3::new(c[0], c[1], c[2]).component_mul(&h),
-        )
-    })
-    .collect();
+    let mut tetrahedron: Vec<(String, Vector3<f64>)> = SPREAD_DIRECTIONS[..4]
+        .iter()
+        .enumerate()
+        .map(|(i, c)| {
+            (
+                format!("V{}", i + 1),
+                Vector3::new(c[0], c[1], c[2]).component_mul(&h),
+            )
+        })
+        .collect();
     tetrahedron.push(("C".into(), Vector3::zeros()));
     vec![
         make("paper-biprism", biprism),

@@ -189,9 +189,7 @@ impl Aggregate {
             Aggregate::Max => values.iter().copied().fold(f64::NEG_INFINITY, f64::max),
             Aggregate::P95 => {
                 values.sort_by(f64::total_cmp);
-                let rank =
-                    ((0.95 * values.len() as f64).ceil() as usize).clamp(1, values.len()) - 1;
-                values[rank]
+                montecarlo::nearest_rank_of_sorted(values, 0.95)
             }
         })
     }
