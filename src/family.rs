@@ -6,14 +6,20 @@
 //!   P3 = −z, P4 = −x, P5 = +y, P6 = −y), each with its own length and,
 //!   optionally, a tilt of its direction by two angles (about the two axes
 //!   perpendicular to its nominal axis, each within ±[`MAX_ARM_TILT_DEG`]);
-//!   the centre point O0 is optional. With all arms at L = 50 mm and no tilt
-//!   it is the paper's biprism.
+//!   the centre point O0 is optional. By default the *hub* (where the arms
+//!   meet, and O0 when it is used) may also move anywhere in the envelope:
+//!   the envelope is a size limit, not a statement of where the hub sits, and
+//!   a hub pinned at the envelope's centre spends a sphere on the position
+//!   that tells the least about rotation (a hub in a corner with arms to the
+//!   other corners has ~14% more spread). `free_hub: false` pins it at the
+//!   centre. With the hub at the centre, all arms at L = 50 mm and no tilt it
+//!   is the paper's biprism, the family's natural start.
 //! * `tetrahedron`: four free vertices, plus optionally a centre point at
 //!   their centroid.
 //! * `custom`: N free points, or a layout file whose points marked `fixed`
 //!   stay where they are while the others move.
 //!
-//! The **envelope** is a box centred on the marker origin that bounds the
+//! The **envelope** is a box centred on the layout's origin that bounds the
 //! sphere *centres* (as the paper's "100 mm" biprism has centres at ±50 mm).
 
 use crate::layout::{Layout, LayoutPoint};
@@ -21,7 +27,11 @@ use nalgebra::{Rotation3, Vector3};
 use serde::Serialize;
 
 /// Largest tilt of a biprism arm from its nominal axis, per angle, degrees.
-pub const MAX_ARM_TILT_DEG: f64 = 60.0;
+/// Two tilts of up to 90° reach the whole half-space around the nominal axis
+/// (the first tilts the arm towards one perpendicular axis, the second swings
+/// it about that axis), so the six arms together can reach any direction;
+/// the margin beyond 90° keeps optima off the bounds.
+pub const MAX_ARM_TILT_DEG: f64 = 120.0;
 
 /// Directions (in units of the envelope's half sizes) for spread-out starts:
 /// four alternating corners (a regular tetrahedron inscribed in the box), the
@@ -122,10 +132,12 @@ impl std::str::FromStr for Envelope {
 pub enum FamilyKind {
     /// Six arms (optionally tilted) and an optional centre point.
     Biprism {
-        /// Include the centre point O0.
+        /// Include the centre point O0 (a sphere at the hub).
         centre: bool,
         /// Let each arm tilt off its axis.
         tilts: bool,
+        /// Let the hub move within the envelope (three more parameters).
+        free_hub: bool,
     },
     /// Four free vertices and an optional centre point.
     Tetrahedron {
@@ -221,7 +233,9 @@ impl Family {
     /// Number of parameters.
     pub fn dimension(&self) -> usize {
         match &self.kind {
-            FamilyKind::Biprism { tilts, .. } => 6 + if *tilts { 12 } else { 0 },
+            FamilyKind::Biprism {
+                tilts, free_hub, ..
+            } => 6 + if *tilts { 12 } else { 0 } + if *free_hub { 3 } else { 0 },
             FamilyKind::Tetrahedron { .. } => 12,
             FamilyKind::Custom {
                 start: Some(layout),
@@ -251,10 +265,13 @@ impl Family {
         let mut lower = Vec::with_capacity(self.dimension());
         let mut upper = Vec::with_capacity(self.dimension());
         match &self.kind {
-            FamilyKind::Biprism { tilts, .. } => {
-                // An arm reaches at most the envelope's corner; the box itself
-                // is enforced as a constraint.
-                let longest = half.norm();
+            FamilyKind::Biprism {
+                tilts, free_hub, ..
+            } => {
+                // An arm reaches at most the envelope's corner (the opposite
+                // corner when the hub moves); the box itself is enforced as a
+                // constraint.
+                let longest = if *free_hub { 2.0 } else { 1.0 } * half.norm();
                 for _ in 0..6 {
                     lower.push(self.sphere_diameter_mm);
                     upper.push(longest);
@@ -263,6 +280,12 @@ impl Family {
                     for _ in 0..12 {
                         lower.push(-MAX_ARM_TILT_DEG);
                         upper.push(MAX_ARM_TILT_DEG);
+                    }
+                }
+                if *free_hub {
+                    for k in 0..3 {
+                        lower.push(-half[k]);
+                        upper.push(half[k]);
                     }
                 }
             }
@@ -301,7 +324,9 @@ impl Family {
     pub fn initial(&self) -> Vec<f64> {
         let half = self.envelope.half();
         match &self.kind {
-            FamilyKind::Biprism { tilts, .. } => {
+            FamilyKind::Biprism {
+                tilts, free_hub, ..
+            } => {
                 let mut params: Vec<f64> = ARM_AXES
                     .iter()
                     .map(|axis| {
@@ -314,6 +339,9 @@ impl Family {
                     .collect();
                 if *tilts {
                     params.extend([0.0; 12]);
+                }
+                if *free_hub {
+                    params.extend([0.0; 3]);
                 }
                 params
             }
@@ -354,30 +382,57 @@ impl Family {
     /// regular tetrahedron already spans the box).
     pub fn spread(&self) -> Vec<f64> {
         match &self.kind {
-            FamilyKind::Biprism { tilts: true, .. } => {
+            FamilyKind::Biprism {
+                tilts: true,
+                free_hub,
+                ..
+            } => {
                 let half = self.envelope.half();
-                let mut params = vec![half.norm(); 6];
-                // Corner directions for P1..P6 (+z, +x, −z, −x, +y, −y): six of
-                // the eight corners, two per axis pair, none shared.
-                let corners = [
-                    [1.0, 1.0, 1.0],
-                    [1.0, -1.0, -1.0],
-                    [-1.0, 1.0, -1.0],
-                    [-1.0, -1.0, 1.0],
-                    [1.0, 1.0, -1.0],
-                    [-1.0, -1.0, -1.0],
-                ];
+                // Corner targets for P1..P6 (nominal axes +z, +x, −z, −x, +y,
+                // −y), each in its arm's reach. Centred hub: six of the eight
+                // corners, two per axis pair. Free hub: the hub in the
+                // (−,−,−) corner and the arms to six of the other seven
+                // (the far corner included), so hub and arms occupy seven
+                // corners.
+                let (hub, corners) = if *free_hub {
+                    (
+                        [-1.0, -1.0, -1.0],
+                        [
+                            [1.0, 1.0, 1.0],
+                            [1.0, -1.0, -1.0],
+                            [1.0, 1.0, -1.0],
+                            [-1.0, -1.0, 1.0],
+                            [-1.0, 1.0, -1.0],
+                            [1.0, -1.0, 1.0],
+                        ],
+                    )
+                } else {
+                    (
+                        [0.0; 3],
+                        [
+                            [1.0, 1.0, 1.0],
+                            [1.0, -1.0, -1.0],
+                            [-1.0, 1.0, -1.0],
+                            [-1.0, -1.0, 1.0],
+                            [1.0, 1.0, -1.0],
+                            [-1.0, -1.0, -1.0],
+                        ],
+                    )
+                };
+                let scale = |c: [f64; 3]| Vector3::new(c[0] * half.x, c[1] * half.y, c[2] * half.z);
+                let hub = scale(hub);
+                let mut params = vec![0.0; 6];
+                let limit = MAX_ARM_TILT_DEG as i32;
                 for (arm, corner) in corners.iter().enumerate() {
-                    let target =
-                        Vector3::new(corner[0] * half.x, corner[1] * half.y, corner[2] * half.z);
+                    let target = scale(*corner) - hub;
                     let axis = Vector3::new(ARM_AXES[arm][0], ARM_AXES[arm][1], ARM_AXES[arm][2]);
                     let (a, b) = perpendicular_axes(&axis);
                     // The two tilt angles that point the arm at the corner, to
                     // the nearest degree (a start point: the search refines it).
                     let direction = target.normalize();
                     let mut best = (f64::INFINITY, 0.0, 0.0);
-                    for i in -60..=60 {
-                        for j in -60..=60 {
+                    for i in -limit..=limit {
+                        for j in -limit..=limit {
                             let (first, second) = (i as f64, j as f64);
                             let d = Rotation3::from_scaled_axis(b * second.to_radians())
                                 * Rotation3::from_scaled_axis(a * first.to_radians())
@@ -388,10 +443,14 @@ impl Family {
                             }
                         }
                     }
-                    // Staggered lengths keep the pairwise distances distinct
-                    // (identifiable spheres), so the start is feasible.
+                    // Staggered lengths keep the pairwise distances apart
+                    // (identifiable spheres); the search's repair phase
+                    // finishes the job.
                     params[arm] = target.norm() - SPREAD_STAGGER_MM * arm as f64;
                     params.extend([best.1, best.2]);
+                }
+                if *free_hub {
+                    params.extend([hub.x, hub.y, hub.z]);
                 }
                 params
             }
@@ -440,10 +499,20 @@ impl Family {
     pub fn points(&self, params: &[f64]) -> Vec<Vector3<f64>> {
         let params = self.clamp(params);
         match &self.kind {
-            FamilyKind::Biprism { centre, tilts } => {
+            FamilyKind::Biprism {
+                centre,
+                tilts,
+                free_hub,
+            } => {
+                let hub = if *free_hub {
+                    let h = self.dimension() - 3;
+                    Vector3::new(params[h], params[h + 1], params[h + 2])
+                } else {
+                    Vector3::zeros()
+                };
                 let mut points = Vec::with_capacity(7);
                 if *centre {
-                    points.push(Vector3::zeros());
+                    points.push(hub);
                 }
                 for (arm, axis) in ARM_AXES.iter().enumerate() {
                     let axis = Vector3::new(axis[0], axis[1], axis[2]);
@@ -457,7 +526,7 @@ impl Family {
                     } else {
                         axis
                     };
-                    points.push(direction * params[arm]);
+                    points.push(hub + direction * params[arm]);
                 }
                 points
             }
@@ -500,11 +569,16 @@ impl Family {
     pub fn record(&self, params: &[f64]) -> serde_json::Value {
         let params = self.clamp(params);
         match &self.kind {
-            FamilyKind::Biprism { centre, tilts } => serde_json::json!({
+            FamilyKind::Biprism {
+                centre,
+                tilts,
+                free_hub,
+            } => serde_json::json!({
                 "kind": "biprism",
                 "parameters": {
                     "arm_mm": &params[..6],
-                    "arm_tilt_deg": if *tilts { serde_json::json!(params[6..].chunks(2).collect::<Vec<_>>()) } else { serde_json::Value::Null },
+                    "arm_tilt_deg": if *tilts { serde_json::json!(params[6..18].chunks(2).collect::<Vec<_>>()) } else { serde_json::Value::Null },
+                    "hub_mm": if *free_hub { serde_json::json!(&params[params.len() - 3..]) } else { serde_json::json!([0.0, 0.0, 0.0]) },
                     "centre": centre,
                 },
                 "envelope_mm": self.envelope.size_mm,
@@ -677,22 +751,69 @@ mod tests {
 
     #[test]
     fn biprism_start_is_the_papers_biprism() {
+        for (free_hub, dimension) in [(false, 18), (true, 21)] {
+            let family = Family::new(
+                FamilyKind::Biprism {
+                    centre: true,
+                    tilts: true,
+                    free_hub,
+                },
+                cube(100.0),
+                10.0,
+            )
+            .unwrap();
+            let points = family.points(&family.initial());
+            let paper = crate::synthetic::biprism_points(50.0);
+            for (a, b) in points.iter().zip(&paper) {
+                assert_relative_eq!(a, b, epsilon = 1e-12);
+            }
+            assert_eq!(family.names()[0], "O0");
+            assert_eq!(family.dimension(), dimension);
+        }
+    }
+
+    #[test]
+    fn a_free_hub_moves_every_point_and_its_spread_start_fills_seven_corners() {
         let family = Family::new(
             FamilyKind::Biprism {
                 centre: true,
                 tilts: true,
+                free_hub: true,
             },
             cube(100.0),
             10.0,
         )
         .unwrap();
-        let points = family.points(&family.initial());
-        let paper = crate::synthetic::biprism_points(50.0);
-        for (a, b) in points.iter().zip(&paper) {
-            assert_relative_eq!(a, b, epsilon = 1e-12);
+        let mut params = family.initial();
+        let shifted = {
+            let n = params.len();
+            params[n - 3..].copy_from_slice(&[5.0, -7.0, 11.0]);
+            family.points(&params)
+        };
+        let offset = Vector3::new(5.0, -7.0, 11.0);
+        for (a, b) in shifted.iter().zip(crate::synthetic::biprism_points(50.0)) {
+            assert_relative_eq!(*a, b + offset, epsilon = 1e-12);
         }
-        assert_eq!(family.names()[0], "O0");
-        assert_eq!(family.dimension(), 18);
+        let points = family.points(&family.spread());
+        assert_relative_eq!(points[0], Vector3::new(-50.0, -50.0, -50.0));
+        let mut corners: Vec<[i32; 3]> = points
+            .iter()
+            .map(|p| {
+                for k in 0..3 {
+                    // Staggered lengths: within a few mm of the corner.
+                    assert!((p[k].abs() - 50.0).abs() < 10.0, "{p:?}");
+                }
+                [
+                    p.x.signum() as i32,
+                    p.y.signum() as i32,
+                    p.z.signum() as i32,
+                ]
+            })
+            .collect();
+        corners.sort();
+        corners.dedup();
+        assert_eq!(corners.len(), 7, "seven distinct corners: {points:?}");
+        assert_eq!(family.record(&params)["parameters"]["hub_mm"][2], 11.0);
     }
 
     #[test]
@@ -701,6 +822,7 @@ mod tests {
             FamilyKind::Biprism {
                 centre: true,
                 tilts: true,
+                free_hub: false,
             },
             cube(100.0),
             10.0,
@@ -733,6 +855,7 @@ mod tests {
             FamilyKind::Biprism {
                 centre: false,
                 tilts: true,
+                free_hub: false,
             },
             cube(100.0),
             10.0,

@@ -35,6 +35,8 @@ fn run_search(dir: &Path, threads: &str, extra: &[&str]) -> assert_cmd::assert::
         .arg(dir.join("t.json"))
         .arg("--report")
         .arg(dir.join("report"))
+        .arg("--checkpoint-dir")
+        .arg(dir.join("checkpoints"))
         .args(extra)
         .args(if extra.contains(&"--iterations") {
             &[][..]
@@ -244,4 +246,46 @@ fn bad_arguments_are_clear_errors() {
             predicate::str::contains("cannot all be met")
                 .and(predicate::str::contains("smallest gap")),
         );
+}
+
+#[test]
+fn resume_refuses_a_stale_checkpoint_and_export_writes_the_winner() {
+    let dir = tempfile::tempdir().unwrap();
+    // Nothing to resume: says so and runs; a finished run leaves no checkpoints.
+    let export_dir = dir.path().join("meshes");
+    run_search(
+        dir.path(),
+        "2",
+        &[
+            "--resume",
+            "--export",
+            "stl,obj",
+            "--export-dir",
+            export_dir.to_str().unwrap(),
+        ],
+    )
+    .success()
+    .stderr(predicate::str::contains("starting afresh"))
+    .stdout(predicate::str::contains("exported"));
+    let checkpoints = dir.path().join("checkpoints");
+    assert_eq!(std::fs::read_dir(&checkpoints).unwrap().count(), 0);
+    let (models, _) = tobj::load_obj(export_dir.join("t.obj"), &tobj::GPU_LOAD_OPTIONS).unwrap();
+    assert!(!models.is_empty() && !models[0].mesh.indices.is_empty());
+    assert!(std::fs::metadata(export_dir.join("t.stl")).unwrap().len() > 84);
+
+    // A checkpoint of another configuration under the same name is refused,
+    // naming what differs, and left alone.
+    let stale = checkpoints.join("t-0123456789abcdef");
+    std::fs::create_dir_all(&stale).unwrap();
+    std::fs::write(
+        stale.join("config.json"),
+        r#"{"search": {"seed": 99}, "version": "0.0.0"}"#,
+    )
+    .unwrap();
+    run_search(dir.path(), "2", &["--resume"])
+        .failure()
+        .stderr(predicate::str::contains("different search configuration"))
+        .stderr(predicate::str::contains("search"))
+        .stderr(predicate::str::contains("Rerun without --resume"));
+    assert!(stale.join("config.json").exists());
 }

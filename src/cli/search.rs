@@ -7,9 +7,11 @@ use clap::{Args, ValueEnum};
 use indicatif::ProgressBar;
 use layout_opt::family::{Constraints, Envelope, Family, FamilyKind};
 use layout_opt::layout::Layout;
+use layout_opt::mesh::{ExportOptions, Format};
 use layout_opt::noise::NoiseModel;
 use layout_opt::pnp::Solver;
 use layout_opt::scenario::{Range, ScenarioGrid};
+use layout_opt::search::checkpoint::{Checkpoints, ResumeStatus};
 use layout_opt::search::compare::{compare, hand_designs};
 use layout_opt::search::optimise::{self, Candidate, Optimiser, SearchObserver, SearchSettings};
 use layout_opt::search::report::{self as search_report, verdicts, SearchHeader, SearchSummary};
@@ -40,6 +42,10 @@ pub struct SearchArgs {
     /// Keep biprism arms on their axes (only their lengths vary).
     #[arg(long)]
     no_tilts: bool,
+    /// Pin the biprism's hub at the envelope's centre (by default it may move
+    /// anywhere in the envelope).
+    #[arg(long, alias = "centered-hub")]
+    centred_hub: bool,
     /// Number of free points (custom family).
     #[arg(long, default_value_t = 7)]
     points: usize,
@@ -119,6 +125,22 @@ pub struct SearchArgs {
     /// Report directory. Default: reports/<name>/.
     #[arg(long, value_name = "DIR")]
     report: Option<PathBuf>,
+    /// Continue an interrupted search from its checkpoints. Refused, naming
+    /// the settings that changed, when the only checkpoints are those of a
+    /// different configuration.
+    #[arg(long)]
+    resume: bool,
+    /// Where checkpoints are kept (one directory per name and configuration
+    /// hash; removed when the search finishes).
+    #[arg(long, value_name = "DIR", default_value = ".layout-opt/checkpoints")]
+    checkpoint_dir: PathBuf,
+    /// Also export the winner as printable meshes in these formats
+    /// (stl, obj, gltf, glb; comma-separated), with `export`'s defaults.
+    #[arg(long, value_delimiter = ',', value_name = "FORMATS")]
+    export: Vec<Format>,
+    /// Directory of the exported meshes. Default: build/<name>/.
+    #[arg(long, value_name = "DIR")]
+    export_dir: Option<PathBuf>,
 }
 
 /// The default search grid: depths from --depth (required in spirit; 200..1000
@@ -180,9 +202,18 @@ impl SearchObserver for Reporter {
 
 fn family_description(family: &Family) -> String {
     match family.kind() {
-        FamilyKind::Biprism { centre, tilts } => format!(
-            "biprism: 6 arm lengths{}{}",
+        FamilyKind::Biprism {
+            centre,
+            tilts,
+            free_hub,
+        } => format!(
+            "biprism: 6 arm lengths{}{}{}",
             if *tilts { " + 2 tilts per arm" } else { "" },
+            if *free_hub {
+                " + hub position"
+            } else {
+                ", hub at the envelope centre"
+            },
             if *centre {
                 " + centre point"
             } else {
@@ -229,6 +260,7 @@ pub fn run(args: SearchArgs, global: &GlobalOptions) -> anyhow::Result<()> {
         FamilyName::Biprism => FamilyKind::Biprism {
             centre: !args.no_centre,
             tilts: !args.no_tilts,
+            free_hub: !args.centred_hub,
         },
         FamilyName::Tetrahedron => FamilyKind::Tetrahedron {
             centre: !args.no_centre,
@@ -253,6 +285,9 @@ pub fn run(args: SearchArgs, global: &GlobalOptions) -> anyhow::Result<()> {
     };
     if args.init.is_some() && args.family != FamilyName::Custom {
         anyhow::bail!("--init applies to --family custom");
+    }
+    if args.centred_hub && args.family != FamilyName::Biprism {
+        anyhow::bail!("--centred-hub applies to --family biprism");
     }
     let family = Family::new(kind, args.envelope, args.sphere_diameter)?;
     let constraints = Constraints {
@@ -305,6 +340,35 @@ pub fn run(args: SearchArgs, global: &GlobalOptions) -> anyhow::Result<()> {
         &paper.positions(),
     );
     let command = command_line();
+    // Everything that decides which layouts the search evaluates: the key of
+    // its checkpoints.
+    let search_config = serde_json::json!({
+        "version": env!("CARGO_PKG_VERSION"),
+        "family": family_description(&family),
+        "start_layout": match family.kind() {
+            FamilyKind::Custom { start: Some(layout), .. } => serde_json::to_value(layout)?,
+            _ => serde_json::Value::Null,
+        },
+        "sphere_diameter_mm": args.sphere_diameter,
+        "constraints": constraints,
+        "camera": camera,
+        "grid": grid,
+        "objective": settings,
+        "search": search_settings,
+    });
+    let (checkpoints, resume_status) =
+        Checkpoints::prepare(&args.checkpoint_dir, &name, &search_config, args.resume)?;
+    match resume_status {
+        ResumeStatus::Resuming => eprintln!(
+            "resuming from the checkpoints in {}",
+            checkpoints.dir().display()
+        ),
+        ResumeStatus::NothingToResume => eprintln!(
+            "no checkpoint of this configuration (hash {}); starting afresh",
+            checkpoints.hash()
+        ),
+        ResumeStatus::Fresh => {}
+    }
     let provenance = serde_json::json!({
         "command": command,
         "seed": global.seed,
@@ -343,6 +407,7 @@ pub fn run(args: SearchArgs, global: &GlobalOptions) -> anyhow::Result<()> {
         &search_settings,
         &STOP,
         reporter.clone(),
+        Some(&checkpoints),
     )?;
     let search_seconds = started.elapsed().as_secs_f64();
     bar.finish_and_clear();
@@ -368,11 +433,13 @@ pub fn run(args: SearchArgs, global: &GlobalOptions) -> anyhow::Result<()> {
     winner.save_atomic(&layout_path)?;
     if outcome.interrupted {
         println!(
-            "interrupted after {search_seconds:.1} s; the best layout seen is in {}",
-            layout_path.display()
+            "interrupted after {search_seconds:.1} s; the best layout seen is in {}; continue with --resume (checkpoints in {})",
+            layout_path.display(),
+            checkpoints.dir().display()
         );
         return Ok(());
     }
+    checkpoints.remove()?;
     let violations = outcome.best.evaluation.violations;
     if !violations.feasible() {
         anyhow::bail!(
@@ -445,6 +512,22 @@ pub fn run(args: SearchArgs, global: &GlobalOptions) -> anyhow::Result<()> {
         }))? + "\n",
     )?;
 
+    let exported = if args.export.is_empty() {
+        None
+    } else {
+        let dir = args
+            .export_dir
+            .clone()
+            .unwrap_or_else(|| PathBuf::from("build").join(&name));
+        let options = ExportOptions {
+            formats: args.export.clone(),
+            marker: Default::default(),
+            resolution_mm: None,
+        };
+        let report = layout_opt::mesh::export(&winner, &options, &dir)
+            .with_context(|| format!("exporting the winner to {}", dir.display()))?;
+        Some(report.files)
+    };
     let v = &summary.verdicts;
     println!(
         "{name}: {} ({} evaluations in {search_seconds:.1} s); wrote {}",
@@ -484,6 +567,9 @@ pub fn run(args: SearchArgs, global: &GlobalOptions) -> anyhow::Result<()> {
         v.rotation_reduction_vs_paper_percent[1],
         v.availability_difference_pp
     );
+    for file in exported.iter().flatten() {
+        println!("exported {}", file.path.display());
+    }
     println!(
         "report in {} ({total_seconds:.1} s in all)",
         report_dir.display()

@@ -31,6 +31,7 @@
 //! staircase of 0/1 steps; reports count visibility exactly. The *cost* the optimisers minimise adds
 //! [`CONSTRAINT_PENALTY`] per mm of constraint violation.
 
+pub mod checkpoint;
 pub mod compare;
 pub mod optimise;
 pub mod report;

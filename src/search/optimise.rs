@@ -22,20 +22,27 @@
 //!   so the result does not depend on the thread count.
 //! * A shared tracker reports every improvement of the best-so-far layout to
 //!   the caller (which writes it atomically), and a stop flag, checked at
-//!   every evaluation, ends all starts promptly (Ctrl-C).
+//!   every evaluation, ends all starts promptly (Ctrl-C): evaluations return
+//!   +∞ at once and the iteration observer then ends the executor, before
+//!   that iteration could be checkpointed.
+//! * With [`Checkpoints`], each start's optimiser phases are checkpointed
+//!   ([`super::checkpoint`]) and resume where they stopped.
 
+use super::checkpoint::{CheckpointError, Checkpoints, StartCheckpoint, StartState};
 use super::{Evaluation, Evaluator};
 use crate::family::Family;
 use crate::synthetic::stream_rng;
-use argmin::core::{observers::ObserverMode, CostFunction, Executor, State, KV};
+use argmin::core::checkpointing::Checkpoint;
+use argmin::core::{observers::ObserverMode, CostFunction, Executor, Solver, State, KV};
 use argmin::solver::neldermead::NelderMead;
 use argmin::solver::particleswarm::{Particle, ParticleSwarm};
 use argmin::solver::simulatedannealing::{Anneal, SimulatedAnnealing};
 use rand::Rng;
-use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
 use rayon::prelude::*;
+use serde::de::DeserializeOwned;
 use serde::Serialize;
+use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 
@@ -51,6 +58,10 @@ const SWARM_STREAM: u64 = 0x5EA2C5;
 const ANNEAL_STREAM: u64 = 0x5EA2C6;
 /// Nelder–Mead's initial simplex steps this fraction of each range.
 pub const SIMPLEX_STEP: f64 = 0.1;
+/// Restarted rounds of each Nelder–Mead run.
+pub const NELDER_MEAD_ROUNDS: u64 = 4;
+/// Each Nelder–Mead round's simplex is this fraction of the previous one's.
+pub const ROUND_SHRINK: f64 = 0.5;
 /// Initial annealing temperature (costs are ~1 for the reference layout).
 pub const ANNEAL_TEMPERATURE: f64 = 0.05;
 /// At the initial temperature, annealing steps have this fraction of each
@@ -156,6 +167,9 @@ pub enum SearchError {
     /// Stopped before any layout was evaluated.
     #[error("the search was interrupted before it evaluated any layout")]
     InterruptedEmpty,
+    /// Checkpoints could not be read or written.
+    #[error(transparent)]
+    Checkpoint(#[from] CheckpointError),
     /// argmin reported an error.
     #[error("optimiser failed in start {start}: {message}")]
     Optimiser {
@@ -171,6 +185,9 @@ struct Shared<'a> {
     evaluations: Arc<AtomicUsize>,
     observer: Arc<dyn SearchObserver + Send>,
     stop: &'a AtomicBool,
+    /// Set by the first evaluation that sees `stop`; iteration observers
+    /// (which must own their data) end their executors on it.
+    halted: Arc<AtomicBool>,
 }
 
 impl Shared<'_> {
@@ -195,7 +212,9 @@ struct LayoutProblem<'a> {
     start: usize,
     shared: &'a Shared<'a>,
     start_best: Mutex<Option<Candidate>>,
-    anneal_rng: Mutex<ChaCha8Rng>,
+    /// The start's best parameters and annealing generator, shared with its
+    /// checkpoints.
+    start_state: Arc<Mutex<StartState>>,
     /// While repairing, the cost is the constraint violation alone.
     repairing: bool,
 }
@@ -222,6 +241,7 @@ impl CostFunction for LayoutProblem<'_> {
         // iterations drain in microseconds (argmin's Nelder–Mead unwraps
         // cost errors, so an error cannot end it).
         if self.shared.stop.load(Ordering::Relaxed) {
+            self.shared.halted.store(true, Ordering::Relaxed);
             return Ok(f64::INFINITY);
         }
         let clamped = self.family.clamp(params);
@@ -246,6 +266,10 @@ impl CostFunction for LayoutProblem<'_> {
                 .expect("no panics while holding the lock");
             if best.as_ref().is_none_or(|b| candidate.better_than(b)) {
                 *best = Some(candidate.clone());
+                self.start_state
+                    .lock()
+                    .expect("no panics while holding the lock")
+                    .best_params = Some(candidate.params.clone());
             }
         }
         self.shared.offer(&candidate);
@@ -261,10 +285,11 @@ impl Anneal for LayoutProblem<'_> {
     /// Moves each parameter with probability 1/2 by a Gaussian step whose
     /// size shrinks with the temperature.
     fn anneal(&self, params: &Vec<f64>, temperature: f64) -> Result<Vec<f64>, argmin::core::Error> {
-        let mut rng = self
-            .anneal_rng
+        let mut start_state = self
+            .start_state
             .lock()
             .expect("no panics while holding the lock");
+        let rng = &mut start_state.anneal_rng;
         let scale = ANNEAL_STEP * (temperature / ANNEAL_TEMPERATURE).min(1.0);
         let mut next = params.clone();
         for (k, value) in next.iter_mut().enumerate() {
@@ -279,9 +304,12 @@ impl Anneal for LayoutProblem<'_> {
 }
 
 /// The argmin observer that forwards iterations to the caller's observer.
+/// It also ends the executor once the search is halted, so that an iteration
+/// evaluated after a stop is never checkpointed.
 struct ProgressObserver {
     observer: Arc<dyn SearchObserver + Send>,
     evaluations: Arc<AtomicUsize>,
+    halted: Arc<AtomicBool>,
     start: usize,
 }
 
@@ -290,13 +318,22 @@ impl ProgressObserver {
         Self {
             observer: Arc::clone(&shared.observer),
             evaluations: Arc::clone(&shared.evaluations),
+            halted: Arc::clone(&shared.halted),
             start,
         }
     }
 }
 
+/// The error an executor ends with after a stop.
+#[derive(Debug, thiserror::Error)]
+#[error("search stopped")]
+struct Halted;
+
 impl<I: State<Float = f64>> argmin::core::observers::Observe<I> for ProgressObserver {
     fn observe_iter(&mut self, state: &I, _kv: &KV) -> Result<(), argmin::core::Error> {
+        if self.halted.load(Ordering::Relaxed) {
+            return Err(Halted.into());
+        }
         self.observer.progress(
             self.start,
             state.get_iter(),
@@ -307,11 +344,13 @@ impl<I: State<Float = f64>> argmin::core::observers::Observe<I> for ProgressObse
     }
 }
 
-fn simplex(start: &[f64], lower: &[f64], upper: &[f64]) -> Vec<Vec<f64>> {
+/// A simplex at `start` with one vertex per parameter, `scale` of its range
+/// away (inward at a bound).
+fn simplex(start: &[f64], lower: &[f64], upper: &[f64], scale: f64) -> Vec<Vec<f64>> {
     let mut vertices = vec![start.to_vec()];
     for k in 0..start.len() {
         let mut vertex = start.to_vec();
-        let step = SIMPLEX_STEP * (upper[k] - lower[k]);
+        let step = scale * (upper[k] - lower[k]);
         vertex[k] = if vertex[k] + step <= upper[k] {
             vertex[k] + step
         } else {
@@ -322,23 +361,83 @@ fn simplex(start: &[f64], lower: &[f64], upper: &[f64]) -> Vec<Vec<f64>> {
     vertices
 }
 
-fn run_nelder_mead<'a>(
+/// Runs one optimiser phase of a start through argmin's executor, with the
+/// progress observer and, when `checkpoint` names a file, checkpointing that
+/// resumes from it: the start's best parameters are restored and scored
+/// again, the executor reloads the solver and its state, and the phase's end
+/// state is saved once more so a resumed run skips a finished phase.
+fn run_phase<'a, S, I>(
     problem: LayoutProblem<'a>,
-    start: &[f64],
-    iterations: u64,
-) -> Result<LayoutProblem<'a>, argmin::core::Error> {
-    let shared = problem.shared;
-    let index = problem.start;
-    let solver =
-        NelderMead::new(simplex(start, problem.lower, problem.upper)).with_sd_tolerance(1e-10)?;
-    let result = Executor::new(problem, solver)
-        .configure(|state| state.max_iters(iterations))
-        .add_observer(ProgressObserver::new(shared, index), ObserverMode::Always)
-        .run()?;
+    solver: S,
+    configure: impl FnOnce(I) -> I,
+    checkpoint: Option<PathBuf>,
+) -> Result<LayoutProblem<'a>, argmin::core::Error>
+where
+    S: Solver<LayoutProblem<'a>, I> + Serialize + DeserializeOwned,
+    I: State<Float = f64> + Serialize + DeserializeOwned,
+{
+    let start_state = Arc::clone(&problem.start_state);
+    let file = checkpoint
+        .as_ref()
+        .map(|path| StartCheckpoint::new(path.clone(), Arc::clone(&start_state)));
+    if let Some(file) = &file {
+        if file.restore_start_state()? {
+            let best = start_state
+                .lock()
+                .expect("no panics while holding the lock")
+                .best_params
+                .clone();
+            if let Some(params) = best {
+                // Scoring the restored best again rebuilds the start's own
+                // best and the shared best-so-far.
+                problem.cost(&params)?;
+            }
+        }
+    }
+    let observer = ProgressObserver::new(problem.shared, problem.start);
+    let mut executor = Executor::new(problem, solver)
+        .configure(configure)
+        .add_observer(observer, ObserverMode::Always);
+    if let Some(file) = file {
+        executor = executor.checkpointing(file);
+    }
+    let result = executor.run()?;
+    if let Some(path) = checkpoint {
+        StartCheckpoint::new(path, start_state).save(&result.solver, &result.state)?;
+    }
     Ok(result
         .problem
         .problem
         .expect("the executor returns its problem"))
+}
+
+/// Nelder–Mead in [`NELDER_MEAD_ROUNDS`] rounds that share `iterations`:
+/// each round restarts from the start's best point with a fresh simplex,
+/// [`ROUND_SHRINK`] times the previous round's size. A simplex in 10–20
+/// dimensions collapses onto a subspace (here, onto the kinks of the
+/// identifiability constraint) long before its budget is spent; a fresh
+/// simplex restores the lost directions. Each round is its own checkpointed
+/// phase (`<phase>-<round>`).
+fn run_nelder_mead<'a>(
+    mut problem: LayoutProblem<'a>,
+    start: &[f64],
+    iterations: u64,
+    checkpoints: Option<(&Checkpoints, &str)>,
+) -> Result<LayoutProblem<'a>, argmin::core::Error> {
+    let rounds = NELDER_MEAD_ROUNDS.min(iterations);
+    let mut from = start.to_vec();
+    for round in 0..rounds {
+        let budget = iterations / rounds + u64::from(round < iterations % rounds);
+        let scale = SIMPLEX_STEP * ROUND_SHRINK.powi(round as i32);
+        let solver = NelderMead::new(simplex(&from, problem.lower, problem.upper, scale))
+            .with_sd_tolerance(1e-10)?;
+        let file = checkpoints.map(|(c, phase)| c.file(problem.start, &format!("{phase}-{round}")));
+        problem = run_phase(problem, solver, |state| state.max_iters(budget), file)?;
+        if let Some(best) = best_params(&problem) {
+            from = best;
+        }
+    }
+    Ok(problem)
 }
 
 fn best_params(problem: &LayoutProblem<'_>) -> Option<Vec<f64>> {
@@ -350,6 +449,7 @@ fn best_params(problem: &LayoutProblem<'_>) -> Option<Vec<f64>> {
         .map(|c| c.params.clone())
 }
 
+#[allow(clippy::too_many_arguments)]
 fn run_start<'a>(
     family: &'a Family,
     evaluator: &'a Evaluator,
@@ -358,6 +458,7 @@ fn run_start<'a>(
     point_sigma: &'a [Option<f64>],
     bounds: &'a (Vec<f64>, Vec<f64>),
     start: usize,
+    checkpoints: Option<&Checkpoints>,
 ) -> Result<Option<Candidate>, argmin::core::Error> {
     let (lower, upper) = (&bounds.0, &bounds.1);
     let initial = if start == 0 {
@@ -381,11 +482,17 @@ fn run_start<'a>(
         start,
         shared,
         start_best: Mutex::new(None),
-        anneal_rng: Mutex::new(stream_rng(settings.seed, ANNEAL_STREAM, start as u64)),
+        start_state: Arc::new(Mutex::new(StartState {
+            best_params: None,
+            anneal_rng: stream_rng(settings.seed, ANNEAL_STREAM, start as u64),
+        })),
         repairing: true,
     };
+    // The repair is deterministic and cheap, so a resumed run repeats it
+    // rather than checkpointing it.
     let initial = if problem.cost(&initial)? > 0.0 {
-        let repair = NelderMead::new(simplex(&initial, lower, upper)).with_sd_tolerance(0.0)?;
+        let repair = NelderMead::new(simplex(&initial, lower, upper, SIMPLEX_STEP))
+            .with_sd_tolerance(0.0)?;
         let result = Executor::new(problem, repair)
             .configure(|state| state.max_iters(REPAIR_ITERATIONS).target_cost(0.0))
             .run()?;
@@ -399,9 +506,14 @@ fn run_start<'a>(
         initial
     };
     problem.repairing = false;
-    let observer = ProgressObserver::new(shared, start);
+    let main = checkpoints.map(|c| c.file(start, "main"));
     let problem = match settings.optimiser {
-        Optimiser::NelderMead => run_nelder_mead(problem, &initial, settings.iterations)?,
+        Optimiser::NelderMead => run_nelder_mead(
+            problem,
+            &initial,
+            settings.iterations,
+            checkpoints.map(|c| (c, "main")),
+        )?,
         Optimiser::ParticleSwarm => {
             // The swarm starts from the start point plus random particles, so
             // start 0 always contains the family's natural start.
@@ -427,33 +539,34 @@ fn run_start<'a>(
             }
             let solver = ParticleSwarm::new((lower.clone(), upper.clone()), settings.particles)
                 .with_rng_generator(rng);
-            let result = Executor::new(problem, solver)
-                .configure(|state| state.population(population).max_iters(settings.iterations))
-                .add_observer(observer, ObserverMode::Always)
-                .run()?;
-            result
-                .problem
-                .problem
-                .expect("the executor returns its problem")
+            run_phase(
+                problem,
+                solver,
+                |state| state.population(population).max_iters(settings.iterations),
+                main,
+            )?
         }
         Optimiser::Annealing => {
             let solver = SimulatedAnnealing::new_with_rng(
                 ANNEAL_TEMPERATURE,
                 stream_rng(settings.seed, SWARM_STREAM, start as u64),
             )?;
-            let result = Executor::new(problem, solver)
-                .configure(|state| state.param(initial.clone()).max_iters(settings.iterations))
-                .add_observer(observer, ObserverMode::Always)
-                .run()?;
-            result
-                .problem
-                .problem
-                .expect("the executor returns its problem")
+            run_phase(
+                problem,
+                solver,
+                |state| state.param(initial.clone()).max_iters(settings.iterations),
+                main,
+            )?
         }
     };
     let problem = if settings.optimiser != Optimiser::NelderMead && settings.polish_iterations > 0 {
         match best_params(&problem) {
-            Some(best) => run_nelder_mead(problem, &best, settings.polish_iterations)?,
+            Some(best) => run_nelder_mead(
+                problem,
+                &best,
+                settings.polish_iterations,
+                checkpoints.map(|c| (c, "polish")),
+            )?,
             None => problem,
         }
     } else {
@@ -467,13 +580,15 @@ fn run_start<'a>(
     Ok(best)
 }
 
-/// Minimises `evaluator`'s cost over `family`'s parameters.
+/// Minimises `evaluator`'s cost over `family`'s parameters, checkpointing
+/// into (and resuming from) `checkpoints` when given.
 pub fn run(
     family: &Family,
     evaluator: &Evaluator,
     settings: &SearchSettings,
     stop: &AtomicBool,
     observer: Arc<dyn SearchObserver + Send>,
+    checkpoints: Option<&Checkpoints>,
 ) -> Result<SearchOutcome, SearchError> {
     if settings.starts == 0 || settings.iterations == 0 {
         return Err(SearchError::Settings(
@@ -492,6 +607,7 @@ pub fn run(
         evaluations: Arc::new(AtomicUsize::new(0)),
         observer,
         stop,
+        halted: Arc::new(AtomicBool::new(false)),
     };
     let results: Vec<Result<Option<Candidate>, argmin::core::Error>> = (0..settings.starts)
         .into_par_iter()
@@ -504,6 +620,7 @@ pub fn run(
                 &point_sigma,
                 &bounds,
                 start,
+                checkpoints,
             )
         })
         .collect();
@@ -513,6 +630,8 @@ pub fn run(
         match result {
             Ok(Some(candidate)) => starts.push(candidate),
             Ok(None) => {}
+            // A start ended by a stop keeps no result of its own.
+            Err(error) if interrupted && error.is::<Halted>() => {}
             Err(error) => {
                 return Err(SearchError::Optimiser {
                     start,
@@ -564,6 +683,7 @@ mod tests {
             FamilyKind::Biprism {
                 centre: true,
                 tilts: false,
+                free_hub: false,
             },
             envelope,
             10.0,
@@ -619,8 +739,8 @@ mod tests {
                 seed: 5,
             };
             let stop = AtomicBool::new(false);
-            let a = run(&family, &evaluator, &settings, &stop, Arc::new(Quiet)).unwrap();
-            let b = run(&family, &evaluator, &settings, &stop, Arc::new(Quiet)).unwrap();
+            let a = run(&family, &evaluator, &settings, &stop, Arc::new(Quiet), None).unwrap();
+            let b = run(&family, &evaluator, &settings, &stop, Arc::new(Quiet), None).unwrap();
             assert_eq!(
                 a.best.params, b.best.params,
                 "{optimiser:?} is not deterministic"
@@ -654,7 +774,7 @@ mod tests {
             };
             let stop = AtomicBool::new(true);
             let started = std::time::Instant::now();
-            let result = run(&family, &evaluator, &settings, &stop, Arc::new(Quiet));
+            let result = run(&family, &evaluator, &settings, &stop, Arc::new(Quiet), None);
             assert!(
                 matches!(result, Err(SearchError::InterruptedEmpty)),
                 "{optimiser:?}"
@@ -665,6 +785,94 @@ mod tests {
                 started.elapsed().as_secs() < 30,
                 "{optimiser:?} did not stop"
             );
+        }
+    }
+
+    /// Stops the search after a number of progress reports.
+    struct StopAfter {
+        remaining: AtomicUsize,
+        stop: Arc<AtomicBool>,
+    }
+    impl SearchObserver for StopAfter {
+        fn improved(&self, _: &Candidate) {}
+        fn progress(&self, _: usize, _: u64, _: usize, _: f64) {
+            if self.remaining.fetch_sub(1, Ordering::SeqCst) <= 1 {
+                self.stop.store(true, Ordering::SeqCst);
+            }
+        }
+    }
+
+    #[test]
+    fn an_interrupted_search_resumes_to_the_same_winner() {
+        let (family, evaluator) = setup();
+        for optimiser in [
+            Optimiser::NelderMead,
+            Optimiser::ParticleSwarm,
+            Optimiser::Annealing,
+        ] {
+            let settings = SearchSettings {
+                optimiser,
+                starts: 2,
+                iterations: 90,
+                particles: 6,
+                polish_iterations: 50,
+                seed: 11,
+            };
+            let config = serde_json::json!({"optimiser": format!("{optimiser:?}")});
+            let root = std::env::temp_dir()
+                .join(format!("lo-resume-{}-{optimiser:?}", std::process::id()));
+            let _ = std::fs::remove_dir_all(&root);
+            let never = AtomicBool::new(false);
+            let straight = run(
+                &family,
+                &evaluator,
+                &settings,
+                &never,
+                Arc::new(Quiet),
+                None,
+            )
+            .unwrap();
+
+            let (checkpoints, _) = Checkpoints::prepare(&root, "t", &config, false).unwrap();
+            let stop = Arc::new(AtomicBool::new(false));
+            let observer = Arc::new(StopAfter {
+                remaining: AtomicUsize::new(70),
+                stop: Arc::clone(&stop),
+            });
+            let first = run(
+                &family,
+                &evaluator,
+                &settings,
+                &stop,
+                observer,
+                Some(&checkpoints),
+            )
+            .unwrap();
+            assert!(first.interrupted, "{optimiser:?}: the stop never came");
+
+            let (checkpoints, status) = Checkpoints::prepare(&root, "t", &config, true).unwrap();
+            assert_eq!(status, crate::search::checkpoint::ResumeStatus::Resuming);
+            let resumed = run(
+                &family,
+                &evaluator,
+                &settings,
+                &never,
+                Arc::new(Quiet),
+                Some(&checkpoints),
+            )
+            .unwrap();
+            assert!(!resumed.interrupted);
+            assert_eq!(
+                resumed.best.params, straight.best.params,
+                "{optimiser:?}: resuming changed the winner"
+            );
+            assert!(
+                resumed.evaluations < straight.evaluations,
+                "{optimiser:?}: the resumed run started over ({} vs {} evaluations)",
+                resumed.evaluations,
+                straight.evaluations
+            );
+            let _ = std::fs::remove_dir_all(&root);
         }
     }
 }
