@@ -47,7 +47,7 @@ use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 
 /// Iterations of the feasibility repair of each start point.
-pub const REPAIR_ITERATIONS: u64 = 3000;
+pub const REPAIR_ITERATIONS: u64 = 1500;
 /// Cost added per range-width a parameter lies outside its bounds.
 pub const BOUND_PENALTY: f64 = 100.0;
 /// Random stream of the random starts.
@@ -58,6 +58,13 @@ const SWARM_STREAM: u64 = 0x5EA2C5;
 const ANNEAL_STREAM: u64 = 0x5EA2C6;
 /// Nelder–Mead's initial simplex steps this fraction of each range.
 pub const SIMPLEX_STEP: f64 = 0.1;
+/// The repair's simplex steps this fraction of each range: small, so that
+/// the repaired start stays next to the start it repairs (the
+/// identifiability constraint needs moves of about a millimetre, which a
+/// full-size simplex overshoots by an order of magnitude).
+pub const REPAIR_STEP: f64 = 0.01;
+/// Rounds of the repair (see [`REPAIR_STEP`]).
+pub const REPAIR_ROUNDS: u64 = 5;
 /// Restarted rounds of each Nelder–Mead run.
 pub const NELDER_MEAD_ROUNDS: u64 = 4;
 /// Each Nelder–Mead round's simplex is this fraction of the previous one's.
@@ -449,6 +456,92 @@ fn best_params(problem: &LayoutProblem<'_>) -> Option<Vec<f64>> {
         .map(|c| c.params.clone())
 }
 
+/// Moves `initial` to a point that meets the (tightened) constraints:
+/// Nelder–Mead on the constraint violation alone, for up to
+/// [`REPAIR_ITERATIONS`] iterations in each of up to [`REPAIR_ROUNDS`]
+/// rounds. Each round restarts from the best point so far with a simplex
+/// twice the previous one's, from [`REPAIR_STEP`]: small first, so that the
+/// repaired point stays next to `initial`, larger when a symmetric start
+/// (equal distances everywhere) leaves the small simplex on a plateau of
+/// kinks. Returns the best point found if none meets them. `problem` must be
+/// in repair mode.
+fn repair_start<'a>(
+    mut problem: LayoutProblem<'a>,
+    initial: Vec<f64>,
+) -> Result<(LayoutProblem<'a>, Vec<f64>), argmin::core::Error> {
+    debug_assert!(problem.repairing);
+    let mut best = initial;
+    let mut cost = problem.cost(&best)?;
+    for round in 0..REPAIR_ROUNDS {
+        if cost <= 0.0 {
+            break;
+        }
+        let scale = REPAIR_STEP * 2f64.powi(round as i32);
+        let repair = NelderMead::new(simplex(&best, problem.lower, problem.upper, scale))
+            .with_sd_tolerance(0.0)?;
+        let result = Executor::new(problem, repair)
+            .configure(|state| state.max_iters(REPAIR_ITERATIONS).target_cost(0.0))
+            .run()?;
+        if result.state.best_cost < cost {
+            cost = result.state.best_cost;
+            if let Some(param) = &result.state.best_param {
+                best = param.clone();
+            }
+        }
+        problem = result
+            .problem
+            .problem
+            .expect("the executor returns its problem");
+    }
+    let repaired = problem.family.clamp(&best);
+    Ok((problem, repaired))
+}
+
+/// The layout nearest `params` (by the search's own repair) that meets
+/// `evaluator`'s constraints, or the closest it gets: how the report makes
+/// a hand design admissible before comparing it with the winner.
+pub fn repair(
+    family: &Family,
+    evaluator: &Evaluator,
+    params: &[f64],
+) -> Result<Vec<f64>, SearchError> {
+    struct Silent;
+    impl SearchObserver for Silent {
+        fn improved(&self, _: &Candidate) {}
+        fn progress(&self, _: usize, _: u64, _: usize, _: f64) {}
+    }
+    let never = AtomicBool::new(false);
+    let shared = Shared {
+        best: Mutex::new(None),
+        evaluations: Arc::new(AtomicUsize::new(0)),
+        observer: Arc::new(Silent),
+        stop: &never,
+        halted: Arc::new(AtomicBool::new(false)),
+    };
+    let (lower, upper) = family.bounds();
+    let problem = LayoutProblem {
+        family,
+        evaluator,
+        point_sigma: &[],
+        lower: &lower,
+        upper: &upper,
+        start: 0,
+        shared: &shared,
+        start_best: Mutex::new(None),
+        start_state: Arc::new(Mutex::new(StartState {
+            best_params: None,
+            anneal_rng: stream_rng(0, ANNEAL_STREAM, 0),
+        })),
+        repairing: true,
+    };
+    repair_start(problem, family.clamp(params))
+        .map(|(_, repaired)| repaired)
+        .map_err(|error| SearchError::Optimiser {
+            start: 0,
+            message: error.to_string(),
+        })
+}
+
 #[allow(clippy::too_many_arguments)]
 fn run_start<'a>(
     family: &'a Family,
@@ -473,7 +566,7 @@ fn run_start<'a>(
             .map(|(lo, hi)| rng.random_range(*lo..=*hi))
             .collect()
     };
-    let mut problem = LayoutProblem {
+    let problem = LayoutProblem {
         family,
         evaluator,
         point_sigma,
@@ -490,21 +583,7 @@ fn run_start<'a>(
     };
     // The repair is deterministic and cheap, so a resumed run repeats it
     // rather than checkpointing it.
-    let initial = if problem.cost(&initial)? > 0.0 {
-        let repair = NelderMead::new(simplex(&initial, lower, upper, SIMPLEX_STEP))
-            .with_sd_tolerance(0.0)?;
-        let result = Executor::new(problem, repair)
-            .configure(|state| state.max_iters(REPAIR_ITERATIONS).target_cost(0.0))
-            .run()?;
-        let repaired = result.state.best_param.clone().unwrap_or(initial);
-        problem = result
-            .problem
-            .problem
-            .expect("the executor returns its problem");
-        family.clamp(&repaired)
-    } else {
-        initial
-    };
+    let (mut problem, initial) = repair_start(problem, initial)?;
     problem.repairing = false;
     let main = checkpoints.map(|c| c.file(start, "main"));
     let problem = match settings.optimiser {
@@ -873,6 +952,50 @@ mod tests {
                 straight.evaluations
             );
             let _ = std::fs::remove_dir_all(&root);
+        }
+    }
+
+    #[test]
+    fn repair_makes_symmetric_hand_designs_identifiable() {
+        let envelope = Envelope::new([100.0; 3]).unwrap();
+        let constraints = Constraints {
+            envelope,
+            sphere_diameter_mm: 10.0,
+            min_gap_mm: 2.0,
+            min_distance_diff_mm: 1.0,
+        };
+        let (_, evaluator) = setup();
+        let evaluator = Evaluator::new(
+            Camera::paper(),
+            evaluator.scenarios().to_vec(),
+            evaluator.settings().clone(),
+            constraints,
+            &crate::synthetic::biprism_points(50.0),
+        );
+        for layout in crate::search::compare::hand_designs(&envelope, 10.0) {
+            let family = Family::new(
+                FamilyKind::Custom {
+                    count: 0,
+                    start: Some(layout.clone()),
+                },
+                envelope,
+                10.0,
+            )
+            .unwrap();
+            let start = family.initial();
+            assert!(!constraints.violations(&family.points(&start)).feasible());
+            let repaired = repair(&family, &evaluator, &start).unwrap();
+            let points = family.points(&repaired);
+            let v = constraints.violations(&points);
+            assert!(v.feasible(), "{}: {v:?}", layout.name);
+            // Next to the design it repairs: twelve equal distances need a
+            // spread of 11 mm, so some sphere moves several millimetres.
+            let moved = points
+                .iter()
+                .zip(&family.points(&start))
+                .map(|(a, b)| (a - b).norm())
+                .fold(0.0, f64::max);
+            assert!(moved < 15.0, "{}: moved {moved} mm", layout.name);
         }
     }
 }

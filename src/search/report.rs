@@ -61,6 +61,14 @@ pub struct Verdicts {
     /// Per seed: winner's Monte-Carlo RMS rotation below every hand design's,
     /// each pair on the scenarios visible to both.
     pub beats_hand_designs_on_monte_carlo: Vec<bool>,
+    /// Winner's objective below that of every *admissible* hand design: each
+    /// hand design as drawn when it meets the constraints, otherwise its
+    /// nearest admissible version (the search's own repair). A design the
+    /// user's constraints rule out (spheres that cannot be identified) is
+    /// not an alternative the user has.
+    pub beats_admissible_hand_designs_on_objective: bool,
+    /// The admissible hand designs' names.
+    pub admissible_hand_designs: Vec<String>,
     /// Whether the winner meets every constraint.
     pub winner_feasible: bool,
 }
@@ -79,9 +87,20 @@ pub struct SearchSummary {
 }
 
 /// Computes the verdicts: rows are winner, start, then the hand designs with
-/// the paper's biprism first.
-pub fn verdicts(rows: &[DesignRow], paper_index: usize, hand: std::ops::Range<usize>) -> Verdicts {
+/// the paper's biprism first (`hand`), then the admissible versions of those
+/// that break a constraint (`admissible`).
+pub fn verdicts(
+    rows: &[DesignRow],
+    paper_index: usize,
+    hand: std::ops::Range<usize>,
+    admissible: std::ops::Range<usize>,
+) -> Verdicts {
     let winner = &rows[0];
+    let admissible_rows: Vec<&DesignRow> = rows[hand.clone()]
+        .iter()
+        .chain(&rows[admissible])
+        .filter(|r| r.evaluation.violations.feasible())
+        .collect();
     let paper = &rows[paper_index];
     let seeds = winner.monte_carlo.len();
     Verdicts {
@@ -111,6 +130,10 @@ pub fn verdicts(rows: &[DesignRow], paper_index: usize, hand: std::ops::Range<us
                 })
             })
             .collect(),
+        beats_admissible_hand_designs_on_objective: admissible_rows
+            .iter()
+            .all(|r| winner.evaluation.objective < r.evaluation.objective),
+        admissible_hand_designs: admissible_rows.iter().map(|r| r.name.clone()).collect(),
         winner_feasible: winner.evaluation.violations.feasible(),
     }
 }
@@ -276,8 +299,15 @@ fn markdown(summary: &SearchSummary, table: &Table) -> String {
         ]);
     }
     verdicts.row([
-        "beats every hand design on the objective".to_string(),
+        "beats every hand design on the objective, as drawn (admissible or not)".to_string(),
         yes(v.beats_hand_designs_on_objective).to_string(),
+    ]);
+    verdicts.row([
+        format!(
+            "beats every admissible hand design on the objective ({})",
+            v.admissible_hand_designs.join(", ")
+        ),
+        yes(v.beats_admissible_hand_designs_on_objective).to_string(),
     ]);
     verdicts.row([
         "availability no more than 2 points below the paper's biprism".to_string(),
