@@ -372,7 +372,7 @@ fn candidates_are_distinct_minima_in_front_with_the_lowest_cost_first() {
         let Ok((candidates, statistics)) = solve_with_statistics(&object, &image) else {
             continue;
         };
-        assert_eq!(statistics.charts_solved, 4);
+        assert!((1..=CHARTS.len()).contains(&statistics.charts_solved));
         assert_eq!(statistics.returned, candidates.len());
         assert!(statistics.local_minima <= statistics.real_critical_points);
         assert!(statistics.in_front <= statistics.trusted);
