@@ -71,7 +71,11 @@
 //! dropping it leaves 40×40 matrices with `M_x = W⁻¹ diag(x(q_k)) V` (V, W
 //! evaluation matrices). For two linear forms `ℓ₁, ℓ₂`, `A = M_{ℓ₂}⁻¹ M_{ℓ₁}
 //! = V⁻¹ diag(ℓ₁(q_k)/ℓ₂(q_k)) V`: the eigenvectors of `Aᵀ` are the `v_k`,
-//! read off the real Schur form by back substitution. `ℓ₂` is chosen per
+//! found by inverse iteration for each real eigenvalue (the eigenvalues come
+//! from a balanced Hessenberg QR without Schur vectors,
+//! [`crate::pnp::three_cubics::eigenvalues`]; typically 4 of the 40 are
+//! real, so this costs about a third of a full real Schur form with its
+//! vectors, which the solver used before). `ℓ₂` is chosen per
 //! problem among a few fixed forms as the one whose `M_{ℓ₂}` is best
 //! conditioned.
 //!
@@ -86,7 +90,8 @@
 //! for a bare system).
 
 use super::monomials::{self, Exponent, CUBIC, CUBIC_COUNT, LINEAR};
-use nalgebra::{DMatrix, DVector};
+use crate::pnp::three_cubics::eigenvalues;
+use nalgebra::{DMatrix, SMatrix, SVector};
 use std::sync::LazyLock;
 
 /// Coefficients of one odd cubic equation: the 20 cubic monomials of
@@ -107,11 +112,9 @@ pub const RANK_GAP: f64 = 1e-5;
 /// Smallest acceptable reciprocal condition estimate (smallest over largest
 /// LU pivot) of the denominator matrix `M_{ℓ₂}`.
 pub const DENOMINATOR_RCOND: f64 = 1e-13;
-/// A 2×2 Schur block whose eigenvalues' imaginary part is below this
-/// fraction of their modulus is taken as a (numerically split) real pair.
+/// A complex eigenvalue pair whose imaginary part is below this fraction of
+/// its modulus is taken as a (numerically split) real eigenvalue.
 pub const NEAR_REAL: f64 = 1e-8;
-/// Iteration cap of the real Schur decomposition, per matrix dimension.
-pub const SCHUR_ITERATIONS_PER_DIMENSION: usize = 60;
 
 /// Why the polynomial solver could not return solutions.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
@@ -128,11 +131,15 @@ pub enum SolverError {
         /// Rank predicted by the Hilbert function.
         expected: usize,
     },
+    /// A coefficient of the equations is NaN or infinite.
+    #[error("a coefficient of the equations is not finite")]
+    NonFinite,
     /// Every candidate denominator multiplication matrix is singular.
     #[error("no multiplication matrix is invertible")]
     SingularDenominator,
-    /// The real Schur decomposition of the action matrix did not converge.
-    #[error("Schur decomposition of the action matrix did not converge")]
+    /// The QR iteration for the eigenvalues of the action matrix did not
+    /// converge.
+    #[error("the eigenvalues of the action matrix did not converge")]
     SchurFailed,
 }
 
@@ -146,8 +153,9 @@ impl SolverError {
             SolverError::SingularDenominator => {
                 "Gröbner solver: no multiplication matrix is invertible"
             }
+            SolverError::NonFinite => "Gröbner solver: a coefficient is not finite",
             SolverError::SchurFailed => {
-                "Gröbner solver: Schur decomposition of the action matrix did not converge"
+                "Gröbner solver: the eigenvalues of the action matrix did not converge"
             }
         }
     }
@@ -600,13 +608,13 @@ fn eliminate(matrix: &mut [f64], width: usize, block: &Block) -> Result<Echelon,
         }
         active = last;
         pivot_values.copy_from_slice(&matrix[pivot_row * width..(pivot_row + 1) * width]);
-        let pivot = pivot_values[last];
+        let inverse_pivot = 1.0 / pivot_values[last];
         for r in 0..rows {
             if row_used[r] {
                 continue;
             }
             let row = &mut matrix[r * width..(r + 1) * width];
-            let factor = row[last] / pivot;
+            let factor = row[last] * inverse_pivot;
             if factor == 0.0 {
                 continue;
             }
@@ -640,6 +648,20 @@ fn eliminate(matrix: &mut [f64], width: usize, block: &Block) -> Result<Echelon,
 /// Lanes of the hand-vectorised reductions below.
 const LANES: usize = 4;
 
+/// `max(m, |v|)` by one comparison, which compiles to a single `maxpd`
+/// where `f64::max` (NaN-aware) costs four more instructions in the
+/// elimination's inner loop. A NaN is not propagated here; the blocks'
+/// entries are finite whenever the equations are, which [`solve`] checks.
+#[inline(always)]
+fn max_magnitude(m: f64, v: f64) -> f64 {
+    let a = v.abs();
+    if a > m {
+        a
+    } else {
+        m
+    }
+}
+
 /// `max |x|` over a slice, in [`LANES`] independent lanes so that it
 /// vectorises without reassociating floating-point operations.
 fn max_abs(x: &[f64]) -> f64 {
@@ -648,11 +670,11 @@ fn max_abs(x: &[f64]) -> f64 {
     let rest = chunks.remainder();
     for chunk in chunks {
         for k in 0..LANES {
-            lanes[k] = lanes[k].max(chunk[k].abs());
+            lanes[k] = max_magnitude(lanes[k], chunk[k]);
         }
     }
     rest.iter()
-        .fold(lanes.into_iter().fold(0.0, f64::max), |m, v| m.max(v.abs()))
+        .fold(lanes.into_iter().fold(0.0, max_magnitude), |m, &v| max_magnitude(m, v))
 }
 
 /// `a −= factor · b`, returning `max |a|` afterwards (fused, lane-wise).
@@ -663,17 +685,17 @@ fn subtract_scaled_max_abs(a: &mut [f64], b: &[f64], factor: f64) -> f64 {
     for (x, y) in (&mut a_chunks).zip(&mut b_chunks) {
         for k in 0..LANES {
             x[k] -= factor * y[k];
-            lanes[k] = lanes[k].max(x[k].abs());
+            lanes[k] = max_magnitude(lanes[k], x[k]);
         }
     }
-    let mut m = lanes.into_iter().fold(0.0, f64::max);
+    let mut m = lanes.into_iter().fold(0.0, max_magnitude);
     for (x, y) in a_chunks
         .into_remainder()
         .iter_mut()
         .zip(b_chunks.remainder())
     {
         *x -= factor * y;
-        m = m.max(x.abs());
+        m = max_magnitude(m, *x);
     }
     m
 }
@@ -761,6 +783,9 @@ pub fn from_chart(p: &[f64; 4]) -> Option<[f64; 4]> {
 /// Solves `f_1 = … = f_4 = 0` for its real solution pairs, through the
 /// chart of [`to_chart`].
 pub fn solve(equations: &[OddCubic; 4]) -> Result<Solutions, SolverError> {
+    if !equations.iter().flatten().all(|c| c.is_finite()) {
+        return Err(SolverError::NonFinite);
+    }
     let mut solutions = solve_direct(&to_chart(equations))?;
     solutions.real = solutions
         .real
@@ -862,28 +887,96 @@ pub fn solve_direct(equations: &[OddCubic; 4]) -> Result<Solutions, SolverError>
         .solve(&combine(&NUMERATOR_FORM))
         .ok_or(SolverError::SingularDenominator)?;
 
-    // 5. Eigenvectors of Aᵀ for its real eigenvalues: the odd-basis values at
-    //    the solution pairs.
-    let transposed = action.transpose();
-    let schur = nalgebra::Schur::try_new(
-        transposed,
-        f64::EPSILON,
-        SCHUR_ITERATIONS_PER_DIMENSION * SOLUTION_PAIRS,
-    )
-    .ok_or(SolverError::SchurFailed)?;
-    let (orthogonal, triangular) = schur.unpack();
+    // 5. Eigenvalues of Aᵀ (balanced Hessenberg QR, eigenvalues only), then
+    //    an eigenvector for each real one by inverse iteration: the
+    //    odd-basis values at the solution pairs.
+    let transposed = SMatrix::<f64, SOLUTION_PAIRS, SOLUTION_PAIRS>::from_fn(|i, j| action[(j, i)]);
+    let eigenvalues =
+        eigenvalues::eigenvalues(&transposed).map_err(|_| SolverError::SchurFailed)?;
     let mut solutions = Solutions::default();
-    for (position, eigenvalue) in real_eigenvalues(&triangular) {
+    for eigenvalue in &eigenvalues {
+        let modulus = eigenvalue.re.hypot(eigenvalue.im);
+        // A numerically split real pair is kept once, as its real part.
+        if eigenvalue.im < 0.0 || eigenvalue.im > NEAR_REAL * modulus {
+            continue;
+        }
         solutions.real_eigenvalues += 1;
-        let Some(local) = quasi_triangular_eigenvector(&triangular, position, eigenvalue) else {
+        let Some(vector) = inverse_iteration(&transposed, eigenvalue.re) else {
             continue;
         };
-        let vector = &orthogonal * local;
         if let Some(q) = extract(template, &basis, &vector) {
             solutions.real.push(RealSolution { q });
         }
     }
     Ok(solutions)
+}
+
+/// Steps of inverse iteration per eigenvector: the shift is an eigenvalue
+/// to rounding, so one step already gives the eigenvector to working
+/// accuracy; the second removes what a nearby eigenvalue left.
+pub const INVERSE_ITERATION_STEPS: usize = 2;
+
+/// The eigenvector of `a` for its (computed) real eigenvalue `lambda` by
+/// inverse iteration: LU with partial pivoting of `a − λI` once, in place,
+/// exactly-zero pivots replaced by `ε‖a‖` (the shift is an eigenvalue, so
+/// the matrix is singular to rounding: that is what makes one step enough).
+fn inverse_iteration<const N: usize>(
+    a: &SMatrix<f64, N, N>,
+    lambda: f64,
+) -> Option<SVector<f64, N>> {
+    // Row-major copy of a − λI.
+    let mut lu = [[0.0f64; N]; N];
+    for (i, row) in lu.iter_mut().enumerate() {
+        for (j, v) in row.iter_mut().enumerate() {
+            *v = a[(i, j)];
+        }
+        row[i] -= lambda;
+    }
+    let scale = a.amax().max(f64::MIN_POSITIVE);
+    let tiny = f64::EPSILON * scale;
+    let mut permutation: [usize; N] = std::array::from_fn(|i| i);
+    for k in 0..N {
+        let pivot_row = (k..N)
+            .max_by(|&x, &y| lu[x][k].abs().total_cmp(&lu[y][k].abs()))
+            .unwrap_or(k);
+        lu.swap(k, pivot_row);
+        permutation.swap(k, pivot_row);
+        if lu[k][k].abs() < tiny {
+            lu[k][k] = if lu[k][k] < 0.0 { -tiny } else { tiny };
+        }
+        let inverse_pivot = 1.0 / lu[k][k];
+        let (upper, lower) = lu.split_at_mut(k + 1);
+        let pivot = &upper[k];
+        for row in lower.iter_mut() {
+            let factor = row[k] * inverse_pivot;
+            row[k] = factor;
+            if factor == 0.0 {
+                continue;
+            }
+            for (x, p) in row[k + 1..].iter_mut().zip(&pivot[k + 1..]) {
+                *x -= factor * p;
+            }
+        }
+    }
+    // Start from a fixed vector with no special relation to the basis.
+    let mut x: [f64; N] = std::array::from_fn(|i| 1.0 + 0.1 * ((i * 7) % 11) as f64);
+    for _ in 0..INVERSE_ITERATION_STEPS {
+        let mut y: [f64; N] = std::array::from_fn(|i| x[permutation[i]]);
+        for i in 0..N {
+            let sum: f64 = (0..i).map(|j| lu[i][j] * y[j]).sum();
+            y[i] -= sum;
+        }
+        for i in (0..N).rev() {
+            let sum: f64 = (i + 1..N).map(|j| lu[i][j] * y[j]).sum();
+            y[i] = (y[i] - sum) / lu[i][i];
+        }
+        let norm = y.iter().map(|v| v * v).sum::<f64>().sqrt();
+        if !norm.is_finite() || norm == 0.0 {
+            return None;
+        }
+        x = y.map(|v| v / norm);
+    }
+    Some(SVector::from(x))
 }
 
 /// Reduces the even polynomial `g` (dense over the global even columns)
@@ -930,109 +1023,14 @@ fn reduce(
     }
 }
 
-/// Real eigenvalues of a real quasi-upper-triangular (Schur) matrix, with
-/// the diagonal position of each: 1×1 blocks, and 2×2 blocks whose complex
-/// pair is real within [`NEAR_REAL`] (rounding can split a real pair into a
-/// nearly-real complex one; both are kept, as the real part).
-fn real_eigenvalues(t: &DMatrix<f64>) -> Vec<(usize, f64)> {
-    let n = t.nrows();
-    let mut out = Vec::new();
-    let mut k = 0;
-    while k < n {
-        let is_pair = k + 1 < n && t[(k + 1, k)] != 0.0;
-        if !is_pair {
-            out.push((k, t[(k, k)]));
-            k += 1;
-            continue;
-        }
-        let (p, q, r, s) = (t[(k, k)], t[(k, k + 1)], t[(k + 1, k)], t[(k + 1, k + 1)]);
-        let mean = 0.5 * (p + s);
-        let discriminant = 0.25 * (p - s) * (p - s) + q * r;
-        if discriminant >= 0.0 {
-            let root = discriminant.sqrt();
-            out.push((k + 1, mean + root));
-            out.push((k + 1, mean - root));
-        } else {
-            let imaginary = (-discriminant).sqrt();
-            if imaginary <= NEAR_REAL * (mean * mean - discriminant).sqrt() {
-                out.push((k + 1, mean));
-            }
-        }
-        k += 2;
-    }
-    out
-}
-
-/// Eigenvector of the quasi-upper-triangular `t` for the real eigenvalue
-/// `lambda` sitting at (or, for a 2×2 block, ending at) diagonal `position`:
-/// back substitution through the 1×1 and 2×2 blocks above it.
-fn quasi_triangular_eigenvector(
-    t: &DMatrix<f64>,
-    position: usize,
-    lambda: f64,
-) -> Option<DVector<f64>> {
-    let n = t.nrows();
-    let scale = t.amax().max(f64::MIN_POSITIVE);
-    let tiny = f64::EPSILON * scale;
-    let mut x = DVector::zeros(n);
-    // Start: for a 1×1 block, x[position] = 1; for a 2×2 block ending at
-    // `position`, the null vector of its shifted block.
-    let mut top = position;
-    let starts_pair = position > 0 && t[(position, position - 1)] != 0.0;
-    if starts_pair {
-        let k = position - 1;
-        let (p, q) = (t[(k, k)] - lambda, t[(k, k + 1)]);
-        let (r, s) = (t[(k + 1, k)], t[(k + 1, k + 1)] - lambda);
-        // Null vector of [[p, q], [r, s]] from its larger row.
-        if p.abs() + q.abs() >= r.abs() + s.abs() {
-            x[k] = -q;
-            x[k + 1] = p;
-        } else {
-            x[k] = s;
-            x[k + 1] = -r;
-        }
-        if x[k] == 0.0 && x[k + 1] == 0.0 {
-            x[k] = 1.0;
-        }
-        top = k;
-    } else {
-        x[position] = 1.0;
-    }
-    let mut i = top;
-    while i > 0 {
-        let row = i - 1;
-        let is_pair_bottom = row > 0 && t[(row, row - 1)] != 0.0;
-        if is_pair_bottom {
-            let k = row - 1;
-            let rhs0: f64 = -(k + 2..n).map(|j| t[(k, j)] * x[j]).sum::<f64>();
-            let rhs1: f64 = -(k + 2..n).map(|j| t[(k + 1, j)] * x[j]).sum::<f64>();
-            let (p, q) = (t[(k, k)] - lambda, t[(k, k + 1)]);
-            let (r, s) = (t[(k + 1, k)], t[(k + 1, k + 1)] - lambda);
-            let mut det = p * s - q * r;
-            if det.abs() < tiny * tiny {
-                det = tiny * tiny;
-            }
-            x[k] = (rhs0 * s - q * rhs1) / det;
-            x[k + 1] = (p * rhs1 - r * rhs0) / det;
-            i = k;
-        } else {
-            let rhs: f64 = -(row + 1..n).map(|j| t[(row, j)] * x[j]).sum::<f64>();
-            let mut denominator = t[(row, row)] - lambda;
-            if denominator.abs() < tiny {
-                denominator = if denominator < 0.0 { -tiny } else { tiny };
-            }
-            x[row] = rhs / denominator;
-            i = row;
-        }
-    }
-    let norm = x.norm();
-    (norm.is_finite() && norm > 0.0).then(|| x / norm)
-}
-
 /// Reads `q` off an eigenvector `v ∝ (b(q))_{b∈B}`: the direction from the
 /// linear monomials, `|q|²` by least squares over the cubic ones. `None` when
 /// the pair is not real (`|q|² ≤ 0`) or the vector is unusable.
-fn extract(template: &Template, basis: &[usize], v: &DVector<f64>) -> Option<[f64; 4]> {
+fn extract(
+    template: &Template,
+    basis: &[usize],
+    v: &SVector<f64, SOLUTION_PAIRS>,
+) -> Option<[f64; 4]> {
     // The linear monomials are the last four basis entries (see `odd_basis`).
     let linear: [f64; 4] = std::array::from_fn(|k| v[SOLUTION_PAIRS - 4 + k]);
     let linear_norm = linear.iter().map(|x| x * x).sum::<f64>().sqrt();
@@ -1129,6 +1127,7 @@ pub fn evaluate(equation: &OddCubic, q: &[f64; 4]) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use nalgebra::DVector;
     use rand::{Rng, SeedableRng};
 
     /// Four odd cubic equations that vanish at the given points: a basis of
