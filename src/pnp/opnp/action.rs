@@ -76,8 +76,8 @@
 //! [`crate::pnp::three_cubics::eigenvalues`]; typically 4 of the 40 are
 //! real, so this costs about a third of a full real Schur form with its
 //! vectors, which the solver used before). `ℓ₂` is chosen per
-//! problem among a few fixed forms as the one whose `M_{ℓ₂}` is best
-//! conditioned.
+//! problem among a few fixed forms: the first whose `M_{ℓ₂}` is well
+//! conditioned ([`DENOMINATOR_GOOD_RCOND`]), else the best conditioned.
 //!
 //! **Extraction.** `B` holds `a, b, c, d`, so `v_k` gives the direction `u` of
 //! `q_k`; the 16 cubic monomials of `B` give `‖q_k‖²` by least squares
@@ -112,6 +112,12 @@ pub const RANK_GAP: f64 = 1e-5;
 /// Smallest acceptable reciprocal condition estimate (smallest over largest
 /// LU pivot) of the denominator matrix `M_{ℓ₂}`.
 pub const DENOMINATOR_RCOND: f64 = 1e-13;
+/// A denominator candidate whose reciprocal condition estimate reaches this
+/// is taken at once, without factorising the remaining candidates: its
+/// inverse loses at most six of the sixteen digits, and Newton's method
+/// polishes the solutions afterwards. (Factorising all eight candidates
+/// cost about 6% of a solve; the first one is usually taken.)
+pub const DENOMINATOR_GOOD_RCOND: f64 = 1e-6;
 /// A complex eigenvalue pair whose imaginary part is below this fraction of
 /// its modulus is taken as a (numerically split) real eigenvalue.
 pub const NEAR_REAL: f64 = 1e-8;
@@ -186,6 +192,8 @@ struct Block {
     /// Rank predicted by the Hilbert function.
     rank: usize,
     rows: Vec<RowPattern>,
+    /// How the elimination treats the tail.
+    tail: TailHandling,
 }
 
 impl Block {
@@ -247,6 +255,14 @@ fn block(degree: usize, top_offset: usize) -> Block {
         tail_len: tail.len(),
         rank: top.len() - HILBERT[degree],
         rows,
+        // Only degree 8 has few reduced monomials (x times the four degree-7
+        // basis monomials) against a wide tail; degrees 6 and 4 reduce 40
+        // to 64 monomials each, where carrying the tail is cheaper.
+        tail: if degree == 8 {
+            TailHandling::Deferred
+        } else {
+            TailHandling::Carried
+        },
     }
 }
 
@@ -496,18 +512,24 @@ fn select_columns(
     count: usize,
     degree: usize,
 ) -> Result<Vec<usize>, SolverError> {
-    let mut columns: Vec<Vec<f64>> = (0..cols)
-        .map(|c| (0..rows).map(|r| matrix[r * cols + c]).collect())
-        .collect();
+    // Column-major copy: column c is columns[c * rows..(c + 1) * rows].
+    let mut columns = vec![0.0; rows * cols];
+    for r in 0..rows {
+        for c in 0..cols {
+            columns[c * rows + r] = matrix[r * cols + c];
+        }
+    }
     let mut norms: Vec<f64> = columns
-        .iter()
+        .chunks_exact(rows)
         .map(|v| v.iter().map(|x| x * x).sum())
         .collect();
+    let mut taken = vec![false; cols];
     let mut chosen = Vec::with_capacity(count);
+    let mut pivot = vec![0.0; rows];
     let mut first = 0.0;
     for step in 0..count {
         let best = (0..cols)
-            .filter(|c| !chosen.contains(c))
+            .filter(|&c| !taken[c])
             .max_by(|&a, &b| norms[a].total_cmp(&norms[b]))
             .unwrap_or(0);
         let norm = norms[best].sqrt();
@@ -522,16 +544,22 @@ fn select_columns(
             });
         }
         chosen.push(best);
-        let pivot: Vec<f64> = columns[best].iter().map(|x| x / norm).collect();
+        taken[best] = true;
+        for (p, x) in pivot.iter_mut().zip(&columns[best * rows..(best + 1) * rows]) {
+            *p = x / norm;
+        }
         for c in 0..cols {
-            if chosen.contains(&c) {
+            if taken[c] {
                 continue;
             }
-            let projection: f64 = columns[c].iter().zip(&pivot).map(|(a, b)| a * b).sum();
-            for (a, b) in columns[c].iter_mut().zip(&pivot) {
+            let column = &mut columns[c * rows..(c + 1) * rows];
+            let projection: f64 = column.iter().zip(&pivot).map(|(a, b)| a * b).sum();
+            let mut norm_sq = 0.0;
+            for (a, b) in column.iter_mut().zip(&pivot) {
                 *a -= projection * b;
+                norm_sq += *a * *a;
             }
-            norms[c] = columns[c].iter().map(|x| x * x).sum();
+            norms[c] = norm_sq;
         }
     }
     Ok(chosen)
@@ -549,12 +577,32 @@ struct Echelon {
     /// Original top columns left without a pivot: this degree's standard
     /// monomials.
     standard: Vec<usize>,
+    /// Whether the tail was left as filled ([`TailHandling::Deferred`]), with
+    /// the elimination multipliers stored in place of the zeros.
+    deferred_tail: bool,
+}
+
+/// How [`eliminate`] treats a block's tail (its degree `k − 2` columns).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum TailHandling {
+    /// Every row update is applied to the tail too; a normal form then
+    /// subtracts the pivot rows' reduced tails.
+    Carried,
+    /// The tail keeps the filled coefficients and each row stores its
+    /// multiplier where the pivot column was eliminated (an LU
+    /// factorisation, `R = L·U` for the pivot rows `R`). A normal form
+    /// `g − Σ g_s U_s` then needs `Σ g_s tail(U_s) = Σ h_s tail(R_s)` with
+    /// `Lᵀh = g`: one more triangular solve per reduced monomial, but no
+    /// tail updates in the elimination. For degree 8 (84 tail columns, about
+    /// 170 rows, 164 pivots, 16 reduced monomials) this saves about 1 M of
+    /// the block's 3 M multiply-adds.
+    Deferred,
 }
 
 /// Gaussian elimination with complete pivoting over the first `block.top_len`
 /// columns of the row-major `matrix` (rows × `width`; the remaining columns,
-/// the block's tail if present, are carried along), stopping after
-/// `block.rank` pivots.
+/// the block's tail if present, are carried along or deferred as
+/// `block.tail` says), stopping after `block.rank` pivots.
 ///
 /// Each pivot column is swapped to the end of the still-active top columns,
 /// so the row updates touch only the active columns and the tail. Rows keep
@@ -575,6 +623,7 @@ fn eliminate(matrix: &mut [f64], width: usize, block: &Block) -> Result<Echelon,
     let mut active = top;
     let mut first_pivot = 0.0;
     let mut smallest_pivot = f64::INFINITY;
+    let deferred = block.tail == TailHandling::Deferred;
     for step in 0..block.rank {
         let pivot_row = (0..rows)
             .filter(|&r| !row_used[r])
@@ -615,14 +664,16 @@ fn eliminate(matrix: &mut [f64], width: usize, block: &Block) -> Result<Echelon,
             }
             let row = &mut matrix[r * width..(r + 1) * width];
             let factor = row[last] * inverse_pivot;
+            row[last] = if deferred { factor } else { 0.0 };
             if factor == 0.0 {
                 continue;
             }
-            row[last] = 0.0;
             maxima[r] =
                 subtract_scaled_max_abs(&mut row[..active], &pivot_values[..active], factor);
-            for (a, b) in row[top..].iter_mut().zip(&pivot_values[top..]) {
-                *a -= factor * b;
+            if !deferred {
+                for (a, b) in row[top..].iter_mut().zip(&pivot_values[top..]) {
+                    *a -= factor * b;
+                }
             }
         }
     }
@@ -642,6 +693,7 @@ fn eliminate(matrix: &mut [f64], width: usize, block: &Block) -> Result<Echelon,
         pivot_rows,
         permutation,
         standard,
+        deferred_tail: deferred,
     })
 }
 
@@ -878,6 +930,9 @@ pub fn solve_direct(equations: &[OddCubic; 4]) -> Result<Solutions, SolverError>
         if rcond.is_finite() && best.as_ref().is_none_or(|(b, _)| rcond > *b) {
             best = Some((rcond, lu));
         }
+        if rcond >= DENOMINATOR_GOOD_RCOND {
+            break;
+        }
     }
     let (rcond, lu) = best.ok_or(SolverError::SingularDenominator)?;
     if rcond.is_nan() || rcond <= DENOMINATOR_RCOND {
@@ -1000,27 +1055,77 @@ fn reduce(
         scratch.clear();
         scratch.extend(echelon.permutation.iter().map(|&c| span[c]));
         scratch.extend_from_slice(&span[top..]);
-        for (step, &row) in echelon.pivot_rows.iter().enumerate() {
-            let position = top - 1 - step;
-            let value = scratch[position];
-            if value == 0.0 {
-                continue;
+        if echelon.deferred_tail {
+            reduce_deferred(scratch, top, width, matrix, echelon);
+        } else {
+            for (step, &row) in echelon.pivot_rows.iter().enumerate() {
+                let position = top - 1 - step;
+                let value = scratch[position];
+                if value == 0.0 {
+                    continue;
+                }
+                let pivot_row = &matrix[row * width..(row + 1) * width];
+                let factor = value / pivot_row[position];
+                for (a, b) in scratch[..position].iter_mut().zip(&pivot_row[..position]) {
+                    *a -= factor * b;
+                }
+                for (a, b) in scratch[top..].iter_mut().zip(&pivot_row[top..]) {
+                    *a -= factor * b;
+                }
+                scratch[position] = 0.0;
             }
-            let pivot_row = &matrix[row * width..(row + 1) * width];
-            let factor = value / pivot_row[position];
-            for (a, b) in scratch[..position].iter_mut().zip(&pivot_row[..position]) {
-                *a -= factor * b;
-            }
-            for (a, b) in scratch[top..].iter_mut().zip(&pivot_row[top..]) {
-                *a -= factor * b;
-            }
-            scratch[position] = 0.0;
         }
         for (k, &c) in echelon.permutation.iter().enumerate() {
             span[c] = scratch[k];
         }
         span[top..].copy_from_slice(&scratch[top..]);
     }
+}
+
+/// [`reduce`] through a block eliminated with [`TailHandling::Deferred`]:
+/// `scratch` holds one polynomial in the block's permuted top order, then
+/// its tail. (1) Forward sweep over the `U` rows (top parts only), leaving
+/// `g_s` at pivot position `s`; (2) `Lᵀh = g` in place, backwards over the
+/// positions, each row's multipliers lying right of its own position; (3)
+/// the tail loses `Σ h_s · tail(R_s)`, the filled tails of the pivot rows.
+/// Afterwards the top part is nonzero only on the standard columns.
+fn reduce_deferred(
+    scratch: &mut [f64],
+    top: usize,
+    width: usize,
+    matrix: &[f64],
+    echelon: &Echelon,
+) {
+    let rank = echelon.pivot_rows.len();
+    for (step, &row) in echelon.pivot_rows.iter().enumerate() {
+        let position = top - 1 - step;
+        let value = scratch[position];
+        if value == 0.0 {
+            continue;
+        }
+        let pivot_row = &matrix[row * width..row * width + position + 1];
+        let factor = value / pivot_row[position];
+        for (a, b) in scratch[..position].iter_mut().zip(&pivot_row[..position]) {
+            *a -= factor * b;
+        }
+        scratch[position] = factor;
+    }
+    let (top_part, tail) = scratch.split_at_mut(top);
+    for step in (0..rank).rev() {
+        let position = top - 1 - step;
+        let h = top_part[position];
+        if h == 0.0 {
+            continue;
+        }
+        let row = &matrix[echelon.pivot_rows[step] * width..(echelon.pivot_rows[step] + 1) * width];
+        for (a, b) in top_part[position + 1..].iter_mut().zip(&row[position + 1..top]) {
+            *a -= h * b;
+        }
+        for (a, b) in tail.iter_mut().zip(&row[top..]) {
+            *a -= h * b;
+        }
+    }
+    top_part[top - rank..].iter_mut().for_each(|v| *v = 0.0);
 }
 
 /// Reads `q` off an eigenvector `v ∝ (b(q))_{b∈B}`: the direction from the
