@@ -330,19 +330,34 @@ impl CostMatrices {
     /// unit quaternions with component `chart` zero, where its Cayley vector
     /// is infinite. Evaluated on [`EQUATOR_DIRECTIONS`] fixed directions.
     pub fn equator_cost(&self, gram: &SMatrix<f64, 10, 10>, chart: usize) -> f64 {
+        // The six monomials without q_chart, and K restricted to them.
+        let mut kept = [0usize; 6];
+        for (slot, m) in (0..10)
+            .filter(|&m| QUATERNION_MONOMIALS[m].0 != chart && QUATERNION_MONOMIALS[m].1 != chart)
+            .enumerate()
+        {
+            kept[slot] = m;
+        }
+        let restricted = SMatrix::<f64, 6, 6>::from_fn(|i, j| gram[(kept[i], kept[j])]);
+        // The three free components, in order, for a direction u.
+        let free: [usize; 3] = match chart {
+            0 => [1, 2, 3],
+            1 => [0, 2, 3],
+            2 => [0, 1, 3],
+            _ => [0, 1, 2],
+        };
         EQUATOR_SAMPLES
             .iter()
             .map(|u| {
                 let mut q = [0.0; 4];
-                let others = (0..4).filter(|&k| k != chart);
-                for (slot, value) in others.zip(u) {
-                    q[slot] = *value;
+                for (slot, value) in free.iter().zip(u) {
+                    q[*slot] = *value;
                 }
-                let z = SVector::<f64, 10>::from_fn(|m, _| {
-                    let (a, b) = QUATERNION_MONOMIALS[m];
+                let z = SVector::<f64, 6>::from_fn(|m, _| {
+                    let (a, b) = QUATERNION_MONOMIALS[kept[m]];
                     q[a] * q[b]
                 });
-                (z.transpose() * gram * z)[0]
+                z.dot(&(restricted * z))
             })
             .fold(f64::INFINITY, f64::min)
     }
