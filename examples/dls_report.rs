@@ -93,8 +93,9 @@ fn compare_with_all_charts(p: &Problem, candidates: &[Pose]) -> (bool, bool, Opt
             .all(|c| rotation_error_deg(&a.rotation, &c.rotation) > MATCH_DEG)
     });
     let error = |set: &[Pose]| {
-        best_candidate("DLS", set, &p.object, &p.normalised)
-            .map_or(f64::INFINITY, |b| rotation_error_deg(&p.truth.rotation, &b.rotation))
+        best_candidate("DLS", set, &p.object, &p.normalised).map_or(f64::INFINITY, |b| {
+            rotation_error_deg(&p.truth.rotation, &b.rotation)
+        })
     };
     let (on_demand, all) = (error(candidates), error(&all));
     (missed, on_demand > all + WORSE_DEG, Some((on_demand, all)))

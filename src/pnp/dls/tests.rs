@@ -401,7 +401,7 @@ fn equator_cost_is_the_least_cost_of_the_charts_half_turns() {
     let (object, image) = problem_data(3);
     let matrices = CostMatrices::new(&object, &image).unwrap();
     let gram = matrices.quaternion_gram();
-    for chart in 0..CHARTS.len() {
+    for (chart, centre) in CHARTS.iter().enumerate() {
         let free: Vec<usize> = (0..4).filter(|&k| k != chart).collect();
         let direct = EQUATOR_SAMPLES
             .iter()
@@ -415,8 +415,7 @@ fn equator_cost_is_the_least_cost_of_the_charts_half_turns() {
                 ))
                 .to_rotation_matrix();
                 // A half-turn of this chart: its Cayley vector is infinite.
-                let centre = Matrix3::from_diagonal(&Vector3::from(CHARTS[chart]));
-                let relative = rotation.matrix() * centre;
+                let relative = rotation.matrix() * Matrix3::from_diagonal(&Vector3::from(*centre));
                 assert!((relative.trace() + 1.0).abs() < 1e-12);
                 matrices.cost_of(rotation.matrix())
             })
@@ -453,5 +452,8 @@ fn on_demand_charts_find_the_four_chart_solve_s_best_pose() {
         let best_all = best_candidate("DLS", &all, &object, &image).unwrap();
         assert!(rotation_error_deg(&best_all.rotation, &best.rotation) < ROTATION_TOLERANCE_DEG);
     }
-    assert!(charts < 2 * cases as usize, "{charts} charts for {cases} problems");
+    assert!(
+        charts < 2 * cases as usize,
+        "{charts} charts for {cases} problems"
+    );
 }

@@ -545,7 +545,10 @@ fn select_columns(
         }
         chosen.push(best);
         taken[best] = true;
-        for (p, x) in pivot.iter_mut().zip(&columns[best * rows..(best + 1) * rows]) {
+        for (p, x) in pivot
+            .iter_mut()
+            .zip(&columns[best * rows..(best + 1) * rows])
+        {
             *p = x / norm;
         }
         for c in 0..cols {
@@ -726,7 +729,9 @@ fn max_abs(x: &[f64]) -> f64 {
         }
     }
     rest.iter()
-        .fold(lanes.into_iter().fold(0.0, max_magnitude), |m, &v| max_magnitude(m, v))
+        .fold(lanes.into_iter().fold(0.0, max_magnitude), |m, &v| {
+            max_magnitude(m, v)
+        })
 }
 
 /// `a −= factor · b`, returning `max |a|` afterwards (fused, lane-wise).
@@ -1118,7 +1123,10 @@ fn reduce_deferred(
             continue;
         }
         let row = &matrix[echelon.pivot_rows[step] * width..(echelon.pivot_rows[step] + 1) * width];
-        for (a, b) in top_part[position + 1..].iter_mut().zip(&row[position + 1..top]) {
+        for (a, b) in top_part[position + 1..]
+            .iter_mut()
+            .zip(&row[position + 1..top])
+        {
             *a -= h * b;
         }
         for (a, b) in tail.iter_mut().zip(&row[top..]) {
