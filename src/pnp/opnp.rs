@@ -64,11 +64,16 @@
 //! elimination template (up to degree 8) well scaled. `L` does not change
 //! the cost being minimised, only the numerical scale of `q`.
 //!
-//! **Cost.** One solve takes about 1.3–1.6 ms on one core of the project's
-//! machine, independent of n (the same example; EPnP takes 10–33 µs there,
-//! so OPnP is 40–180× slower, not the ≈5× the paper reports for its MATLAB
-//! implementations). The template blocks (about 0.4 MB) are allocated per
-//! solve; the cost, gradient, Hessian and pose use fixed-size types.
+//! **Cost.** One solve takes about 0.93–1.15 ms on one core of the project's
+//! machine, independent of n (the same example; EPnP takes 6–30 µs there,
+//! so OPnP is 37–176× slower, not the ≈5× the paper reports for its MATLAB
+//! implementations; it was 1.35–1.6 ms before the degree-8 tail was
+//! deferred and the Schur vectors dropped, see [`action`]). About two
+//! thirds of it is the Gaussian elimination of the degree-8 template block
+//! (≈170 × 165 with complete pivoting, a few million multiply-adds), an
+//! eighth the eigenvalues of the 40 × 40 action matrix. The template
+//! blocks (about 0.4 MB) are allocated per solve; the cost, gradient,
+//! Hessian and pose use fixed-size types.
 //!
 //! **Requirements.** n ≥ 4 points, not collinear; planar and nonplanar sets
 //! are both handled (the quaternion keeps `R` a rotation, so no third column

@@ -71,9 +71,13 @@
 //! dropping it leaves 40×40 matrices with `M_x = W⁻¹ diag(x(q_k)) V` (V, W
 //! evaluation matrices). For two linear forms `ℓ₁, ℓ₂`, `A = M_{ℓ₂}⁻¹ M_{ℓ₁}
 //! = V⁻¹ diag(ℓ₁(q_k)/ℓ₂(q_k)) V`: the eigenvectors of `Aᵀ` are the `v_k`,
-//! read off the real Schur form by back substitution. `ℓ₂` is chosen per
-//! problem among a few fixed forms as the one whose `M_{ℓ₂}` is best
-//! conditioned.
+//! found by inverse iteration for each real eigenvalue (the eigenvalues come
+//! from a balanced Hessenberg QR without Schur vectors,
+//! [`crate::pnp::three_cubics::eigenvalues`]; typically 4 of the 40 are
+//! real, so this costs about a third of a full real Schur form with its
+//! vectors, which the solver used before). `ℓ₂` is chosen per
+//! problem among a few fixed forms: the first whose `M_{ℓ₂}` is well
+//! conditioned ([`DENOMINATOR_GOOD_RCOND`]), else the best conditioned.
 //!
 //! **Extraction.** `B` holds `a, b, c, d`, so `v_k` gives the direction `u` of
 //! `q_k`; the 16 cubic monomials of `B` give `‖q_k‖²` by least squares
@@ -86,7 +90,8 @@
 //! for a bare system).
 
 use super::monomials::{self, Exponent, CUBIC, CUBIC_COUNT, LINEAR};
-use nalgebra::{DMatrix, DVector};
+use crate::pnp::three_cubics::eigenvalues;
+use nalgebra::{DMatrix, SMatrix, SVector};
 use std::sync::LazyLock;
 
 /// Coefficients of one odd cubic equation: the 20 cubic monomials of
@@ -107,11 +112,15 @@ pub const RANK_GAP: f64 = 1e-5;
 /// Smallest acceptable reciprocal condition estimate (smallest over largest
 /// LU pivot) of the denominator matrix `M_{ℓ₂}`.
 pub const DENOMINATOR_RCOND: f64 = 1e-13;
-/// A 2×2 Schur block whose eigenvalues' imaginary part is below this
-/// fraction of their modulus is taken as a (numerically split) real pair.
+/// A denominator candidate whose reciprocal condition estimate reaches this
+/// is taken at once, without factorising the remaining candidates: its
+/// inverse loses at most six of the sixteen digits, and Newton's method
+/// polishes the solutions afterwards. (Factorising all eight candidates
+/// cost about 6% of a solve; the first one is usually taken.)
+pub const DENOMINATOR_GOOD_RCOND: f64 = 1e-6;
+/// A complex eigenvalue pair whose imaginary part is below this fraction of
+/// its modulus is taken as a (numerically split) real eigenvalue.
 pub const NEAR_REAL: f64 = 1e-8;
-/// Iteration cap of the real Schur decomposition, per matrix dimension.
-pub const SCHUR_ITERATIONS_PER_DIMENSION: usize = 60;
 
 /// Why the polynomial solver could not return solutions.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
@@ -128,11 +137,15 @@ pub enum SolverError {
         /// Rank predicted by the Hilbert function.
         expected: usize,
     },
+    /// A coefficient of the equations is NaN or infinite.
+    #[error("a coefficient of the equations is not finite")]
+    NonFinite,
     /// Every candidate denominator multiplication matrix is singular.
     #[error("no multiplication matrix is invertible")]
     SingularDenominator,
-    /// The real Schur decomposition of the action matrix did not converge.
-    #[error("Schur decomposition of the action matrix did not converge")]
+    /// The QR iteration for the eigenvalues of the action matrix did not
+    /// converge.
+    #[error("the eigenvalues of the action matrix did not converge")]
     SchurFailed,
 }
 
@@ -146,8 +159,9 @@ impl SolverError {
             SolverError::SingularDenominator => {
                 "Gröbner solver: no multiplication matrix is invertible"
             }
+            SolverError::NonFinite => "Gröbner solver: a coefficient is not finite",
             SolverError::SchurFailed => {
-                "Gröbner solver: Schur decomposition of the action matrix did not converge"
+                "Gröbner solver: the eigenvalues of the action matrix did not converge"
             }
         }
     }
@@ -178,6 +192,8 @@ struct Block {
     /// Rank predicted by the Hilbert function.
     rank: usize,
     rows: Vec<RowPattern>,
+    /// How the elimination treats the tail.
+    tail: TailHandling,
 }
 
 impl Block {
@@ -239,6 +255,14 @@ fn block(degree: usize, top_offset: usize) -> Block {
         tail_len: tail.len(),
         rank: top.len() - HILBERT[degree],
         rows,
+        // Only degree 8 has few reduced monomials (x times the four degree-7
+        // basis monomials) against a wide tail; degrees 6 and 4 reduce 40
+        // to 64 monomials each, where carrying the tail is cheaper.
+        tail: if degree == 8 {
+            TailHandling::Deferred
+        } else {
+            TailHandling::Carried
+        },
     }
 }
 
@@ -488,18 +512,24 @@ fn select_columns(
     count: usize,
     degree: usize,
 ) -> Result<Vec<usize>, SolverError> {
-    let mut columns: Vec<Vec<f64>> = (0..cols)
-        .map(|c| (0..rows).map(|r| matrix[r * cols + c]).collect())
-        .collect();
+    // Column-major copy: column c is columns[c * rows..(c + 1) * rows].
+    let mut columns = vec![0.0; rows * cols];
+    for r in 0..rows {
+        for c in 0..cols {
+            columns[c * rows + r] = matrix[r * cols + c];
+        }
+    }
     let mut norms: Vec<f64> = columns
-        .iter()
+        .chunks_exact(rows)
         .map(|v| v.iter().map(|x| x * x).sum())
         .collect();
+    let mut taken = vec![false; cols];
     let mut chosen = Vec::with_capacity(count);
+    let mut pivot = vec![0.0; rows];
     let mut first = 0.0;
     for step in 0..count {
         let best = (0..cols)
-            .filter(|c| !chosen.contains(c))
+            .filter(|&c| !taken[c])
             .max_by(|&a, &b| norms[a].total_cmp(&norms[b]))
             .unwrap_or(0);
         let norm = norms[best].sqrt();
@@ -514,16 +544,25 @@ fn select_columns(
             });
         }
         chosen.push(best);
-        let pivot: Vec<f64> = columns[best].iter().map(|x| x / norm).collect();
+        taken[best] = true;
+        for (p, x) in pivot
+            .iter_mut()
+            .zip(&columns[best * rows..(best + 1) * rows])
+        {
+            *p = x / norm;
+        }
         for c in 0..cols {
-            if chosen.contains(&c) {
+            if taken[c] {
                 continue;
             }
-            let projection: f64 = columns[c].iter().zip(&pivot).map(|(a, b)| a * b).sum();
-            for (a, b) in columns[c].iter_mut().zip(&pivot) {
+            let column = &mut columns[c * rows..(c + 1) * rows];
+            let projection: f64 = column.iter().zip(&pivot).map(|(a, b)| a * b).sum();
+            let mut norm_sq = 0.0;
+            for (a, b) in column.iter_mut().zip(&pivot) {
                 *a -= projection * b;
+                norm_sq += *a * *a;
             }
-            norms[c] = columns[c].iter().map(|x| x * x).sum();
+            norms[c] = norm_sq;
         }
     }
     Ok(chosen)
@@ -541,12 +580,32 @@ struct Echelon {
     /// Original top columns left without a pivot: this degree's standard
     /// monomials.
     standard: Vec<usize>,
+    /// Whether the tail was left as filled ([`TailHandling::Deferred`]), with
+    /// the elimination multipliers stored in place of the zeros.
+    deferred_tail: bool,
+}
+
+/// How [`eliminate`] treats a block's tail (its degree `k − 2` columns).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum TailHandling {
+    /// Every row update is applied to the tail too; a normal form then
+    /// subtracts the pivot rows' reduced tails.
+    Carried,
+    /// The tail keeps the filled coefficients and each row stores its
+    /// multiplier where the pivot column was eliminated (an LU
+    /// factorisation, `R = L·U` for the pivot rows `R`). A normal form
+    /// `g − Σ g_s U_s` then needs `Σ g_s tail(U_s) = Σ h_s tail(R_s)` with
+    /// `Lᵀh = g`: one more triangular solve per reduced monomial, but no
+    /// tail updates in the elimination. For degree 8 (84 tail columns, about
+    /// 170 rows, 164 pivots, 16 reduced monomials) this saves about 1 M of
+    /// the block's 3 M multiply-adds.
+    Deferred,
 }
 
 /// Gaussian elimination with complete pivoting over the first `block.top_len`
 /// columns of the row-major `matrix` (rows × `width`; the remaining columns,
-/// the block's tail if present, are carried along), stopping after
-/// `block.rank` pivots.
+/// the block's tail if present, are carried along or deferred as
+/// `block.tail` says), stopping after `block.rank` pivots.
 ///
 /// Each pivot column is swapped to the end of the still-active top columns,
 /// so the row updates touch only the active columns and the tail. Rows keep
@@ -567,6 +626,7 @@ fn eliminate(matrix: &mut [f64], width: usize, block: &Block) -> Result<Echelon,
     let mut active = top;
     let mut first_pivot = 0.0;
     let mut smallest_pivot = f64::INFINITY;
+    let deferred = block.tail == TailHandling::Deferred;
     for step in 0..block.rank {
         let pivot_row = (0..rows)
             .filter(|&r| !row_used[r])
@@ -600,21 +660,23 @@ fn eliminate(matrix: &mut [f64], width: usize, block: &Block) -> Result<Echelon,
         }
         active = last;
         pivot_values.copy_from_slice(&matrix[pivot_row * width..(pivot_row + 1) * width]);
-        let pivot = pivot_values[last];
+        let inverse_pivot = 1.0 / pivot_values[last];
         for r in 0..rows {
             if row_used[r] {
                 continue;
             }
             let row = &mut matrix[r * width..(r + 1) * width];
-            let factor = row[last] / pivot;
+            let factor = row[last] * inverse_pivot;
+            row[last] = if deferred { factor } else { 0.0 };
             if factor == 0.0 {
                 continue;
             }
-            row[last] = 0.0;
             maxima[r] =
                 subtract_scaled_max_abs(&mut row[..active], &pivot_values[..active], factor);
-            for (a, b) in row[top..].iter_mut().zip(&pivot_values[top..]) {
-                *a -= factor * b;
+            if !deferred {
+                for (a, b) in row[top..].iter_mut().zip(&pivot_values[top..]) {
+                    *a -= factor * b;
+                }
             }
         }
     }
@@ -634,11 +696,26 @@ fn eliminate(matrix: &mut [f64], width: usize, block: &Block) -> Result<Echelon,
         pivot_rows,
         permutation,
         standard,
+        deferred_tail: deferred,
     })
 }
 
 /// Lanes of the hand-vectorised reductions below.
 const LANES: usize = 4;
+
+/// `max(m, |v|)` by one comparison, which compiles to a single `maxpd`
+/// where `f64::max` (NaN-aware) costs four more instructions in the
+/// elimination's inner loop. A NaN is not propagated here; the blocks'
+/// entries are finite whenever the equations are, which [`solve`] checks.
+#[inline(always)]
+fn max_magnitude(m: f64, v: f64) -> f64 {
+    let a = v.abs();
+    if a > m {
+        a
+    } else {
+        m
+    }
+}
 
 /// `max |x|` over a slice, in [`LANES`] independent lanes so that it
 /// vectorises without reassociating floating-point operations.
@@ -648,11 +725,13 @@ fn max_abs(x: &[f64]) -> f64 {
     let rest = chunks.remainder();
     for chunk in chunks {
         for k in 0..LANES {
-            lanes[k] = lanes[k].max(chunk[k].abs());
+            lanes[k] = max_magnitude(lanes[k], chunk[k]);
         }
     }
     rest.iter()
-        .fold(lanes.into_iter().fold(0.0, f64::max), |m, v| m.max(v.abs()))
+        .fold(lanes.into_iter().fold(0.0, max_magnitude), |m, &v| {
+            max_magnitude(m, v)
+        })
 }
 
 /// `a −= factor · b`, returning `max |a|` afterwards (fused, lane-wise).
@@ -663,17 +742,17 @@ fn subtract_scaled_max_abs(a: &mut [f64], b: &[f64], factor: f64) -> f64 {
     for (x, y) in (&mut a_chunks).zip(&mut b_chunks) {
         for k in 0..LANES {
             x[k] -= factor * y[k];
-            lanes[k] = lanes[k].max(x[k].abs());
+            lanes[k] = max_magnitude(lanes[k], x[k]);
         }
     }
-    let mut m = lanes.into_iter().fold(0.0, f64::max);
+    let mut m = lanes.into_iter().fold(0.0, max_magnitude);
     for (x, y) in a_chunks
         .into_remainder()
         .iter_mut()
         .zip(b_chunks.remainder())
     {
         *x -= factor * y;
-        m = m.max(x.abs());
+        m = max_magnitude(m, *x);
     }
     m
 }
@@ -761,6 +840,9 @@ pub fn from_chart(p: &[f64; 4]) -> Option<[f64; 4]> {
 /// Solves `f_1 = … = f_4 = 0` for its real solution pairs, through the
 /// chart of [`to_chart`].
 pub fn solve(equations: &[OddCubic; 4]) -> Result<Solutions, SolverError> {
+    if !equations.iter().flatten().all(|c| c.is_finite()) {
+        return Err(SolverError::NonFinite);
+    }
     let mut solutions = solve_direct(&to_chart(equations))?;
     solutions.real = solutions
         .real
@@ -853,6 +935,9 @@ pub fn solve_direct(equations: &[OddCubic; 4]) -> Result<Solutions, SolverError>
         if rcond.is_finite() && best.as_ref().is_none_or(|(b, _)| rcond > *b) {
             best = Some((rcond, lu));
         }
+        if rcond >= DENOMINATOR_GOOD_RCOND {
+            break;
+        }
     }
     let (rcond, lu) = best.ok_or(SolverError::SingularDenominator)?;
     if rcond.is_nan() || rcond <= DENOMINATOR_RCOND {
@@ -862,28 +947,96 @@ pub fn solve_direct(equations: &[OddCubic; 4]) -> Result<Solutions, SolverError>
         .solve(&combine(&NUMERATOR_FORM))
         .ok_or(SolverError::SingularDenominator)?;
 
-    // 5. Eigenvectors of Aᵀ for its real eigenvalues: the odd-basis values at
-    //    the solution pairs.
-    let transposed = action.transpose();
-    let schur = nalgebra::Schur::try_new(
-        transposed,
-        f64::EPSILON,
-        SCHUR_ITERATIONS_PER_DIMENSION * SOLUTION_PAIRS,
-    )
-    .ok_or(SolverError::SchurFailed)?;
-    let (orthogonal, triangular) = schur.unpack();
+    // 5. Eigenvalues of Aᵀ (balanced Hessenberg QR, eigenvalues only), then
+    //    an eigenvector for each real one by inverse iteration: the
+    //    odd-basis values at the solution pairs.
+    let transposed = SMatrix::<f64, SOLUTION_PAIRS, SOLUTION_PAIRS>::from_fn(|i, j| action[(j, i)]);
+    let eigenvalues =
+        eigenvalues::eigenvalues(&transposed).map_err(|_| SolverError::SchurFailed)?;
     let mut solutions = Solutions::default();
-    for (position, eigenvalue) in real_eigenvalues(&triangular) {
+    for eigenvalue in &eigenvalues {
+        let modulus = eigenvalue.re.hypot(eigenvalue.im);
+        // A numerically split real pair is kept once, as its real part.
+        if eigenvalue.im < 0.0 || eigenvalue.im > NEAR_REAL * modulus {
+            continue;
+        }
         solutions.real_eigenvalues += 1;
-        let Some(local) = quasi_triangular_eigenvector(&triangular, position, eigenvalue) else {
+        let Some(vector) = inverse_iteration(&transposed, eigenvalue.re) else {
             continue;
         };
-        let vector = &orthogonal * local;
         if let Some(q) = extract(template, &basis, &vector) {
             solutions.real.push(RealSolution { q });
         }
     }
     Ok(solutions)
+}
+
+/// Steps of inverse iteration per eigenvector: the shift is an eigenvalue
+/// to rounding, so one step already gives the eigenvector to working
+/// accuracy; the second removes what a nearby eigenvalue left.
+pub const INVERSE_ITERATION_STEPS: usize = 2;
+
+/// The eigenvector of `a` for its (computed) real eigenvalue `lambda` by
+/// inverse iteration: LU with partial pivoting of `a − λI` once, in place,
+/// exactly-zero pivots replaced by `ε‖a‖` (the shift is an eigenvalue, so
+/// the matrix is singular to rounding: that is what makes one step enough).
+fn inverse_iteration<const N: usize>(
+    a: &SMatrix<f64, N, N>,
+    lambda: f64,
+) -> Option<SVector<f64, N>> {
+    // Row-major copy of a − λI.
+    let mut lu = [[0.0f64; N]; N];
+    for (i, row) in lu.iter_mut().enumerate() {
+        for (j, v) in row.iter_mut().enumerate() {
+            *v = a[(i, j)];
+        }
+        row[i] -= lambda;
+    }
+    let scale = a.amax().max(f64::MIN_POSITIVE);
+    let tiny = f64::EPSILON * scale;
+    let mut permutation: [usize; N] = std::array::from_fn(|i| i);
+    for k in 0..N {
+        let pivot_row = (k..N)
+            .max_by(|&x, &y| lu[x][k].abs().total_cmp(&lu[y][k].abs()))
+            .unwrap_or(k);
+        lu.swap(k, pivot_row);
+        permutation.swap(k, pivot_row);
+        if lu[k][k].abs() < tiny {
+            lu[k][k] = if lu[k][k] < 0.0 { -tiny } else { tiny };
+        }
+        let inverse_pivot = 1.0 / lu[k][k];
+        let (upper, lower) = lu.split_at_mut(k + 1);
+        let pivot = &upper[k];
+        for row in lower.iter_mut() {
+            let factor = row[k] * inverse_pivot;
+            row[k] = factor;
+            if factor == 0.0 {
+                continue;
+            }
+            for (x, p) in row[k + 1..].iter_mut().zip(&pivot[k + 1..]) {
+                *x -= factor * p;
+            }
+        }
+    }
+    // Start from a fixed vector with no special relation to the basis.
+    let mut x: [f64; N] = std::array::from_fn(|i| 1.0 + 0.1 * ((i * 7) % 11) as f64);
+    for _ in 0..INVERSE_ITERATION_STEPS {
+        let mut y: [f64; N] = std::array::from_fn(|i| x[permutation[i]]);
+        for i in 0..N {
+            let sum: f64 = (0..i).map(|j| lu[i][j] * y[j]).sum();
+            y[i] -= sum;
+        }
+        for i in (0..N).rev() {
+            let sum: f64 = (i + 1..N).map(|j| lu[i][j] * y[j]).sum();
+            y[i] = (y[i] - sum) / lu[i][i];
+        }
+        let norm = y.iter().map(|v| v * v).sum::<f64>().sqrt();
+        if !norm.is_finite() || norm == 0.0 {
+            return None;
+        }
+        x = y.map(|v| v / norm);
+    }
+    Some(SVector::from(x))
 }
 
 /// Reduces the even polynomial `g` (dense over the global even columns)
@@ -907,21 +1060,25 @@ fn reduce(
         scratch.clear();
         scratch.extend(echelon.permutation.iter().map(|&c| span[c]));
         scratch.extend_from_slice(&span[top..]);
-        for (step, &row) in echelon.pivot_rows.iter().enumerate() {
-            let position = top - 1 - step;
-            let value = scratch[position];
-            if value == 0.0 {
-                continue;
+        if echelon.deferred_tail {
+            reduce_deferred(scratch, top, width, matrix, echelon);
+        } else {
+            for (step, &row) in echelon.pivot_rows.iter().enumerate() {
+                let position = top - 1 - step;
+                let value = scratch[position];
+                if value == 0.0 {
+                    continue;
+                }
+                let pivot_row = &matrix[row * width..(row + 1) * width];
+                let factor = value / pivot_row[position];
+                for (a, b) in scratch[..position].iter_mut().zip(&pivot_row[..position]) {
+                    *a -= factor * b;
+                }
+                for (a, b) in scratch[top..].iter_mut().zip(&pivot_row[top..]) {
+                    *a -= factor * b;
+                }
+                scratch[position] = 0.0;
             }
-            let pivot_row = &matrix[row * width..(row + 1) * width];
-            let factor = value / pivot_row[position];
-            for (a, b) in scratch[..position].iter_mut().zip(&pivot_row[..position]) {
-                *a -= factor * b;
-            }
-            for (a, b) in scratch[top..].iter_mut().zip(&pivot_row[top..]) {
-                *a -= factor * b;
-            }
-            scratch[position] = 0.0;
         }
         for (k, &c) in echelon.permutation.iter().enumerate() {
             span[c] = scratch[k];
@@ -930,109 +1087,63 @@ fn reduce(
     }
 }
 
-/// Real eigenvalues of a real quasi-upper-triangular (Schur) matrix, with
-/// the diagonal position of each: 1×1 blocks, and 2×2 blocks whose complex
-/// pair is real within [`NEAR_REAL`] (rounding can split a real pair into a
-/// nearly-real complex one; both are kept, as the real part).
-fn real_eigenvalues(t: &DMatrix<f64>) -> Vec<(usize, f64)> {
-    let n = t.nrows();
-    let mut out = Vec::new();
-    let mut k = 0;
-    while k < n {
-        let is_pair = k + 1 < n && t[(k + 1, k)] != 0.0;
-        if !is_pair {
-            out.push((k, t[(k, k)]));
-            k += 1;
+/// [`reduce`] through a block eliminated with [`TailHandling::Deferred`]:
+/// `scratch` holds one polynomial in the block's permuted top order, then
+/// its tail. (1) Forward sweep over the `U` rows (top parts only), leaving
+/// `g_s` at pivot position `s`; (2) `Lᵀh = g` in place, backwards over the
+/// positions, each row's multipliers lying right of its own position; (3)
+/// the tail loses `Σ h_s · tail(R_s)`, the filled tails of the pivot rows.
+/// Afterwards the top part is nonzero only on the standard columns.
+fn reduce_deferred(
+    scratch: &mut [f64],
+    top: usize,
+    width: usize,
+    matrix: &[f64],
+    echelon: &Echelon,
+) {
+    let rank = echelon.pivot_rows.len();
+    for (step, &row) in echelon.pivot_rows.iter().enumerate() {
+        let position = top - 1 - step;
+        let value = scratch[position];
+        if value == 0.0 {
             continue;
         }
-        let (p, q, r, s) = (t[(k, k)], t[(k, k + 1)], t[(k + 1, k)], t[(k + 1, k + 1)]);
-        let mean = 0.5 * (p + s);
-        let discriminant = 0.25 * (p - s) * (p - s) + q * r;
-        if discriminant >= 0.0 {
-            let root = discriminant.sqrt();
-            out.push((k + 1, mean + root));
-            out.push((k + 1, mean - root));
-        } else {
-            let imaginary = (-discriminant).sqrt();
-            if imaginary <= NEAR_REAL * (mean * mean - discriminant).sqrt() {
-                out.push((k + 1, mean));
-            }
+        let pivot_row = &matrix[row * width..row * width + position + 1];
+        let factor = value / pivot_row[position];
+        for (a, b) in scratch[..position].iter_mut().zip(&pivot_row[..position]) {
+            *a -= factor * b;
         }
-        k += 2;
+        scratch[position] = factor;
     }
-    out
-}
-
-/// Eigenvector of the quasi-upper-triangular `t` for the real eigenvalue
-/// `lambda` sitting at (or, for a 2×2 block, ending at) diagonal `position`:
-/// back substitution through the 1×1 and 2×2 blocks above it.
-fn quasi_triangular_eigenvector(
-    t: &DMatrix<f64>,
-    position: usize,
-    lambda: f64,
-) -> Option<DVector<f64>> {
-    let n = t.nrows();
-    let scale = t.amax().max(f64::MIN_POSITIVE);
-    let tiny = f64::EPSILON * scale;
-    let mut x = DVector::zeros(n);
-    // Start: for a 1×1 block, x[position] = 1; for a 2×2 block ending at
-    // `position`, the null vector of its shifted block.
-    let mut top = position;
-    let starts_pair = position > 0 && t[(position, position - 1)] != 0.0;
-    if starts_pair {
-        let k = position - 1;
-        let (p, q) = (t[(k, k)] - lambda, t[(k, k + 1)]);
-        let (r, s) = (t[(k + 1, k)], t[(k + 1, k + 1)] - lambda);
-        // Null vector of [[p, q], [r, s]] from its larger row.
-        if p.abs() + q.abs() >= r.abs() + s.abs() {
-            x[k] = -q;
-            x[k + 1] = p;
-        } else {
-            x[k] = s;
-            x[k + 1] = -r;
+    let (top_part, tail) = scratch.split_at_mut(top);
+    for step in (0..rank).rev() {
+        let position = top - 1 - step;
+        let h = top_part[position];
+        if h == 0.0 {
+            continue;
         }
-        if x[k] == 0.0 && x[k + 1] == 0.0 {
-            x[k] = 1.0;
+        let row = &matrix[echelon.pivot_rows[step] * width..(echelon.pivot_rows[step] + 1) * width];
+        for (a, b) in top_part[position + 1..]
+            .iter_mut()
+            .zip(&row[position + 1..top])
+        {
+            *a -= h * b;
         }
-        top = k;
-    } else {
-        x[position] = 1.0;
-    }
-    let mut i = top;
-    while i > 0 {
-        let row = i - 1;
-        let is_pair_bottom = row > 0 && t[(row, row - 1)] != 0.0;
-        if is_pair_bottom {
-            let k = row - 1;
-            let rhs0: f64 = -(k + 2..n).map(|j| t[(k, j)] * x[j]).sum::<f64>();
-            let rhs1: f64 = -(k + 2..n).map(|j| t[(k + 1, j)] * x[j]).sum::<f64>();
-            let (p, q) = (t[(k, k)] - lambda, t[(k, k + 1)]);
-            let (r, s) = (t[(k + 1, k)], t[(k + 1, k + 1)] - lambda);
-            let mut det = p * s - q * r;
-            if det.abs() < tiny * tiny {
-                det = tiny * tiny;
-            }
-            x[k] = (rhs0 * s - q * rhs1) / det;
-            x[k + 1] = (p * rhs1 - r * rhs0) / det;
-            i = k;
-        } else {
-            let rhs: f64 = -(row + 1..n).map(|j| t[(row, j)] * x[j]).sum::<f64>();
-            let mut denominator = t[(row, row)] - lambda;
-            if denominator.abs() < tiny {
-                denominator = if denominator < 0.0 { -tiny } else { tiny };
-            }
-            x[row] = rhs / denominator;
-            i = row;
+        for (a, b) in tail.iter_mut().zip(&row[top..]) {
+            *a -= h * b;
         }
     }
-    let norm = x.norm();
-    (norm.is_finite() && norm > 0.0).then(|| x / norm)
+    top_part[top - rank..].iter_mut().for_each(|v| *v = 0.0);
 }
 
 /// Reads `q` off an eigenvector `v ∝ (b(q))_{b∈B}`: the direction from the
 /// linear monomials, `|q|²` by least squares over the cubic ones. `None` when
 /// the pair is not real (`|q|² ≤ 0`) or the vector is unusable.
-fn extract(template: &Template, basis: &[usize], v: &DVector<f64>) -> Option<[f64; 4]> {
+fn extract(
+    template: &Template,
+    basis: &[usize],
+    v: &SVector<f64, SOLUTION_PAIRS>,
+) -> Option<[f64; 4]> {
     // The linear monomials are the last four basis entries (see `odd_basis`).
     let linear: [f64; 4] = std::array::from_fn(|k| v[SOLUTION_PAIRS - 4 + k]);
     let linear_norm = linear.iter().map(|x| x * x).sum::<f64>().sqrt();
@@ -1129,6 +1240,7 @@ pub fn evaluate(equation: &OddCubic, q: &[f64; 4]) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use nalgebra::DVector;
     use rand::{Rng, SeedableRng};
 
     /// Four odd cubic equations that vanish at the given points: a basis of

@@ -485,6 +485,12 @@ pub struct RealRoots {
     pub roots: Roots,
     /// Eigenvalues of the action matrix counted as real.
     pub real_eigenvalues: usize,
+    /// Estimates (before polishing) of the real eigenvalues whose root was
+    /// rejected by the residual test: usually a numerically split complex
+    /// pair, but possibly a real root too ill-conditioned to polish (a root
+    /// near infinity). Callers that change variables to improve conditioning
+    /// (DLS's charts) use them to decide where to look again.
+    pub rejected: Roots,
 }
 
 /// Every real root of `f₁ = f₂ = f₃ = 0` (see the module documentation).
@@ -501,6 +507,7 @@ pub fn real_roots(system: &[Cubic; 3]) -> Result<RealRoots, CubicSystemError> {
     let mut out = RealRoots {
         roots: Roots::new(),
         real_eigenvalues: 0,
+        rejected: Roots::new(),
     };
     for eigenvalue in &eigenvalues {
         let lambda = eigenvalue.re;
@@ -526,10 +533,14 @@ pub fn real_roots(system: &[Cubic; 3]) -> Result<RealRoots, CubicSystemError> {
         }
         let w = null_vector(pencil);
         let (y2, y3) = ratios(&w);
-        let x = polish(&scaled, &(q * Vector3::new(lambda, y2, y3)));
+        let estimate = q * Vector3::new(lambda, y2, y3);
+        let x = polish(&scaled, &estimate);
         if !x.iter().all(|v| v.is_finite())
             || relative_residual(&scaled, &x) > ROOT_RESIDUAL_TOLERANCE
         {
+            if estimate.iter().all(|v| v.is_finite()) {
+                out.rejected.push(estimate);
+            }
             continue;
         }
         let tolerance = DUPLICATE_ROOT_TOLERANCE * (1.0 + x.norm());
