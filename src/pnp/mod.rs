@@ -13,7 +13,8 @@
 //! returns a [`PnpError`] that says why.
 
 use crate::pose::{reprojection_rms_normalised, Pose};
-use nalgebra::{Matrix3, SymmetricEigen, Vector2, Vector3};
+use crate::linalg::symmetric_eigen_3x3;
+use nalgebra::{Matrix3, Vector2, Vector3};
 use smallvec::SmallVec;
 
 pub mod dls;
@@ -380,11 +381,9 @@ impl Spread {
             let d = p - centroid;
             scatter += d * d.transpose();
         }
-        let eigen = SymmetricEigen::new(scatter / count);
-        let mut order = [0usize, 1, 2];
-        order.sort_by(|&a, &b| eigen.eigenvalues[b].total_cmp(&eigen.eigenvalues[a]));
-        let extents = Vector3::from_fn(|k, _| eigen.eigenvalues[order[k]].max(0.0).sqrt());
-        let axes = Matrix3::from_fn(|r, c| eigen.eigenvectors[(r, order[c])]);
+        // Largest first, so the extents come out ordered.
+        let (variances, axes) = symmetric_eigen_3x3(&(scatter / count));
+        let extents = variances.map(|v| v.max(0.0).sqrt());
         Spread {
             centroid,
             extents,
@@ -435,9 +434,10 @@ pub fn validate_input(
         });
     }
     let duplicate_distance = DUPLICATE_TOLERANCE * scale;
+    let duplicate_distance_sq = duplicate_distance * duplicate_distance;
     for (i, a) in object.iter().enumerate() {
         for (j, b) in object.iter().enumerate().skip(i + 1) {
-            if (a - b).norm() <= duplicate_distance {
+            if (a - b).norm_squared() <= duplicate_distance_sq {
                 return Err(PnpError::DuplicatePoints {
                     first: i,
                     second: j,
