@@ -153,8 +153,9 @@ pub enum Solver {
     /// OPnP: every local minimum of the algebraic cost in a non-unit
     /// quaternion, by a Gröbner-basis solver (Zheng et al., ICCV 2013).
     Opnp,
-    /// Levenberg–Marquardt on reprojection error from the best closed-form
-    /// start: the maximum-likelihood estimate under isotropic Gaussian noise.
+    /// Levenberg–Marquardt on reprojection error from the paper's
+    /// parallel-weighted pose: the maximum-likelihood estimate under
+    /// isotropic Gaussian noise.
     Ml,
 }
 
@@ -229,7 +230,7 @@ impl Solver {
             Solver::Rpnp => "RPnP: every local minimum of the degree-7 cost about the widest edge, then 3D alignment (Li, Xu & Xie 2012)",
             Solver::Sqpnp => "SQPnP: SQP over the rotation entries from the null-space starts, all local minima; coplanar points allowed (Terzakis & Lourakis 2020)",
             Solver::Opnp => "OPnP: all minima of the algebraic cost in a non-unit quaternion, Gröbner-basis solver (Zheng et al. 2013)",
-            Solver::Ml => "Levenberg-Marquardt on reprojection error from the best closed-form start (maximum likelihood)",
+            Solver::Ml => "Levenberg-Marquardt on reprojection error from the paper's parallel-weighted pose (maximum likelihood)",
         }
     }
 
