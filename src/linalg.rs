@@ -1077,7 +1077,10 @@ const ONE_SIDED_JACOBI_MAX_SWEEPS: usize = 32;
 /// [`ONE_SIDED_JACOBI_TOLERANCE`]` · ‖a_p‖‖a_q‖`. The singular values then have high
 /// relative accuracy and the vectors of well-separated singular values are
 /// accurate to about `ε / relative gap`, better than forming `AᵀA`. It
-/// allocates nothing, and a zero column (rank deficiency) is left alone.
+/// allocates nothing. A column whose norm falls to
+/// `ONE_SIDED_JACOBI_TOLERANCE · ‖A‖_F` or below (rank deficiency) is left
+/// alone: its direction is rounding noise, and rotating it against the
+/// others would never pass the orthogonality test.
 ///
 /// Requirements: `a` finite and of moderate scale (products of squared
 /// column norms must neither overflow nor underflow; callers scale to unit
@@ -1090,12 +1093,19 @@ pub fn orthogonalise_columns_3x3(
     let mut v = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
     let dot = |x: &[f64; 3], y: &[f64; 3]| x[0] * y[0] + x[1] * y[1] + x[2] * y[2];
     let mut norms_sq: [f64; 3] = std::array::from_fn(|k| dot(&columns[k], &columns[k]));
+    // A column at rounding level of ‖A‖ has no direction to speak of: it
+    // is left alone (else a rank-deficient A would rotate it for ever).
+    let frobenius_sq = norms_sq[0] + norms_sq[1] + norms_sq[2];
+    let negligible_sq = ONE_SIDED_JACOBI_TOLERANCE * ONE_SIDED_JACOBI_TOLERANCE * frobenius_sq;
     for _ in 0..ONE_SIDED_JACOBI_MAX_SWEEPS {
         let mut rotated = false;
         for (p, q) in [(0usize, 1usize), (0, 2), (1, 2)] {
             let gamma = dot(&columns[p], &columns[q]);
             let (alpha, beta) = (norms_sq[p], norms_sq[q]);
-            if !(gamma.abs() > ONE_SIDED_JACOBI_TOLERANCE * (alpha * beta).sqrt()) {
+            if !(gamma.abs() > ONE_SIDED_JACOBI_TOLERANCE * (alpha * beta).sqrt())
+                || alpha <= negligible_sq
+                || beta <= negligible_sq
+            {
                 continue;
             }
             rotated = true;
@@ -1125,6 +1135,65 @@ pub fn orthogonalise_columns_3x3(
         nalgebra::Matrix3::from_fn(|row, k| columns[k][row]),
         nalgebra::Matrix3::from_fn(|row, k| v[k][row]),
     )
+}
+
+/// Solves `A x = b` for a small symmetric positive definite `A` by the
+/// square-root-free Cholesky factorisation `A = L D Lᵀ` (Golub & Van Loan,
+/// *Matrix Computations*, 4th ed., Algorithm 4.1.2), reading only the lower
+/// triangle. Returns `None` when a pivot of D is not positive (A not
+/// numerically positive definite) or not finite. Written out over fixed
+/// arrays so that it unrolls, and without square roots so that each column
+/// puts one division, not a square root and a division, on the dependency
+/// chain: `nalgebra::Cholesky` walks runtime-sized views and cost several
+/// times more at these sizes (4×4 Gauss–Newton and the β least squares of
+/// EPnP).
+#[allow(clippy::needless_range_loop)]
+pub fn solve_positive_definite<const C: usize>(
+    a: &SMatrix<f64, C, C>,
+    b: &SVector<f64, C>,
+) -> Option<SVector<f64, C>> {
+    // Unit lower L below the diagonal (lower[i][j], j < i); `scaled[i][j]`
+    // holds L_ij d_j; `inverse_pivot[j]` is 1/d_j.
+    let mut lower = [[0.0f64; C]; C];
+    let mut scaled = [[0.0f64; C]; C];
+    let mut inverse_pivot = [0.0f64; C];
+    for j in 0..C {
+        let mut pivot = a[(j, j)];
+        for k in 0..j {
+            pivot -= scaled[j][k] * lower[j][k];
+        }
+        if !(pivot > 0.0 && pivot.is_finite()) {
+            return None;
+        }
+        let inverse = 1.0 / pivot;
+        inverse_pivot[j] = inverse;
+        for i in j + 1..C {
+            let mut value = a[(i, j)];
+            for k in 0..j {
+                value -= scaled[i][k] * lower[j][k];
+            }
+            scaled[i][j] = value;
+            lower[i][j] = value * inverse;
+        }
+    }
+    // L y = b, then D Lᵀ x = y.
+    let mut y = [0.0f64; C];
+    for i in 0..C {
+        let mut value = b[i];
+        for k in 0..i {
+            value -= lower[i][k] * y[k];
+        }
+        y[i] = value;
+    }
+    let mut x = SVector::<f64, C>::zeros();
+    for i in (0..C).rev() {
+        let mut value = y[i] * inverse_pivot[i];
+        for k in i + 1..C {
+            value -= lower[k][i] * x[k];
+        }
+        x[i] = value;
+    }
+    Some(x)
 }
 
 /// The SplitMix64 generator (Steele, Lea & Flood 2014): deterministic
@@ -1659,5 +1728,25 @@ mod tests {
     fn nearest_orthogonal(b: &nalgebra::Matrix3<f64>) -> nalgebra::Matrix3<f64> {
         let svd = b.svd(true, true);
         svd.u.unwrap() * svd.v_t.unwrap()
+    }
+
+    /// The fixed-size Cholesky solve agrees with nalgebra's and refuses
+    /// matrices that are not positive definite.
+    #[test]
+    fn positive_definite_solve_matches_nalgebra() {
+        for case in 0..500u64 {
+            let mut rng = stream_rng(SEED, 8, case);
+            let b = SMatrix::<f64, 5, 5>::from_fn(|_, _| standard_normal(&mut rng));
+            let a = b * b.transpose() + SMatrix::<f64, 5, 5>::identity() * 1e-3;
+            let rhs = SVector::<f64, 5>::from_fn(|_, _| standard_normal(&mut rng));
+            let x = solve_positive_definite(&a, &rhs).unwrap();
+            let reference = a.cholesky().unwrap().solve(&rhs);
+            assert!((x - reference).norm() <= 1e-9 * reference.norm());
+            assert!((a * x - rhs).norm() <= 1e-10 * a.norm() * x.norm());
+        }
+        let indefinite = nalgebra::Matrix2::new(1.0, 2.0, 2.0, 1.0);
+        assert!(solve_positive_definite(&indefinite, &nalgebra::Vector2::new(1.0, 0.0)).is_none());
+        let singular = nalgebra::Matrix2::new(1.0, 1.0, 1.0, 1.0);
+        assert!(solve_positive_definite(&singular, &nalgebra::Vector2::new(1.0, 0.0)).is_none());
     }
 }
