@@ -20,7 +20,7 @@
 //! ([`crate::linalg::smallest_eigenpairs`]).
 
 use super::{foam, gauss_newton, Candidates, PnpError, Spread};
-use crate::linalg::{smallest_eigenpairs, EigenError};
+use crate::linalg::{smallest_eigenpairs, solve_positive_definite, EigenError};
 use crate::pose::Pose;
 use nalgebra::{Matrix3, SMatrix, SVector, Vector2, Vector3, Vector4};
 
@@ -395,18 +395,16 @@ fn solve_least_squares<const C: usize>(
     a: &SMatrix<f64, 6, C>,
     b: &SVector<f64, 6>,
 ) -> SVector<f64, C> {
-    let mut ata = a.transpose() * a;
-    let atb = a.transpose() * b;
-    if let Some(cholesky) = ata.cholesky() {
-        return cholesky.solve(&atb);
+    let mut ata = a.tr_mul(a);
+    let atb = a.tr_mul(b);
+    if let Some(solution) = solve_positive_definite(&ata, &atb) {
+        return solution;
     }
     let ridge = RIDGE_FRACTION * ata.trace() / C as f64;
     for d in 0..C {
         ata[(d, d)] += ridge;
     }
-    ata.cholesky()
-        .map(|c| c.solve(&atb))
-        .unwrap_or_else(SVector::zeros)
+    solve_positive_definite(&ata, &atb).unwrap_or_else(SVector::zeros)
 }
 
 /// Ridge added to a rank-deficient normal matrix, relative to its mean diagonal.
