@@ -12,8 +12,8 @@
 //! camera. No solver falls back to another: a method either runs itself or
 //! returns a [`PnpError`] that says why.
 
-use crate::pose::{reprojection_rms_normalised, Pose};
 use crate::linalg::symmetric_eigen_3x3;
+use crate::pose::Pose;
 use nalgebra::{Matrix3, Vector2, Vector3};
 use smallvec::SmallVec;
 
@@ -335,14 +335,42 @@ pub fn best_candidate(
     object: &[Vector3<f64>],
     image: &[Vector2<f64>],
 ) -> Result<Pose, PnpError> {
-    candidates
-        .iter()
-        .filter(|pose| pose.is_finite() && pose.all_in_front(object))
-        .map(|pose| (reprojection_rms_normalised(pose, object, image), pose))
-        .filter(|(error, _)| error.is_finite())
-        .min_by(|a, b| a.0.total_cmp(&b.0))
-        .map(|(_, pose)| *pose)
+    // One pass per candidate: each point is transformed once, both for the
+    // in-front test and for its reprojection error. Comparing sums of
+    // squares ranks the candidates as their RMS errors do.
+    let mut best: Option<(f64, &Pose)> = None;
+    for pose in candidates {
+        if !pose.is_finite() {
+            continue;
+        }
+        let Some(error_sq) = reprojection_error_sq_in_front(pose, object, image) else {
+            continue;
+        };
+        if error_sq.is_finite() && best.is_none_or(|(lowest, _)| error_sq < lowest) {
+            best = Some((error_sq, pose));
+        }
+    }
+    best.map(|(_, pose)| *pose)
         .ok_or(PnpError::BehindCamera { solver })
+}
+
+/// The sum of squared reprojection errors on the normalised image plane,
+/// or `None` if some point is not strictly in front of the camera.
+fn reprojection_error_sq_in_front(
+    pose: &Pose,
+    object: &[Vector3<f64>],
+    image: &[Vector2<f64>],
+) -> Option<f64> {
+    let mut sum = 0.0;
+    for (p, m) in object.iter().zip(image) {
+        let c = pose.transform(p);
+        if !(c.z > 0.0) {
+            return None;
+        }
+        let inverse_z = 1.0 / c.z;
+        sum += (Vector2::new(c.x * inverse_z, c.y * inverse_z) - m).norm_squared();
+    }
+    Some(sum)
 }
 
 /// Centroid of a non-empty point set and the RMS distance of the points
