@@ -1088,8 +1088,7 @@ const ONE_SIDED_JACOBI_MAX_SWEEPS: usize = 32;
 pub fn orthogonalise_columns_3x3(
     a: &nalgebra::Matrix3<f64>,
 ) -> (nalgebra::Matrix3<f64>, nalgebra::Matrix3<f64>) {
-    let mut columns: [[f64; 3]; 3] =
-        std::array::from_fn(|k| [a[(0, k)], a[(1, k)], a[(2, k)]]);
+    let mut columns: [[f64; 3]; 3] = std::array::from_fn(|k| [a[(0, k)], a[(1, k)], a[(2, k)]]);
     let mut v = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
     let dot = |x: &[f64; 3], y: &[f64; 3]| x[0] * y[0] + x[1] * y[1] + x[2] * y[2];
     let mut norms_sq: [f64; 3] = std::array::from_fn(|k| dot(&columns[k], &columns[k]));
@@ -1682,9 +1681,7 @@ mod tests {
             let (values, vectors) = symmetric_eigen_3x3(a);
             let norm = a.norm().max(f64::MIN_POSITIVE);
             let mut reference = SymmetricEigen::new(*a).eigenvalues;
-            reference
-                .as_mut_slice()
-                .sort_by(|x, y| y.total_cmp(x));
+            reference.as_mut_slice().sort_by(|x, y| y.total_cmp(x));
             for k in 0..3 {
                 assert!(
                     (values[k] - reference[k]).abs() <= 1e-14 * norm,
@@ -1705,8 +1702,7 @@ mod tests {
                 // Positive semi-definite with a repeated eigenvalue.
                 1 => {
                     let q = nearest_orthogonal(&b);
-                    q * Matrix3::from_diagonal(&Vector3::new(2.0, 2.0, 0.5)) * q.transpose()
-                        * scale
+                    q * Matrix3::from_diagonal(&Vector3::new(2.0, 2.0, 0.5)) * q.transpose() * scale
                 }
                 // Scatter of collinear points: rank one.
                 2 => {

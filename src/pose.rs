@@ -356,7 +356,11 @@ mod tests {
         // A zero row (LHM's weak-perspective start with centred points).
         let mut zero_row = Matrix3::new(3.0, -1.0, 0.5, 0.2, 2.0, -0.7, 0.0, 0.0, 0.0);
         zero_row[(2, 2)] = 0.0;
-        assert!((nearest_rotation(&zero_row).matrix() - nearest_rotation_svd(&zero_row).matrix()).norm() < 1e-12);
+        assert!(
+            (nearest_rotation(&zero_row).matrix() - nearest_rotation_svd(&zero_row).matrix())
+                .norm()
+                < 1e-12
+        );
         let rank_one = Vector3::new(1.0, 2.0, 3.0) * Vector3::new(-1.0, 0.5, 2.0).transpose();
         let r = nearest_rotation(&rank_one);
         assert_relative_eq!(r.matrix().determinant(), 1.0, epsilon = 1e-12);

@@ -94,7 +94,10 @@ fn linearise(
     let jacobian = std::array::from_fn(|k| {
         let q = &forms[k];
         let row = Vector4::from_fn(|i, _| {
-            2.0 * (q[i][0] * betas[0] + q[i][1] * betas[1] + q[i][2] * betas[2] + q[i][3] * betas[3])
+            2.0 * (q[i][0] * betas[0]
+                + q[i][1] * betas[1]
+                + q[i][2] * betas[2]
+                + q[i][3] * betas[3])
         });
         residuals[k] = rho[k] - 0.5 * row.dot(betas);
         row
