@@ -1008,6 +1008,7 @@ const JACOBI_MAX_SWEEPS: usize = 32;
 /// let residual = a * vectors.column(2) - vectors.column(2) * values[2];
 /// assert!(residual.norm() < 1e-15);
 /// ```
+#[allow(clippy::needless_range_loop)]
 pub fn symmetric_eigen_3x3(
     a: &nalgebra::Matrix3<f64>,
 ) -> (nalgebra::Vector3<f64>, nalgebra::Matrix3<f64>) {
@@ -1101,10 +1102,9 @@ pub fn orthogonalise_columns_3x3(
         for (p, q) in [(0usize, 1usize), (0, 2), (1, 2)] {
             let gamma = dot(&columns[p], &columns[q]);
             let (alpha, beta) = (norms_sq[p], norms_sq[q]);
-            if !(gamma.abs() > ONE_SIDED_JACOBI_TOLERANCE * (alpha * beta).sqrt())
-                || alpha <= negligible_sq
-                || beta <= negligible_sq
-            {
+            // Written so that NaN counts as orthogonal (no rotation).
+            let coupled = gamma.abs() > ONE_SIDED_JACOBI_TOLERANCE * (alpha * beta).sqrt();
+            if !coupled || alpha <= negligible_sq || beta <= negligible_sq {
                 continue;
             }
             rotated = true;

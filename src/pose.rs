@@ -175,9 +175,9 @@ pub fn nearest_rotation(m: &Matrix3<f64>) -> Rotation3<f64> {
     let mut order = [0usize, 1, 2];
     order.sort_by(|&a, &b| norms[b].total_cmp(&norms[a]));
     let (first, second) = (order[0], order[1]);
-    if !(norms[second] > NEAREST_ROTATION_RANK_TOLERANCE * norms[first])
-        || !norms[first].is_finite()
-    {
+    // Written so that NaN counts as rank-deficient.
+    let rank_two = norms[second] > NEAREST_ROTATION_RANK_TOLERANCE * norms[first];
+    if !rank_two || !norms[first].is_finite() {
         return nearest_rotation_svd(m);
     }
     let u1 = scaled_left.column(first) / norms[first];

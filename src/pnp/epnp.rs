@@ -304,6 +304,7 @@ fn barycentric(
 /// `Σ_j α_ij (y_j − v_i z_j) = 0`, so the 3×3 block (j, k) of `MᵀM` is
 /// `Σ_i α_ij α_ik [[1, 0, −u_i], [0, 1, −v_i], [−u_i, −v_i, u_i² + v_i²]]`:
 /// four symmetric 4×4 moment matrices (40 products per point) hold it all.
+#[allow(clippy::needless_range_loop)]
 fn accumulate_point_sums(
     control0: &Vector3<f64>,
     to_barycentric: &Matrix3<f64>,

@@ -364,7 +364,9 @@ fn reprojection_error_sq_in_front(
     let mut sum = 0.0;
     for (p, m) in object.iter().zip(image) {
         let c = pose.transform(p);
-        if !(c.z > 0.0) {
+        // NaN depth counts as not in front.
+        let in_front = c.z > 0.0;
+        if !in_front {
             return None;
         }
         let inverse_z = 1.0 / c.z;
