@@ -4,6 +4,7 @@
 //! `X_cam = R · X_obj + t` (paper eq. 3, OpenCV). Rotation errors are in
 //! degrees at this boundary; code inside works in radians.
 
+use crate::linalg::orthogonalise_columns_3x3;
 use nalgebra::{Matrix2x3, Matrix3, Rotation3, SMatrix, Vector2, Vector3, SVD};
 use serde::{Deserialize, Serialize};
 
@@ -144,9 +145,54 @@ pub fn reprojection_rms_px(
     (sum / object_points.len().max(1) as f64).sqrt()
 }
 
+/// Below this ratio of its second to its largest singular value a matrix
+/// counts as rank one for [`nearest_rotation`]: the rotation is then not
+/// unique, and the general SVD picks one.
+pub const NEAREST_ROTATION_RANK_TOLERANCE: f64 = 1e-10;
+
 /// The rotation nearest to `m` in the Frobenius norm (SVD projection onto
-/// SO(3), with the determinant forced to +1).
+/// SO(3), with the determinant forced to +1): for `m = U Σ Vᵀ`,
+/// `R = U diag(1, 1, det(U Vᵀ)) Vᵀ`, the maximiser of `tr(Rᵀ m)`.
+///
+/// The SVD is a one-sided Jacobi sweep
+/// ([`crate::linalg::orthogonalise_columns_3x3`]), allocation-free and
+/// several times faster than `nalgebra::SVD` (which forms `mᵀm` and runs the
+/// general symmetric eigen-solver). Only the two largest singular pairs are
+/// used: with `ũ3 = u1 × u2` and `ṽ3 = v1 × v2`,
+/// `R = u1 v1ᵀ + u2 v2ᵀ + ũ3 ṽ3ᵀ`, which is the formula above whatever the
+/// signs of `det U` and `det V` (`u1 × u2 = det(U) u3`). A matrix of rank
+/// below two (or with a non-finite entry) goes to `nalgebra::SVD`, as before.
 pub fn nearest_rotation(m: &Matrix3<f64>) -> Rotation3<f64> {
+    // R does not depend on the scale of m; unit max-norm keeps the squared
+    // norms of the Jacobi sweep away from overflow and underflow.
+    let max_abs = m.amax();
+    if !(max_abs > 0.0 && max_abs.is_finite()) {
+        return nearest_rotation_svd(m);
+    }
+    let (scaled_left, right) = orthogonalise_columns_3x3(&(m / max_abs));
+    let norms: [f64; 3] = std::array::from_fn(|k| scaled_left.column(k).norm());
+    // The two largest singular values, by index.
+    let mut order = [0usize, 1, 2];
+    order.sort_by(|&a, &b| norms[b].total_cmp(&norms[a]));
+    let (first, second) = (order[0], order[1]);
+    // Written so that NaN counts as rank-deficient.
+    let rank_two = norms[second] > NEAREST_ROTATION_RANK_TOLERANCE * norms[first];
+    if !rank_two || !norms[first].is_finite() {
+        return nearest_rotation_svd(m);
+    }
+    let u1 = scaled_left.column(first) / norms[first];
+    let u2 = scaled_left.column(second) / norms[second];
+    // Jacobi leaves the columns orthogonal to working accuracy; one
+    // Gram–Schmidt step makes u1, u2 orthonormal to rounding.
+    let u2 = (u2 - u1 * u1.dot(&u2)).normalize();
+    let (v1, v2) = (right.column(first), right.column(second));
+    let rotation =
+        u1 * v1.transpose() + u2 * v2.transpose() + u1.cross(&u2) * v1.cross(&v2).transpose();
+    Rotation3::from_matrix_unchecked(rotation)
+}
+
+/// [`nearest_rotation`] by `nalgebra::SVD`, for matrices of rank below two.
+fn nearest_rotation_svd(m: &Matrix3<f64>) -> Rotation3<f64> {
     let svd = SVD::new(*m, true, true);
     let (u, v_t) = (svd.u.unwrap(), svd.v_t.unwrap());
     let mut correction = Matrix3::identity();
@@ -281,6 +327,47 @@ mod tests {
         let estimate = absolute_orientation(object.iter().copied(), camera.iter().copied());
         assert!(rotation_error_deg(&pose.rotation, &estimate.rotation) < 1e-10);
         assert_relative_eq!(estimate.translation, pose.translation, epsilon = 1e-9);
+    }
+
+    /// The Jacobi path agrees with the `nalgebra::SVD` projection on random
+    /// matrices of any conditioning, scale and sign of determinant, and on
+    /// rank-two matrices; rank one goes to the SVD itself.
+    #[test]
+    fn nearest_rotation_matches_the_svd_projection() {
+        use crate::synthetic::{standard_normal, stream_rng};
+        for case in 0..3000u64 {
+            let mut rng = stream_rng(31, 1, case);
+            let scale = [1.0, 1e-120, 1e-6, 1e6, 1e120][case as usize % 5];
+            let mut m = Matrix3::from_fn(|_, _| standard_normal(&mut rng)) * scale;
+            if case % 3 == 1 {
+                // Rank two.
+                let svd = m.svd(true, true);
+                let mut singular = svd.singular_values;
+                singular[2] = 0.0;
+                m = svd.u.unwrap() * Matrix3::from_diagonal(&singular) * svd.v_t.unwrap();
+            }
+            let fast = nearest_rotation(&m);
+            let reference = nearest_rotation_svd(&m);
+            let r = fast.matrix();
+            assert!((r - reference.matrix()).norm() < 1e-9, "case {case}: {m}");
+            assert!((r.transpose() * r - Matrix3::identity()).amax() < 1e-14);
+            assert_relative_eq!(r.determinant(), 1.0, epsilon = 1e-14);
+        }
+        // A zero row (LHM's weak-perspective start with centred points).
+        let mut zero_row = Matrix3::new(3.0, -1.0, 0.5, 0.2, 2.0, -0.7, 0.0, 0.0, 0.0);
+        zero_row[(2, 2)] = 0.0;
+        assert!(
+            (nearest_rotation(&zero_row).matrix() - nearest_rotation_svd(&zero_row).matrix())
+                .norm()
+                < 1e-12
+        );
+        let rank_one = Vector3::new(1.0, 2.0, 3.0) * Vector3::new(-1.0, 0.5, 2.0).transpose();
+        let r = nearest_rotation(&rank_one);
+        assert_relative_eq!(r.matrix().determinant(), 1.0, epsilon = 1e-12);
+        // Exactly a rotation times a positive diagonal: the polar factor.
+        let truth = Rotation3::from_euler_angles(0.3, -1.1, 2.5);
+        let m = truth.matrix() * Matrix3::from_diagonal(&Vector3::new(3.0, 2.0, 1e-3));
+        assert!((nearest_rotation(&m).matrix() - truth.matrix()).norm() < 1e-14);
     }
 
     #[test]

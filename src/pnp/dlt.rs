@@ -7,18 +7,19 @@
 //! image points to RMS distance √2 (Hartley's normalisation); the 12 entries
 //! of the normalised P are the eigenvector of `AᵀA` for its smallest
 //! eigenvalue (A is the 2n×12 DLT design matrix, accumulated directly as
-//! 12×12). After denormalisation the sign is fixed so that `det(P₁:₃) > 0`,
-//! λ is the mean singular value of `P₁:₃`, R its nearest rotation and
-//! `t = p₄ / λ`.
+//! 12×12; [`crate::linalg::smallest_eigenpairs`] computes only that
+//! pair). After denormalisation the sign is fixed so that `det(P₁:₃) > 0`,
+//! λ is the mean singular value of `P₁:₃` (one-sided Jacobi,
+//! [`crate::linalg::orthogonalise_columns_3x3`]), R its nearest rotation
+//! and `t = p₄ / λ`.
 //!
 //! Requirements: n ≥ 6 noncoplanar points (11 degrees of freedom; a planar
 //! set makes the system rank-deficient).
 
 use super::{Candidates, PnpError};
+use crate::linalg::{orthogonalise_columns_3x3, smallest_eigenpairs, EigenError};
 use crate::pose::{nearest_rotation, Pose};
-use nalgebra::{
-    Matrix3, Matrix3x4, Matrix4, SMatrix, SVector, SymmetricEigen, Vector2, Vector3, SVD,
-};
+use nalgebra::{Matrix3, Matrix3x4, Matrix4, SMatrix, SVector, Vector2, Vector3};
 use smallvec::smallvec;
 
 /// DLT needs six correspondences for its eleven unknowns.
@@ -67,9 +68,16 @@ pub fn solve(object: &[Vector3<f64>], image: &[Vector2<f64>]) -> Result<Candidat
         ata.syger(1.0, &row_v, &row_v, 1.0);
     }
     ata.fill_upper_triangle_with_lower_triangle();
-    let eigen = SymmetricEigen::new(ata);
-    let smallest = eigen.eigenvalues.imin();
-    let p = eigen.eigenvectors.column(smallest);
+    // Only the eigenvector of the smallest eigenvalue is needed.
+    let p = smallest_eigenpairs::<12, 1>(&ata)
+        .map_err(|error| PnpError::Degenerate {
+            solver: "DLT",
+            reason: match error {
+                EigenError::NonFinite { .. } => "AᵀA has a non-finite entry",
+                _ => "the eigen-decomposition of AᵀA did not converge",
+            },
+        })?
+        .vectors[0];
     let normalised = Matrix3x4::from_fn(|r, c| p[4 * r + c]);
 
     // Denormalise: P = T_image⁻¹ P̃ T_object.
@@ -95,8 +103,16 @@ pub fn solve(object: &[Vector3<f64>], image: &[Vector2<f64>]) -> Result<Candidat
         projection = -projection;
         left = -left;
     }
-    let singular = SVD::new(left, false, false).singular_values;
-    let scale = singular.sum() / 3.0;
+    // Singular values: the column norms of `left · V` (scaled to unit
+    // max-norm for the Jacobi sweep, and back).
+    let max_abs = left.amax();
+    let scale = if max_abs > 0.0 && max_abs.is_finite() {
+        let (scaled_left, _) = orthogonalise_columns_3x3(&(left / max_abs));
+        let sum: f64 = scaled_left.column_iter().map(|c| c.norm()).sum();
+        sum / 3.0 * max_abs
+    } else {
+        f64::NAN
+    };
     if !(scale > 0.0 && scale.is_finite()) {
         return Err(PnpError::Degenerate {
             solver: "DLT",

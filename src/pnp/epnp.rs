@@ -19,9 +19,9 @@
 //! and only its four smallest eigenpairs are computed
 //! ([`crate::linalg::smallest_eigenpairs`]).
 
-use super::{gauss_newton, Candidates, PnpError, Spread};
-use crate::linalg::{smallest_eigenpairs, EigenError};
-use crate::pose::{absolute_orientation, Pose};
+use super::{foam, gauss_newton, Candidates, PnpError, Spread};
+use crate::linalg::{smallest_eigenpairs, solve_positive_definite, EigenError};
+use crate::pose::Pose;
 use nalgebra::{Matrix3, SMatrix, SVector, Vector2, Vector3, Vector4};
 
 /// The six control-point pairs `i < j`, in the order of the rows of L and ρ.
@@ -44,6 +44,23 @@ pub struct EpnpSystem {
     distance_products: SMatrix<f64, 6, 10>,
     /// ρ: squared world distances between the control points of each pair.
     control_distances_sq: SVector<f64, 6>,
+    /// Mean barycentric coordinates `ᾱ` of the object points.
+    alpha_mean: Vector4<f64>,
+    /// `G = Σ_i (α_i − ᾱ)(P_i − P̄)ᵀ`: with it the cross-covariance of the
+    /// absolute orientation step is `C G` for any camera-frame control
+    /// points C, so recovering a pose costs O(1) instead of O(n).
+    alpha_object_covariance: SMatrix<f64, 4, 3>,
+    /// Centroid `P̄` of the object points.
+    object_centroid: Vector3<f64>,
+}
+
+/// What one pass over the points gives [`EpnpSystem::new`].
+struct PointSums {
+    /// `MᵀM` of eq. 8.
+    normal_matrix: SMatrix<f64, 12, 12>,
+    alpha_mean: Vector4<f64>,
+    alpha_object_covariance: SMatrix<f64, 4, 3>,
+    object_centroid: Vector3<f64>,
 }
 
 /// Lepetit's control points: the centroid, plus one point along each
@@ -65,17 +82,20 @@ impl EpnpSystem {
         image: &[Vector2<f64>],
     ) -> Result<Self, PnpError> {
         let to_barycentric = barycentric_map(&control_world)?;
+        let sums = accumulate_point_sums(&control_world[0], &to_barycentric, object, image);
         let mut system = Self {
             control_world,
             to_barycentric,
             null_space: [Stacked::zeros(); 4],
             distance_products: SMatrix::zeros(),
             control_distances_sq: SVector::zeros(),
+            alpha_mean: sums.alpha_mean,
+            alpha_object_covariance: sums.alpha_object_covariance,
+            object_centroid: sums.object_centroid,
         };
-        let mtm = accumulate_normal_matrix(&control_world[0], &to_barycentric, object, image);
         // Eq. 9: the null space is spanned by the eigenvectors of MᵀM for its
         // four smallest eigenvalues, smallest first.
-        system.null_space = smallest_eigenpairs::<12, 4>(&mtm)
+        system.null_space = smallest_eigenpairs::<12, 4>(&sums.normal_matrix)
             .map_err(|error| PnpError::Degenerate {
                 solver: "EPnP",
                 reason: match error {
@@ -120,12 +140,7 @@ impl EpnpSystem {
         image: &[Vector2<f64>],
     ) -> Result<SMatrix<f64, 12, 12>, PnpError> {
         let to_barycentric = barycentric_map(&control_world)?;
-        Ok(accumulate_normal_matrix(
-            &control_world[0],
-            &to_barycentric,
-            object,
-            image,
-        ))
+        Ok(accumulate_point_sums(&control_world[0], &to_barycentric, object, image).normal_matrix)
     }
 
     /// Barycentric coordinates `α` of `p` with respect to the control points (eq. 4).
@@ -238,31 +253,34 @@ impl EpnpSystem {
     }
 
     /// Recovers the pose from β: camera-frame control points (eq. 9), then
-    /// camera-frame object points (eq. 5), then absolute orientation. The
-    /// overall sign of β is chosen so that the points lie in front of the
-    /// camera.
-    pub fn pose_from_betas(&self, betas: &Vector4<f64>, object: &[Vector3<f64>]) -> Pose {
-        let mut control = self.control_camera(betas);
-        let depth_sum: f64 = object
-            .iter()
-            .map(|p| {
-                let a = self.alphas(p);
-                a[0] * control[0].z
-                    + a[1] * control[1].z
-                    + a[2] * control[2].z
-                    + a[3] * control[3].z
-            })
-            .sum();
-        if depth_sum < 0.0 {
-            for c in &mut control {
-                *c = -*c;
-            }
+    /// absolute orientation between the object points and their camera-frame
+    /// reconstructions `Σ_j α_ij c_j` (eq. 5). The overall sign of β is
+    /// chosen so that the points lie in front of the camera (mean depth
+    /// positive).
+    ///
+    /// Because the reconstructions are linear in the control points, their
+    /// centroid is `C ᾱ` and their cross-covariance with the object points
+    /// is `C G` (C = [c_0 … c_3], G from [`EpnpSystem::new`]): the same
+    /// absolute orientation as over the n points, in O(1).
+    pub fn pose_from_betas(&self, betas: &Vector4<f64>) -> Pose {
+        let control = self.control_camera(betas);
+        let mut camera_centroid = control[0] * self.alpha_mean[0]
+            + control[1] * self.alpha_mean[1]
+            + control[2] * self.alpha_mean[2]
+            + control[3] * self.alpha_mean[3];
+        let mut cross_covariance = Matrix3::zeros();
+        for (j, c) in control.iter().enumerate() {
+            cross_covariance += c * self.alpha_object_covariance.row(j);
         }
-        let camera_points = object.iter().map(move |p| {
-            let a = self.alphas(p);
-            control[0] * a[0] + control[1] * a[1] + control[2] * a[2] + control[3] * a[3]
-        });
-        absolute_orientation(object.iter().copied(), camera_points)
+        if camera_centroid.z < 0.0 {
+            camera_centroid = -camera_centroid;
+            cross_covariance = -cross_covariance;
+        }
+        // FOAM (no SVD) where the cross-covariance is well conditioned, the
+        // SVD projection otherwise: the same rotation either way.
+        let rotation = foam::nearest_rotation(&cross_covariance);
+        let translation = camera_centroid - rotation * self.object_centroid;
+        Pose::new(rotation, translation)
     }
 }
 
@@ -278,31 +296,74 @@ fn barycentric(
     [1.0 - a.x - a.y - a.z, a.x, a.y, a.z]
 }
 
-/// Accumulates `MᵀM` (eq. 8) row pair by row pair (eq. 7), without forming M.
-fn accumulate_normal_matrix(
+/// One pass over the points: `MᵀM` (eq. 8) without forming M, and the
+/// barycentric moments that [`EpnpSystem::pose_from_betas`] needs.
+///
+/// Eq. 7 in normalised coordinates (fx = fy = 1, principal point 0) gives
+/// point i the rows `Σ_j α_ij (x_j − u_i z_j) = 0` and
+/// `Σ_j α_ij (y_j − v_i z_j) = 0`, so the 3×3 block (j, k) of `MᵀM` is
+/// `Σ_i α_ij α_ik [[1, 0, −u_i], [0, 1, −v_i], [−u_i, −v_i, u_i² + v_i²]]`:
+/// four symmetric 4×4 moment matrices (40 products per point) hold it all.
+#[allow(clippy::needless_range_loop)]
+fn accumulate_point_sums(
     control0: &Vector3<f64>,
     to_barycentric: &Matrix3<f64>,
     object: &[Vector3<f64>],
     image: &[Vector2<f64>],
-) -> SMatrix<f64, 12, 12> {
-    // Eq. 7 in normalised coordinates (fx = fy = 1, principal point 0):
-    // Σ_j α_ij x_j − α_ij x_i z_j = 0 and Σ_j α_ij y_j − α_ij y_i z_j = 0.
-    let mut mtm = SMatrix::<f64, 12, 12>::zeros();
+) -> PointSums {
+    // Upper triangles of Σ αα ᵀ, Σ u αα ᵀ, Σ v αα ᵀ, Σ (u²+v²) αα ᵀ, entry
+    // (j, k ≥ j) at index UPPER[j][k].
+    const UPPER: [[usize; 4]; 4] = [[0, 1, 2, 3], [1, 4, 5, 6], [2, 5, 7, 8], [3, 6, 8, 9]];
+    let mut moments = [[0.0f64; 10]; 4];
+    let mut alpha_sum = Vector4::zeros();
+    let mut alpha_offset_sum = SMatrix::<f64, 4, 3>::zeros();
+    let mut offset_sum = Vector3::zeros();
     for (p, m) in object.iter().zip(image) {
-        let alphas = barycentric(control0, to_barycentric, p);
-        let mut row_x = Stacked::zeros();
-        let mut row_y = Stacked::zeros();
-        for (j, &alpha) in alphas.iter().enumerate() {
-            row_x[3 * j] = alpha;
-            row_x[3 * j + 2] = -alpha * m.x;
-            row_y[3 * j + 1] = alpha;
-            row_y[3 * j + 2] = -alpha * m.y;
+        // Offsets from c0 (the centroid, or the paper's reference point)
+        // keep the one-pass moments below free of cancellation.
+        let offset = p - control0;
+        let a = to_barycentric * offset;
+        let alphas = Vector4::new(1.0 - a.x - a.y - a.z, a.x, a.y, a.z);
+        let weights = [1.0, m.x, m.y, m.x * m.x + m.y * m.y];
+        let mut index = 0;
+        for j in 0..4 {
+            for k in j..4 {
+                let product = alphas[j] * alphas[k];
+                for (moment, weight) in moments.iter_mut().zip(weights) {
+                    moment[index] += weight * product;
+                }
+                index += 1;
+            }
         }
-        mtm.syger(1.0, &row_x, &row_x, 1.0);
-        mtm.syger(1.0, &row_y, &row_y, 1.0);
+        alpha_sum += alphas;
+        alpha_offset_sum += alphas * offset.transpose();
+        offset_sum += offset;
     }
-    mtm.fill_upper_triangle_with_lower_triangle();
-    mtm
+    let [plain, by_u, by_v, by_radius] = moments;
+    let mut normal_matrix = SMatrix::<f64, 12, 12>::zeros();
+    for j in 0..4 {
+        for k in 0..4 {
+            let i = UPPER[j][k];
+            let (r, c) = (3 * j, 3 * k);
+            normal_matrix[(r, c)] = plain[i];
+            normal_matrix[(r + 1, c + 1)] = plain[i];
+            normal_matrix[(r, c + 2)] = -by_u[i];
+            normal_matrix[(r + 2, c)] = -by_u[i];
+            normal_matrix[(r + 1, c + 2)] = -by_v[i];
+            normal_matrix[(r + 2, c + 1)] = -by_v[i];
+            normal_matrix[(r + 2, c + 2)] = by_radius[i];
+        }
+    }
+    let count = object.len() as f64;
+    let alpha_mean = alpha_sum / count;
+    let offset_mean = offset_sum / count;
+    PointSums {
+        normal_matrix,
+        alpha_mean,
+        // Σ (α_i − ᾱ)(q_i − q̄)ᵀ = Σ α_i q_iᵀ − n ᾱ q̄ᵀ, with q = P − c0.
+        alpha_object_covariance: alpha_offset_sum - alpha_mean * offset_sum.transpose(),
+        object_centroid: control0 + offset_mean,
+    }
 }
 
 /// Inverse of `[c1−c0, c2−c0, c3−c0]`, the map from `p − c0` to `(α1, α2, α3)`.
@@ -335,18 +396,16 @@ fn solve_least_squares<const C: usize>(
     a: &SMatrix<f64, 6, C>,
     b: &SVector<f64, 6>,
 ) -> SVector<f64, C> {
-    let mut ata = a.transpose() * a;
-    let atb = a.transpose() * b;
-    if let Some(cholesky) = ata.cholesky() {
-        return cholesky.solve(&atb);
+    let mut ata = a.tr_mul(a);
+    let atb = a.tr_mul(b);
+    if let Some(solution) = solve_positive_definite(&ata, &atb) {
+        return solution;
     }
     let ridge = RIDGE_FRACTION * ata.trace() / C as f64;
     for d in 0..C {
         ata[(d, d)] += ridge;
     }
-    ata.cholesky()
-        .map(|c| c.solve(&atb))
-        .unwrap_or_else(SVector::zeros)
+    solve_positive_definite(&ata, &atb).unwrap_or_else(SVector::zeros)
 }
 
 /// Ridge added to a rank-deficient normal matrix, relative to its mean diagonal.
@@ -369,7 +428,7 @@ pub fn solve(
             } else {
                 *betas
             };
-            system.pose_from_betas(&betas, object)
+            system.pose_from_betas(&betas)
         })
         .collect())
 }

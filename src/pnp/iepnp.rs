@@ -69,5 +69,5 @@ pub fn solve(object: &[Vector3<f64>], image: &[Vector2<f64>]) -> Result<Candidat
         std::array::from_fn(|j| initial.transform(&control_world[j]));
     let start = system.betas_from_control_camera(&control_camera);
     let betas = gauss_newton::refine_betas(&system, &start, &gauss_newton::UNIT_WEIGHTS);
-    Ok(smallvec![system.pose_from_betas(&betas, object)])
+    Ok(smallvec![system.pose_from_betas(&betas)])
 }

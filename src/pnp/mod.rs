@@ -12,8 +12,9 @@
 //! camera. No solver falls back to another: a method either runs itself or
 //! returns a [`PnpError`] that says why.
 
-use crate::pose::{reprojection_rms_normalised, Pose};
-use nalgebra::{Matrix3, SymmetricEigen, Vector2, Vector3};
+use crate::linalg::symmetric_eigen_3x3;
+use crate::pose::Pose;
+use nalgebra::{Matrix3, Vector2, Vector3};
 use smallvec::SmallVec;
 
 pub mod dls;
@@ -152,8 +153,9 @@ pub enum Solver {
     /// OPnP: every local minimum of the algebraic cost in a non-unit
     /// quaternion, by a Gröbner-basis solver (Zheng et al., ICCV 2013).
     Opnp,
-    /// Levenberg–Marquardt on reprojection error from the best closed-form
-    /// start: the maximum-likelihood estimate under isotropic Gaussian noise.
+    /// Levenberg–Marquardt on reprojection error from the paper's
+    /// parallel-weighted pose: the maximum-likelihood estimate under
+    /// isotropic Gaussian noise.
     Ml,
 }
 
@@ -228,7 +230,7 @@ impl Solver {
             Solver::Rpnp => "RPnP: every local minimum of the degree-7 cost about the widest edge, then 3D alignment (Li, Xu & Xie 2012)",
             Solver::Sqpnp => "SQPnP: SQP over the rotation entries from the null-space starts, all local minima; coplanar points allowed (Terzakis & Lourakis 2020)",
             Solver::Opnp => "OPnP: all minima of the algebraic cost in a non-unit quaternion, Gröbner-basis solver (Zheng et al. 2013)",
-            Solver::Ml => "Levenberg-Marquardt on reprojection error from the best closed-form start (maximum likelihood)",
+            Solver::Ml => "Levenberg-Marquardt on reprojection error from the paper's parallel-weighted pose (maximum likelihood)",
         }
     }
 
@@ -333,14 +335,44 @@ pub fn best_candidate(
     object: &[Vector3<f64>],
     image: &[Vector2<f64>],
 ) -> Result<Pose, PnpError> {
-    candidates
-        .iter()
-        .filter(|pose| pose.is_finite() && pose.all_in_front(object))
-        .map(|pose| (reprojection_rms_normalised(pose, object, image), pose))
-        .filter(|(error, _)| error.is_finite())
-        .min_by(|a, b| a.0.total_cmp(&b.0))
-        .map(|(_, pose)| *pose)
+    // One pass per candidate: each point is transformed once, both for the
+    // in-front test and for its reprojection error. Comparing sums of
+    // squares ranks the candidates as their RMS errors do.
+    let mut best: Option<(f64, &Pose)> = None;
+    for pose in candidates {
+        if !pose.is_finite() {
+            continue;
+        }
+        let Some(error_sq) = reprojection_error_sq_in_front(pose, object, image) else {
+            continue;
+        };
+        if error_sq.is_finite() && best.is_none_or(|(lowest, _)| error_sq < lowest) {
+            best = Some((error_sq, pose));
+        }
+    }
+    best.map(|(_, pose)| *pose)
         .ok_or(PnpError::BehindCamera { solver })
+}
+
+/// The sum of squared reprojection errors on the normalised image plane,
+/// or `None` if some point is not strictly in front of the camera.
+fn reprojection_error_sq_in_front(
+    pose: &Pose,
+    object: &[Vector3<f64>],
+    image: &[Vector2<f64>],
+) -> Option<f64> {
+    let mut sum = 0.0;
+    for (p, m) in object.iter().zip(image) {
+        let c = pose.transform(p);
+        // NaN depth counts as not in front.
+        let in_front = c.z > 0.0;
+        if !in_front {
+            return None;
+        }
+        let inverse_z = 1.0 / c.z;
+        sum += (Vector2::new(c.x * inverse_z, c.y * inverse_z) - m).norm_squared();
+    }
+    Some(sum)
 }
 
 /// Centroid of a non-empty point set and the RMS distance of the points
@@ -380,11 +412,9 @@ impl Spread {
             let d = p - centroid;
             scatter += d * d.transpose();
         }
-        let eigen = SymmetricEigen::new(scatter / count);
-        let mut order = [0usize, 1, 2];
-        order.sort_by(|&a, &b| eigen.eigenvalues[b].total_cmp(&eigen.eigenvalues[a]));
-        let extents = Vector3::from_fn(|k, _| eigen.eigenvalues[order[k]].max(0.0).sqrt());
-        let axes = Matrix3::from_fn(|r, c| eigen.eigenvectors[(r, order[c])]);
+        // Largest first, so the extents come out ordered.
+        let (variances, axes) = symmetric_eigen_3x3(&(scatter / count));
+        let extents = variances.map(|v| v.max(0.0).sqrt());
         Spread {
             centroid,
             extents,
@@ -435,9 +465,10 @@ pub fn validate_input(
         });
     }
     let duplicate_distance = DUPLICATE_TOLERANCE * scale;
+    let duplicate_distance_sq = duplicate_distance * duplicate_distance;
     for (i, a) in object.iter().enumerate() {
         for (j, b) in object.iter().enumerate().skip(i + 1) {
-            if (a - b).norm() <= duplicate_distance {
+            if (a - b).norm_squared() <= duplicate_distance_sq {
                 return Err(PnpError::DuplicatePoints {
                     first: i,
                     second: j,

@@ -251,49 +251,25 @@ pub fn solve_with_gauss_newton(
     weighted: bool,
 ) -> Result<Candidates, PnpError> {
     let problem = Paraperspective::new(object, image)?;
+    // The initial pose and the control points are in the frame shifted to
+    // the reference point; weights and β0 are computed there.
     let initial = problem.solve(|_| 1.0)?.pose;
-    let control_world = paper_control_points(&problem);
-    // The EPnP system on the shifted object points.
-    let mut shifted = [Vector3::zeros(); STACK_POINTS];
-    let pose = if object.len() <= STACK_POINTS {
-        for (slot, p) in shifted.iter_mut().zip(object) {
-            *slot = p - problem.shift;
-        }
-        weighted_gauss_newton(
-            &control_world,
-            &shifted[..object.len()],
-            image,
-            &initial,
-            weighted,
-        )?
-    } else {
-        let shifted: Vec<Vector3<f64>> = object.iter().map(|p| p - problem.shift).collect();
-        weighted_gauss_newton(&control_world, &shifted, image, &initial, weighted)?
-    };
-    Ok(smallvec![problem.unshift(&pose)])
-}
-
-/// Problems up to this size keep their shifted points on the stack.
-const STACK_POINTS: usize = 32;
-
-fn weighted_gauss_newton(
-    control_world: &[Vector3<f64>; 4],
-    shifted_object: &[Vector3<f64>],
-    image: &[Vector2<f64>],
-    initial: &Pose,
-    weighted: bool,
-) -> Result<Pose, PnpError> {
-    let system = EpnpSystem::new(*control_world, shifted_object, image)?;
+    let control_shifted = paper_control_points(&problem);
     // Eq. 14: control points in the camera frame under the initial pose.
     let control_camera: [Vector3<f64>; 4] =
-        std::array::from_fn(|j| initial.transform(&control_world[j]));
-    // Eq. 16.
-    let start: Vector4<f64> = system.betas_from_control_camera(&control_camera);
+        std::array::from_fn(|j| initial.transform(&control_shifted[j]));
     let weights = if weighted {
-        eq30_weights(control_world, initial)
+        eq30_weights(&control_shifted, &initial)
     } else {
         gauss_newton::UNIT_WEIGHTS
     };
+    // The EPnP system takes the same control points in the caller's frame:
+    // barycentric coordinates do not change under the shift, and the pose
+    // it returns needs no shifting back.
+    let control_world = control_shifted.map(|c| c + problem.shift);
+    let system = EpnpSystem::new(control_world, object, image)?;
+    // Eq. 16.
+    let start: Vector4<f64> = system.betas_from_control_camera(&control_camera);
     let betas = gauss_newton::refine_betas(&system, &start, &weights);
-    Ok(system.pose_from_betas(&betas, shifted_object))
+    Ok(smallvec![system.pose_from_betas(&betas)])
 }
