@@ -172,7 +172,7 @@ fn nearest_rotation_any_det(m: &Matrix3<f64>) -> Rotation3<f64> {
     let kappa = 0.5 * (lambda * lambda - norm_sq);
     let zeta = kappa * lambda - det;
     let unit = norm_sq / 3.0;
-    if !(zeta >= MIN_ZETA_FRACTION * unit * unit.sqrt()) {
+    if zeta.is_nan() || zeta < MIN_ZETA_FRACTION * unit * unit.sqrt() {
         return nearest_rotation(m);
     }
     let rotation =
@@ -180,7 +180,7 @@ fn nearest_rotation_any_det(m: &Matrix3<f64>) -> Rotation3<f64> {
     // λ is a nearly double root when m is nearly rank one, and Newton then
     // leaves it inaccurate; the result shows it by not being orthogonal.
     let orthogonality = (rotation * rotation.transpose() - Matrix3::identity()).norm_squared();
-    if !(orthogonality <= FOAM_ORTHOGONALITY_SQUARED_TOLERANCE) {
+    if orthogonality.is_nan() || orthogonality > FOAM_ORTHOGONALITY_SQUARED_TOLERANCE {
         return nearest_rotation(m);
     }
     Rotation3::from_matrix_unchecked(rotation)
@@ -205,20 +205,20 @@ const START_NEWTON_TOLERANCE: f64 = 1e-15;
 #[inline]
 fn solve_ldlt3(a: &Matrix3<f64>, b: &Vector3<f64>) -> Option<Vector3<f64>> {
     let d0 = a[(0, 0)];
-    if !(d0 > 0.0) {
+    if d0.is_nan() || d0 <= 0.0 {
         return None;
     }
     let inv_d0 = d0.recip();
     let l10 = a[(1, 0)] * inv_d0;
     let l20 = a[(2, 0)] * inv_d0;
     let d1 = a[(1, 1)] - l10 * a[(1, 0)];
-    if !(d1 > 0.0) {
+    if d1.is_nan() || d1 <= 0.0 {
         return None;
     }
     let inv_d1 = d1.recip();
     let l21 = (a[(2, 1)] - l20 * a[(1, 0)]) * inv_d1;
     let d2 = a[(2, 2)] - l20 * a[(2, 0)] - l21 * l21 * d1;
-    if !(d2 > 0.0) {
+    if d2.is_nan() || d2 <= 0.0 {
         return None;
     }
     let y0 = b[0];
@@ -378,8 +378,8 @@ impl SqpnpSystem {
             [r0.dot(&r2), r1.dot(&r2), r2.dot(&r2) - 1.0],
         ];
         let mut particular = Vector9::zeros();
-        for a in 0..3 {
-            let p = (s[0] * gram[a][0] + s[1] * gram[a][1] + s[2] * gram[a][2]) * -0.5;
+        for (a, g) in gram.iter().enumerate() {
+            let p = (s[0] * g[0] + s[1] * g[1] + s[2] * g[2]) * -0.5;
             particular.fixed_rows_mut::<3>(3 * a).copy_from(&p);
         }
         // Null-space basis, column k = vec([e_k]× S).
@@ -413,9 +413,12 @@ impl SqpnpSystem {
 /// basis); the full decomposition is computed only if a solve asks for a
 /// pair beyond them (it needs more than four null vectors, or a best cost
 /// above three times the fifth eigenvalue).
-enum OmegaEigen {
-    Smallest(SmallestEigenpairs<9, EAGER_EIGENPAIRS>, Matrix9),
-    Full([f64; 9], Matrix9),
+struct OmegaEigen {
+    omega: Matrix9,
+    smallest: SmallestEigenpairs<9, EAGER_EIGENPAIRS>,
+    /// All eigenvalues ascending and their eigenvectors as columns, once a
+    /// pair beyond the eager ones has been asked for.
+    full: Option<([f64; 9], Matrix9)>,
 }
 
 /// How many of Ω's smallest eigenpairs are computed up front (see
@@ -425,49 +428,48 @@ pub const EAGER_EIGENPAIRS: usize = 5;
 
 impl OmegaEigen {
     fn new(omega: &Matrix9) -> Result<Self, PnpError> {
-        let pairs = smallest_eigenpairs::<9, EAGER_EIGENPAIRS>(omega).map_err(|_| {
+        let smallest = smallest_eigenpairs::<9, EAGER_EIGENPAIRS>(omega).map_err(|_| {
             PnpError::Degenerate {
                 solver: NAME,
                 reason: "eigen-decomposition of Omega failed",
             }
         })?;
-        Ok(Self::Smallest(pairs, *omega))
+        Ok(Self {
+            omega: *omega,
+            smallest,
+            full: None,
+        })
     }
 
-    /// Switches to the full decomposition, ascending.
-    fn make_full(&mut self) {
-        let Self::Smallest(_, omega) = self else {
-            return;
-        };
-        let eigen = SymmetricEigen::new(*omega);
-        let mut order: [usize; 9] = std::array::from_fn(|i| i);
-        order.sort_by(|&a, &b| eigen.eigenvalues[a].total_cmp(&eigen.eigenvalues[b]));
-        let values = order.map(|i| eigen.eigenvalues[i]);
-        let vectors = Matrix9::from_fn(|row, k| eigen.eigenvectors[(row, order[k])]);
-        *self = Self::Full(values, vectors);
+    /// The full decomposition, ascending (computed on first use).
+    fn full(&mut self) -> &([f64; 9], Matrix9) {
+        let omega = self.omega;
+        self.full.get_or_insert_with(|| {
+            let eigen = SymmetricEigen::new(omega);
+            let mut order: [usize; 9] = std::array::from_fn(|i| i);
+            order.sort_by(|&a, &b| eigen.eigenvalues[a].total_cmp(&eigen.eigenvalues[b]));
+            let values = order.map(|i| eigen.eigenvalues[i]);
+            let vectors = Matrix9::from_fn(|row, k| eigen.eigenvectors[(row, order[k])]);
+            (values, vectors)
+        })
     }
 
     /// The k-th smallest eigenvalue (NaN if the full decomposition fails,
-    /// which ends every comparison).
+    /// which ends every comparison). Once the full decomposition exists,
+    /// every pair comes from it, so that the vectors used stay orthonormal.
     fn value(&mut self, k: usize) -> f64 {
-        if k >= EAGER_EIGENPAIRS {
-            self.make_full();
+        if k >= EAGER_EIGENPAIRS || self.full.is_some() {
+            return self.full().0[k];
         }
-        match self {
-            Self::Smallest(pairs, _) => pairs.values[k],
-            Self::Full(values, _) => values[k],
-        }
+        self.smallest.values[k]
     }
 
     /// A unit eigenvector of the k-th smallest eigenvalue.
     fn vector(&mut self, k: usize) -> Vector9 {
-        if k >= EAGER_EIGENPAIRS {
-            self.make_full();
+        if k >= EAGER_EIGENPAIRS || self.full.is_some() {
+            return self.full().1.column(k).into_owned();
         }
-        match self {
-            Self::Smallest(pairs, _) => pairs.vectors[k],
-            Self::Full(_, vectors) => vectors.column(k).into_owned(),
-        }
+        self.smallest.vectors[k]
     }
 }
 
@@ -655,6 +657,30 @@ mod tests {
             assert!(
                 (pose.translation - truth.translation).norm() < 1e-9 * truth.translation.norm()
             );
+        }
+    }
+
+    #[test]
+    fn lazy_eigenpairs_are_eigenpairs_before_and_after_the_full_switch() {
+        let (object, image, _) = problem(7, false);
+        let system = SqpnpSystem::new(&object, &image).unwrap();
+        let omega = *system.omega();
+        let mut eigen = OmegaEigen::new(&omega).unwrap();
+        let check = |value: f64, vector: Vector9| {
+            assert!((omega * vector - vector * value).norm() < 1e-12 * omega.norm());
+            assert!((vector.norm() - 1.0).abs() < 1e-12);
+        };
+        let eager: Vec<f64> = (0..EAGER_EIGENPAIRS).map(|k| eigen.value(k)).collect();
+        for k in 0..EAGER_EIGENPAIRS {
+            check(eigen.value(k), eigen.vector(k));
+        }
+        assert!(eigen.full.is_none());
+        for k in 0..9 {
+            check(eigen.value(k), eigen.vector(k));
+        }
+        assert!(eigen.full.is_some());
+        for (k, value) in eager.iter().enumerate() {
+            assert!((eigen.value(k) - value).abs() < 1e-12 * omega.norm());
         }
     }
 
