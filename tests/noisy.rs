@@ -11,7 +11,7 @@ mod common;
 use common::{errors, problem, Family};
 use layout_opt::camera::Camera;
 use layout_opt::error_model::first_order::pose_covariance_isotropic;
-use layout_opt::pnp::Solver;
+use layout_opt::pnp::{best_candidate, rpnp, Solver};
 
 const SIGMA_PX: f64 = 0.5;
 const SEED: u64 = 7;
@@ -125,14 +125,55 @@ fn sqpnp_is_within_10_percent_of_the_limit() {
 /// RPnP was asked to be within 20%; it is not on the random sets. Measured
 /// (this harness, seed 7): biprism 1.015; random n = 6…100 1.271, growing
 /// with n (1.15 for n < 15, 1.16 for 15–29, 1.18 for 30–59, 1.39 for
-/// n ≥ 60). The method fixes its rotation axis from an algebraic cost over
-/// triplets that all share one edge, and its linear step minimises an
-/// algebraic (depth-weighted) error; neither is refined against the image
-/// error, so the excess over the limit grows with n. The bound here is the
-/// measured behaviour of the published method, not a target it meets.
+/// n ≥ 60). The implementation follows the authors' `RPnP.m` step by step
+/// (the triplet quartic is checked against theirs in `pnp::rpnp`'s tests;
+/// the 6×6 system, the line-of-sight placement and the 3D alignment are
+/// theirs). The excess is the method's: its rotation axis in the camera frame
+/// is fixed by the two image points of the widest pair and one scalar, so
+/// the noise of those two points does not average out as n grows, and the
+/// final alignment (one object-space step) removes only part of it. With
+/// just those two image points made noise-free the excess vanishes (next
+/// test). The bound here is the measured behaviour of the published method,
+/// not a target it meets.
 #[test]
 fn rpnp_is_within_30_percent_of_the_limit() {
     check(Solver::Rpnp, 0.30);
+}
+
+/// The cause of RPnP's excess over the limit: on the same problems, with
+/// only the two image points of its axis pair ([`rpnp::axis_pair`], chosen
+/// on the noisy image) replaced by their noise-free projections, RPnP is
+/// within 10% of the (full-noise) limit on both families. Measured: biprism
+/// 0.927, random n = 6…100 1.008 (by n: 0.93, 0.99, 1.02, 1.03), against
+/// 1.015 and 1.271 with every point noisy.
+#[test]
+fn rpnp_reaches_the_limit_when_its_axis_pair_is_noise_free() {
+    let camera = Camera::paper();
+    for family in [Family::Biprism, Family::Random] {
+        let (mut sum_sq_ratio, mut counted) = (0.0, 0usize);
+        for case in 0..250 {
+            let p = problem(SEED, family, 2 * case, SIGMA_PX);
+            let limit_deg = pose_covariance_isotropic(&camera, &p.truth, &p.object, SIGMA_PX)
+                .expect("the generating pose is observable")
+                .rms_rotation_deg();
+            let (i1, i2) = rpnp::axis_pair(&p.normalised);
+            let mut image = p.normalised.clone();
+            for i in [i1, i2] {
+                image[i] = p.truth.project_normalised(&p.object[i]);
+            }
+            let candidates = rpnp::solve(&p.object, &image).expect("RPnP solves it");
+            let pose = best_candidate("RPnP", &candidates, &p.object, &image).expect("a pose");
+            let (rotation_deg, _) = errors(&p, &pose);
+            if rotation_deg <= GROSS_DEG {
+                sum_sq_ratio += (rotation_deg / limit_deg).powi(2);
+                counted += 1;
+            }
+        }
+        let ratio = (sum_sq_ratio / counted as f64).sqrt();
+        eprintln!("rpnp with a noise-free axis pair, {family:?}: RMS/CRLB = {ratio:.3}, {counted} of 250 counted");
+        assert!(counted >= 248, "{family:?}: {counted} of 250");
+        assert!(ratio <= 1.10, "{family:?}: RMS/CRLB = {ratio:.3}");
+    }
 }
 
 #[test]
