@@ -244,13 +244,13 @@ struct FileOut<'a, S, I> {
     anneal_rng: &'a ChaCha8Rng,
 }
 
+/// The executor's part of a checkpoint file (the start-level fields are
+/// read by [`StartCheckpoint::restore_start_state`]).
 #[derive(Deserialize)]
 struct FileIn<S, I> {
     version: u32,
     solver: S,
     state: I,
-    best_params: Option<Vec<f64>>,
-    anneal_rng: ChaCha8Rng,
 }
 
 /// The argmin checkpoint of one start's optimiser phase.
@@ -340,7 +340,6 @@ where
         };
         let file: FileIn<S, I> = ciborium::from_reader(bytes.as_slice())?;
         self.check_version(file.version)?;
-        let _ = (file.best_params, file.anneal_rng);
         Ok(Some((file.solver, file.state)))
     }
 
