@@ -44,35 +44,102 @@ pub fn nearest_rotation(m: &Matrix3<f64>) -> Rotation3<f64> {
     if !norm_sq.is_finite() || det.is_nan() || det < SINGULAR_DETERMINANT_FRACTION * unit_cube {
         return pose::nearest_rotation(m);
     }
-    // adj(M)ᵀ = cofactor matrix; ‖adj M‖² is the same either way.
-    let cofactor = Matrix3::from_columns(&[
-        m.column(1).cross(&m.column(2)),
-        m.column(2).cross(&m.column(0)),
-        m.column(0).cross(&m.column(1)),
-    ]);
-    let adj_norm_sq = cofactor.norm_squared();
-    let mut lambda = (3.0 * norm_sq).sqrt();
-    for _ in 0..MAX_NEWTON_STEPS {
-        let shifted = lambda * lambda - norm_sq;
-        let value = shifted * shifted - 8.0 * lambda * det - 4.0 * adj_norm_sq;
-        let slope = 4.0 * lambda * shifted - 8.0 * det;
-        if slope.is_nan() || slope <= 0.0 {
-            break;
+    let Some(foam) = Foam::of(m, norm_sq, det) else {
+        return pose::nearest_rotation(m);
+    };
+    Rotation3::from_matrix_unchecked(foam.rotation)
+}
+
+/// FOAM's closed form for `m`: the candidate rotation with its divisor ζ,
+/// before any conditioning test; `None` when the result is not finite.
+struct Foam {
+    rotation: Matrix3<f64>,
+    zeta: f64,
+}
+
+impl Foam {
+    /// Largest root λ of the quartic by Newton from above (the quartic is
+    /// convex and increasing beyond it), then the rotation formula.
+    fn of(m: &Matrix3<f64>, norm_sq: f64, det: f64) -> Option<Foam> {
+        // adj(M)ᵀ = cofactor matrix; ‖adj M‖² is the same either way.
+        let cofactor = Matrix3::from_columns(&[
+            m.column(1).cross(&m.column(2)),
+            m.column(2).cross(&m.column(0)),
+            m.column(0).cross(&m.column(1)),
+        ]);
+        let adj_norm_sq = cofactor.norm_squared();
+        let mut lambda = (3.0 * norm_sq).sqrt();
+        for _ in 0..MAX_NEWTON_STEPS {
+            let shifted = lambda * lambda - norm_sq;
+            let value = shifted * shifted - 8.0 * lambda * det - 4.0 * adj_norm_sq;
+            let slope = 4.0 * lambda * shifted - 8.0 * det;
+            if slope.is_nan() || slope <= 0.0 {
+                break;
+            }
+            let step = value / slope;
+            lambda -= step;
+            if step.abs() <= NEWTON_TOLERANCE * lambda.abs() {
+                break;
+            }
         }
-        let step = value / slope;
-        lambda -= step;
-        if step.abs() <= NEWTON_TOLERANCE * lambda.abs() {
-            break;
-        }
+        let kappa = 0.5 * (lambda * lambda - norm_sq);
+        let zeta = kappa * lambda - det;
+        let rotation = ((kappa + norm_sq) * m + lambda * cofactor - m * m.transpose() * m) / zeta;
+        rotation
+            .iter()
+            .all(|v| v.is_finite())
+            .then_some(Foam { rotation, zeta })
     }
-    let kappa = 0.5 * (lambda * lambda - norm_sq);
-    let zeta = kappa * lambda - det;
-    let rotation = ((kappa + norm_sq) * m + lambda * cofactor - m * m.transpose() * m) / zeta;
-    if !rotation.iter().all(|v| v.is_finite()) {
+}
+
+/// The rotation nearest to `m` by FOAM for either sign of `det m`,
+/// guarded by its own conditioning rather than by the sign and size of
+/// `det m`.
+///
+/// SQPnP starts SQP from the nearest rotations to `±√3 e`: one of the two
+/// always has a negative determinant, and in the far field the eigenvectors
+/// beyond the first are often nearly rank-one matrices. The shared
+/// [`nearest_rotation`] sends both cases to an SVD, which made the
+/// projections a sixth of the solve. FOAM's formula holds for either sign:
+/// its divisor is `ζ = κλ − det m`, which equals `(s₁ + s₂)(s₁ + s₃)(s₂ + s₃)`
+/// for `det m ≥ 0` and `(s₁ + s₂)(s₁ − s₃)(s₂ − s₃)` for `det m < 0`
+/// (singular values `s₁ ≥ s₂ ≥ s₃`), small only where the nearest rotation
+/// itself is ill-determined (`m` nearly of rank one, or `s₂ ≈ s₃` with a
+/// negative determinant). The SVD projection ([`pose::nearest_rotation`])
+/// decides when ζ is below [`MIN_ZETA_FRACTION`] of `(‖m‖²/3)^{3/2}` or when
+/// the FOAM result is not orthogonal to
+/// [`FOAM_ORTHOGONALITY_SQUARED_TOLERANCE`] (λ inaccurate: it is a nearly
+/// double root when `m` is nearly of rank one).
+pub fn nearest_rotation_any_det(m: &Matrix3<f64>) -> Rotation3<f64> {
+    let det = m.determinant();
+    let norm_sq = m.norm_squared();
+    if !norm_sq.is_finite() || det.is_nan() || norm_sq == 0.0 {
         return pose::nearest_rotation(m);
     }
-    Rotation3::from_matrix_unchecked(rotation)
+    let unit = norm_sq / 3.0;
+    let Some(foam) = Foam::of(m, norm_sq, det)
+        .filter(|foam| foam.zeta >= MIN_ZETA_FRACTION * unit * unit.sqrt())
+    else {
+        return pose::nearest_rotation(m);
+    };
+    // λ is a nearly double root when m is nearly rank one, and Newton then
+    // leaves it inaccurate; the result shows it by not being orthogonal.
+    let r = foam.rotation;
+    let orthogonality = (r * r.transpose() - Matrix3::identity()).norm_squared();
+    if orthogonality.is_nan() || orthogonality > FOAM_ORTHOGONALITY_SQUARED_TOLERANCE {
+        return pose::nearest_rotation(m);
+    }
+    Rotation3::from_matrix_unchecked(r)
 }
+
+/// [`nearest_rotation_any_det`] leaves `m` to the SVD when
+/// `ζ < MIN_ZETA_FRACTION (‖m‖²/3)^{3/2}` (a division by nearly zero).
+/// FOAM's rounding grows like `ε / ζ`; the orthogonality test catches what
+/// this lets through.
+pub const MIN_ZETA_FRACTION: f64 = 1e-6;
+/// A FOAM result whose `‖R Rᵀ − I‖²` exceeds this is discarded for the SVD
+/// (it would mean λ, and with it the rotation, is inaccurate).
+pub const FOAM_ORTHOGONALITY_SQUARED_TOLERANCE: f64 = 1e-24;
 
 #[cfg(test)]
 mod tests {
@@ -115,5 +182,35 @@ mod tests {
             truth.matrix() * Matrix3::from_diagonal(&nalgebra::Vector3::new(3.0, 2.0, 0.0));
         let foam = nearest_rotation(&rank_two);
         assert!((foam.matrix() - pose::nearest_rotation(&rank_two).matrix()).norm() < 1e-12);
+    }
+
+    #[test]
+    fn foam_projection_agrees_with_the_svd_for_either_sign() {
+        use rand::Rng;
+        let mut worst = 0.0f64;
+        for case in 0..4000 {
+            let mut rng = stream_rng(11, 81, case);
+            let scale = 10f64.powf(rng.random_range(-3.0..3.0));
+            let mut m = Matrix3::from_fn(|_, _| rng.random_range(-1.0..1.0)) * scale;
+            if case % 2 == 1 {
+                // Nearly singular, either sign: s₃ shrunk by up to 1e-12.
+                let svd = m.svd(true, true);
+                let mut s = svd.singular_values;
+                s[2] *= 10f64.powf(rng.random_range(-12.0..0.0));
+                m = svd.u.unwrap() * Matrix3::from_diagonal(&s) * svd.v_t.unwrap();
+            }
+            let svd = pose::nearest_rotation(&m);
+            let ours = nearest_rotation_any_det(&m);
+            let difference = (svd.matrix() - ours.matrix()).norm();
+            worst = worst.max(difference);
+            let r = ours.matrix();
+            let ortho = (r.transpose() * r - Matrix3::identity()).norm();
+            assert!(
+                difference < 1e-9 && ortho < 1e-12,
+                "case {case}: {difference:e}, {ortho:e}\n{m}"
+            );
+            assert!((r.determinant() - 1.0).abs() < 1e-12);
+        }
+        eprintln!("worst difference from the SVD projection: {worst:e}");
     }
 }
