@@ -87,6 +87,15 @@ pub enum Optimiser {
     Annealing,
 }
 
+impl Optimiser {
+    /// Every optimiser.
+    pub const ALL: [Optimiser; 3] = [
+        Optimiser::NelderMead,
+        Optimiser::ParticleSwarm,
+        Optimiser::Annealing,
+    ];
+}
+
 impl std::str::FromStr for Optimiser {
     type Err = String;
     fn from_str(text: &str) -> Result<Self, Self::Err> {
@@ -804,11 +813,7 @@ mod tests {
     #[test]
     fn every_optimiser_improves_on_a_shrunken_start_and_is_deterministic() {
         let (family, evaluator) = setup();
-        for optimiser in [
-            Optimiser::NelderMead,
-            Optimiser::ParticleSwarm,
-            Optimiser::Annealing,
-        ] {
+        for optimiser in Optimiser::ALL {
             let settings = SearchSettings {
                 optimiser,
                 starts: 2,
@@ -838,11 +843,7 @@ mod tests {
     #[test]
     fn a_stop_flag_ends_the_search() {
         let (family, evaluator) = setup();
-        for optimiser in [
-            Optimiser::NelderMead,
-            Optimiser::ParticleSwarm,
-            Optimiser::Annealing,
-        ] {
+        for optimiser in Optimiser::ALL {
             let settings = SearchSettings {
                 optimiser,
                 starts: 2,
@@ -884,11 +885,7 @@ mod tests {
     #[test]
     fn an_interrupted_search_resumes_to_the_same_winner() {
         let (family, evaluator) = setup();
-        for optimiser in [
-            Optimiser::NelderMead,
-            Optimiser::ParticleSwarm,
-            Optimiser::Annealing,
-        ] {
+        for optimiser in Optimiser::ALL {
             let settings = SearchSettings {
                 optimiser,
                 starts: 2,
