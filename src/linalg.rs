@@ -233,15 +233,21 @@ fn load_scaled<const N: usize>(
     a: &SMatrix<f64, N, N>,
     work: &mut [[f64; N]; N],
 ) -> Result<Option<f64>, EigenError> {
-    // nalgebra stores a fixed-size matrix as its array of columns.
+    // nalgebra stores a fixed-size matrix as its array of columns. Mirror
+    // the lower triangle first, so that the scans below run over whole
+    // columns (and vectorise).
     *work = a.data.0;
-    // Max-norm of the lower triangle, row by row in parallel; `x − x` is NaN
-    // exactly when x is not finite, so a probe sum is NaN iff an entry is.
+    for j in 1..N {
+        for i in 0..j {
+            work[j][i] = work[i][j];
+        }
+    }
+    // Max-norm, column by column; `x − x` is NaN exactly when x is not
+    // finite, so a probe sum is NaN iff an entry is.
     let mut row_max = [0.0f64; N];
     let mut row_probe = [0.0f64; N];
-    for (j, column) in work.iter().enumerate() {
+    for column in work.iter() {
         for (i, &value) in column.iter().enumerate() {
-            let value = if i >= j { value } else { 0.0 };
             #[allow(clippy::eq_op)]
             let probe = value - value;
             row_probe[i] += probe;
@@ -255,7 +261,7 @@ fn load_scaled<const N: usize>(
     }
     if !row_probe.iter().sum::<f64>().is_finite() {
         for (j, column) in work.iter().enumerate() {
-            if let Some(i) = (j..N).find(|&i| !column[i].is_finite()) {
+            if let Some(i) = (0..N).find(|&i| !column[i].is_finite()) {
                 return Err(EigenError::NonFinite { row: i, column: j });
             }
         }
@@ -275,11 +281,6 @@ fn load_scaled<const N: usize>(
     for column in work.iter_mut() {
         for value in column.iter_mut() {
             *value = *value * prescale * scale;
-        }
-    }
-    for j in 1..N {
-        for i in 0..j {
-            work[j][i] = work[i][j];
         }
     }
     Ok(Some(max_abs))
