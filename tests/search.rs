@@ -207,6 +207,10 @@ fn bad_arguments_are_clear_errors() {
         (&["--objective", "fast"][..], "unknown objective"),
         (&["--envelope", "1,2"][..], "cannot parse envelope"),
         (&["--iterations", "0"][..], "iterations must be at least 1"),
+        (
+            &["--start-jitter", "2"][..],
+            "start jitter must be a fraction",
+        ),
     ] {
         layout_opt()
             .arg("search")

@@ -4,7 +4,10 @@
 //! * Every random stream is seeded from (seed, start): particle swarm gets a
 //!   seeded ChaCha generator (argmin's default draws from the OS), annealing
 //!   perturbs with its own seeded generator, and random starts are drawn from
-//!   `stream_rng(seed, START_STREAM, start)`.
+//!   `stream_rng(seed, START_STREAM, start)`: uniformly within bounds, or,
+//!   with a start jitter, around the spread start (basin hopping from the
+//!   best structured start rather than a blind sample of a 20-odd-dimensional
+//!   box, where random starts rarely reach the good basins).
 //! * Every run has a bounded iteration count (Nelder–Mead has no bounds and
 //!   may never converge on a noisy objective). Parameters outside the
 //!   family's bounds are clamped before evaluation and penalised by
@@ -116,9 +119,13 @@ pub struct SearchSettings {
     /// The optimiser.
     pub optimiser: Optimiser,
     /// Independent starts: start 0 is the family's natural start, start 1 its
-    /// maximum-spread start ([`Family::spread`]), the others random within
-    /// bounds.
+    /// maximum-spread start ([`Family::spread`]), the others random (see
+    /// [`SearchSettings::start_jitter`]).
     pub starts: usize,
+    /// Starts 2… : 0 draws them uniformly within bounds; a fraction f in
+    /// (0, 1] draws each parameter of the spread start plus a uniform offset
+    /// within ± f of that parameter's range, clamped into bounds.
+    pub start_jitter: f64,
     /// Iterations of the main optimiser per start.
     pub iterations: u64,
     /// Particles (particle swarm).
@@ -563,18 +570,7 @@ fn run_start<'a>(
     checkpoints: Option<&Checkpoints>,
 ) -> Result<Option<Candidate>, argmin::core::Error> {
     let (lower, upper) = (&bounds.0, &bounds.1);
-    let initial = if start == 0 {
-        family.initial()
-    } else if start == 1 {
-        family.spread()
-    } else {
-        let mut rng = stream_rng(settings.seed, START_STREAM, start as u64);
-        lower
-            .iter()
-            .zip(upper)
-            .map(|(lo, hi)| rng.random_range(*lo..=*hi))
-            .collect()
-    };
+    let initial = start_point(family, settings, bounds, start);
     let problem = LayoutProblem {
         family,
         evaluator,
@@ -668,6 +664,40 @@ fn run_start<'a>(
     Ok(best)
 }
 
+/// The parameters start `start` begins from (before its repair): the
+/// family's natural start, its spread start, then seeded random points, as
+/// [`SearchSettings`] describes.
+fn start_point(
+    family: &Family,
+    settings: &SearchSettings,
+    (lower, upper): &(Vec<f64>, Vec<f64>),
+    start: usize,
+) -> Vec<f64> {
+    match start {
+        0 => family.initial(),
+        1 => family.spread(),
+        _ => {
+            let mut rng = stream_rng(settings.seed, START_STREAM, start as u64);
+            let jitter = settings.start_jitter;
+            if jitter > 0.0 {
+                let centre = family.spread();
+                let jittered: Vec<f64> = centre
+                    .iter()
+                    .zip(lower.iter().zip(upper))
+                    .map(|(c, (lo, hi))| c + jitter * (hi - lo) * rng.random_range(-1.0..=1.0))
+                    .collect();
+                family.clamp(&jittered)
+            } else {
+                lower
+                    .iter()
+                    .zip(upper)
+                    .map(|(lo, hi)| rng.random_range(*lo..=*hi))
+                    .collect()
+            }
+        }
+    }
+}
+
 /// Minimises `evaluator`'s cost over `family`'s parameters, checkpointing
 /// into (and resuming from) `checkpoints` when given.
 pub fn run(
@@ -682,6 +712,12 @@ pub fn run(
         return Err(SearchError::Settings(
             "starts and iterations must be at least 1".into(),
         ));
+    }
+    if !(0.0..=1.0).contains(&settings.start_jitter) {
+        return Err(SearchError::Settings(format!(
+            "the start jitter must be a fraction of each parameter's range in [0, 1], got {}",
+            settings.start_jitter
+        )));
     }
     if settings.optimiser == Optimiser::ParticleSwarm && settings.particles < 2 {
         return Err(SearchError::Settings(
@@ -821,6 +857,7 @@ mod tests {
                 particles: 8,
                 polish_iterations: 40,
                 seed: 5,
+                start_jitter: 0.0,
             };
             let stop = AtomicBool::new(false);
             let a = run(&family, &evaluator, &settings, &stop, Arc::new(Quiet), None).unwrap();
@@ -841,6 +878,52 @@ mod tests {
     }
 
     #[test]
+    fn jittered_starts_stay_near_the_spread_start_and_are_seeded() {
+        let (family, _) = setup();
+        let bounds = family.bounds();
+        let spread = family.spread();
+        let mut settings = SearchSettings {
+            optimiser: Optimiser::NelderMead,
+            starts: 6,
+            iterations: 1,
+            particles: 2,
+            polish_iterations: 0,
+            seed: 3,
+            start_jitter: 0.05,
+        };
+        let mut moved = false;
+        for start in 2..6 {
+            let point = start_point(&family, &settings, &bounds, start);
+            assert_eq!(point, start_point(&family, &settings, &bounds, start));
+            for (k, x) in point.iter().enumerate() {
+                let range = bounds.1[k] - bounds.0[k];
+                assert!((bounds.0[k]..=bounds.1[k]).contains(x));
+                assert!((x - spread[k]).abs() <= 0.05 * range + 1e-12);
+                moved |= (x - spread[k]).abs() > 1e-3 * range;
+            }
+        }
+        assert!(moved, "the jitter moved nothing");
+        // Without jitter the same starts are uniform draws within bounds.
+        settings.start_jitter = 0.0;
+        let far = (2..6).any(|start| {
+            let point = start_point(&family, &settings, &bounds, start);
+            point
+                .iter()
+                .zip(&spread)
+                .enumerate()
+                .any(|(k, (x, c))| (x - c).abs() > 0.05 * (bounds.1[k] - bounds.0[k]))
+        });
+        assert!(far);
+        settings.start_jitter = 1.5;
+        let stop = AtomicBool::new(false);
+        let (_, evaluator) = setup();
+        assert!(matches!(
+            run(&family, &evaluator, &settings, &stop, Arc::new(Quiet), None),
+            Err(SearchError::Settings(_))
+        ));
+    }
+
+    #[test]
     fn a_stop_flag_ends_the_search() {
         let (family, evaluator) = setup();
         for optimiser in Optimiser::ALL {
@@ -851,6 +934,7 @@ mod tests {
                 particles: 8,
                 polish_iterations: 100_000,
                 seed: 5,
+                start_jitter: 0.0,
             };
             let stop = AtomicBool::new(true);
             let started = std::time::Instant::now();
@@ -893,6 +977,7 @@ mod tests {
                 particles: 6,
                 polish_iterations: 50,
                 seed: 11,
+                start_jitter: 0.0,
             };
             let config = serde_json::json!({"optimiser": format!("{optimiser:?}")});
             let root = std::env::temp_dir()

@@ -253,10 +253,18 @@ fn markdown(summary: &SearchSummary, table: &Table) -> String {
         h.objective.objective, h.objective.aggregate, h.objective.translation_weight, h.objective.availability_weight,
         h.objective.noise.describe(), h.objective.seed
     );
+    let further_starts = if h.search.start_jitter > 0.0 {
+        format!(
+            "within ± {} of each parameter's range around the spread start",
+            h.search.start_jitter
+        )
+    } else {
+        "uniform within bounds".to_string()
+    };
     let _ = writeln!(
         out,
-        "| optimiser | {:?}, {} starts × {} iterations ({} particles), Nelder–Mead polish {} iterations, seed {} |",
-        h.search.optimiser, h.search.starts, h.search.iterations, h.search.particles, h.search.polish_iterations, h.search.seed
+        "| optimiser | {:?}, {} starts × {} iterations ({} particles), Nelder–Mead polish {} iterations, seed {}; start 0 the family's natural start, start 1 its spread start, the rest {} |",
+        h.search.optimiser, h.search.starts, h.search.iterations, h.search.particles, h.search.polish_iterations, h.search.seed, further_starts
     );
     let _ = writeln!(
         out,
