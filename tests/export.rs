@@ -53,6 +53,26 @@ struct Figures {
     max_surface_error_mm: f64,
 }
 
+/// Export options for `formats`, seen along `view`, mounted along `mount`
+/// with the given mounting holes (e.g. "M3"), at the default resolution.
+fn options_with(
+    formats: Vec<Format>,
+    view: Axis,
+    mount: Axis,
+    holes: Option<&str>,
+) -> ExportOptions {
+    ExportOptions {
+        formats,
+        marker: MarkerOptions {
+            view,
+            mount,
+            mount_holes: holes.map(|h| h.parse::<MountHoles>().unwrap()),
+            ..Default::default()
+        },
+        resolution_mm: None,
+    }
+}
+
 /// Exports, reads every format back and checks every acceptance criterion.
 fn export_and_check(layout: &Layout, options: &ExportOptions, label: &str) -> Figures {
     let dir = tempfile::tempdir().unwrap();
@@ -192,16 +212,7 @@ fn mounting_holes_views_and_mounts() {
         (Axis::NEG_Y, Axis::POS_X, None),
     ];
     for (view, mount, holes) in cases {
-        let options = ExportOptions {
-            formats: vec![Format::Stl, Format::Glb],
-            marker: MarkerOptions {
-                view,
-                mount,
-                mount_holes: holes.map(|h| h.parse::<MountHoles>().unwrap()),
-                ..Default::default()
-            },
-            resolution_mm: None,
-        };
+        let options = options_with(vec![Format::Stl, Format::Glb], view, mount, holes);
         let label = format!("view {view}, mount {mount}, holes {holes:?}");
         let figures = export_and_check(&layout, &options, &label);
         println!("{label}: {figures:?}");
@@ -218,16 +229,7 @@ fn random_layouts_export_sound_meshes() {
             2 => (Axis::POS_X, Axis::NEG_Z, None),
             _ => (Axis::POS_Z, Axis::POS_Z, Some("M4x4")),
         };
-        ExportOptions {
-            formats: Format::ALL.to_vec(),
-            marker: MarkerOptions {
-                view,
-                mount,
-                mount_holes: holes.map(|h| h.parse::<MountHoles>().unwrap()),
-                ..Default::default()
-            },
-            resolution_mm: None,
-        }
+        options_with(Format::ALL.to_vec(), view, mount, holes)
     };
     for case in 0..12 {
         let count = 4 + (case as usize * 5) % 7; // 4..=10 points

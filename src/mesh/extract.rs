@@ -364,13 +364,12 @@ fn resolve_ambiguities(sdf: &mut [f32], near: f32, field: impl Fn([f64; 3]) -> f
                         let inside_connects = field(centre) < 0.0;
                         // Move the corner of the sign that must not connect
                         // across (positive if the inside connects).
-                        let flip = (0..4)
-                            .filter(|&k| negative[k] != inside_connects)
-                            .filter(|&k| !moved.contains(&at(corners[k])))
-                            .min_by(|&a, &b| values[a].abs().total_cmp(&values[b].abs()));
-                        if let Some(flip) = flip {
-                            flips.push((at(corners[flip]), values[flip]));
-                        }
+                        flips.extend(corner_to_move(
+                            &corners.map(at),
+                            &values,
+                            inside_connects,
+                            &moved,
+                        ));
                     }
                 }
             }
@@ -431,13 +430,12 @@ fn resolve_ambiguities(sdf: &mut [f32], near: f32, field: impl Fn([f64; 3]) -> f
                     }
                     let inside_connects =
                         field([x as f64 + 0.5, y as f64 + 0.5, z as f64 + 0.5]) < 0.0;
-                    let flip = (0..8)
-                        .filter(|&k| negative[k] != inside_connects)
-                        .filter(|&k| !moved.contains(&at(corners[k])))
-                        .min_by(|&a, &b| values[a].abs().total_cmp(&values[b].abs()));
-                    if let Some(flip) = flip {
-                        flips.push((at(corners[flip]), values[flip]));
-                    }
+                    flips.extend(corner_to_move(
+                        &corners.map(at),
+                        &values,
+                        inside_connects,
+                        &moved,
+                    ));
                 }
             }
         }
@@ -457,6 +455,24 @@ fn resolve_ambiguities(sdf: &mut [f32], near: f32, field: impl Fn([f64; 3]) -> f
             };
         }
     }
+}
+
+/// The corner of an ambiguous face or cube that [`resolve_ambiguities`]
+/// moves: of the corners (sample indices, with their values) whose sign must
+/// not connect across (positive if the inside connects), the one nearest the
+/// surface that has not been moved yet, with its value.
+fn corner_to_move(
+    corners: &[usize],
+    values: &[f32],
+    inside_connects: bool,
+    moved: &HashSet<usize>,
+) -> Option<(usize, f32)> {
+    corners
+        .iter()
+        .zip(values)
+        .filter(|&(index, &value)| (value < 0.0) != inside_connects && !moved.contains(index))
+        .min_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
+        .map(|(&index, &value)| (index, value))
 }
 
 /// Moves `start` onto the zero level set by Newton steps along the

@@ -128,11 +128,7 @@ impl<'a> Editor<'a> {
     /// faces beside it, if the result is sound. Returns whether it did.
     fn flip(&mut self, f: u32, a: u32, b: u32) -> bool {
         let t = self.mesh.triangles[f as usize];
-        let c = t
-            .iter()
-            .copied()
-            .find(|&v| v != a && v != b)
-            .expect("a triangle");
+        let c = third_vertex(t, a, b);
         let others: Vec<u32> = self
             .faces(a)
             .filter(|&g| g != f && self.mesh.triangles[g as usize].contains(&b))
@@ -141,11 +137,7 @@ impl<'a> Editor<'a> {
             return false;
         };
         let u = self.mesh.triangles[g as usize];
-        let d = u
-            .iter()
-            .copied()
-            .find(|&v| v != a && v != b)
-            .expect("a triangle");
+        let d = third_vertex(u, a, b);
         if d == c || self.neighbours(c).contains(&d) {
             return false;
         }
@@ -289,6 +281,13 @@ pub fn clean(
         }
     }
     counts
+}
+
+/// The vertex of triangle `t` other than `a` and `b`.
+fn third_vertex(t: [u32; 3], a: u32, b: u32) -> u32 {
+    t.into_iter()
+        .find(|&v| v != a && v != b)
+        .expect("a triangle has a third vertex")
 }
 
 #[cfg(test)]

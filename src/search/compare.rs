@@ -118,34 +118,32 @@ pub fn hand_designs(envelope: &Envelope, sphere_diameter_mm: f64) -> Vec<Layout>
         .into_iter()
         .map(|(n, p)| (n, p.component_mul(&h)))
         .collect();
-    let corners = [
-        [1.0, 1.0, 1.0],
-        [1.0, 1.0, -1.0],
-        [1.0, -1.0, 1.0],
-        [1.0, -1.0, -1.0],
-        [-1.0, 1.0, 1.0],
-        [-1.0, 1.0, -1.0],
-        [-1.0, -1.0, 1.0],
-    ]
-    .iter()
-    .enumerate()
-    .map(|(i, c)| {
-        (
-            format!("C{}", i + 1),
-            Vector3::new(c[0], c[1], c[2]).component_mul(&h),
-        )
-    })
-    .collect();
-    let mut tetrahedron: Vec<(String, Vector3<f64>)> = SPREAD_DIRECTIONS[..4]
-        .iter()
-        .enumerate()
-        .map(|(i, c)| {
-            (
-                format!("V{}", i + 1),
-                Vector3::new(c[0], c[1], c[2]).component_mul(&h),
-            )
-        })
-        .collect();
+    // Box directions scaled to the envelope, named prefix1, prefix2, …
+    let scaled = |prefix: &str, directions: &[[f64; 3]]| -> Vec<(String, Vector3<f64>)> {
+        directions
+            .iter()
+            .enumerate()
+            .map(|(i, c)| {
+                (
+                    format!("{prefix}{}", i + 1),
+                    Vector3::new(c[0], c[1], c[2]).component_mul(&h),
+                )
+            })
+            .collect()
+    };
+    let corners = scaled(
+        "C",
+        &[
+            [1.0, 1.0, 1.0],
+            [1.0, 1.0, -1.0],
+            [1.0, -1.0, 1.0],
+            [1.0, -1.0, -1.0],
+            [-1.0, 1.0, 1.0],
+            [-1.0, 1.0, -1.0],
+            [-1.0, -1.0, 1.0],
+        ],
+    );
+    let mut tetrahedron = scaled("V", &SPREAD_DIRECTIONS[..4]);
     tetrahedron.push(("C".into(), Vector3::zeros()));
     vec![
         make("paper-biprism", biprism),

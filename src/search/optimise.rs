@@ -846,19 +846,30 @@ mod tests {
         (family, evaluator)
     }
 
+    /// Two starts (the natural and the spread start), no jitter.
+    fn two_starts(
+        optimiser: Optimiser,
+        iterations: u64,
+        particles: usize,
+        polish_iterations: u64,
+        seed: u64,
+    ) -> SearchSettings {
+        SearchSettings {
+            optimiser,
+            starts: 2,
+            start_jitter: 0.0,
+            iterations,
+            particles,
+            polish_iterations,
+            seed,
+        }
+    }
+
     #[test]
     fn every_optimiser_improves_on_a_shrunken_start_and_is_deterministic() {
         let (family, evaluator) = setup();
         for optimiser in Optimiser::ALL {
-            let settings = SearchSettings {
-                optimiser,
-                starts: 2,
-                iterations: 40,
-                particles: 8,
-                polish_iterations: 40,
-                seed: 5,
-                start_jitter: 0.0,
-            };
+            let settings = two_starts(optimiser, 40, 8, 40, 5);
             let stop = AtomicBool::new(false);
             let a = run(&family, &evaluator, &settings, &stop, Arc::new(Quiet), None).unwrap();
             let b = run(&family, &evaluator, &settings, &stop, Arc::new(Quiet), None).unwrap();
@@ -883,13 +894,9 @@ mod tests {
         let bounds = family.bounds();
         let spread = family.spread();
         let mut settings = SearchSettings {
-            optimiser: Optimiser::NelderMead,
             starts: 6,
-            iterations: 1,
-            particles: 2,
-            polish_iterations: 0,
-            seed: 3,
             start_jitter: 0.05,
+            ..two_starts(Optimiser::NelderMead, 1, 2, 0, 3)
         };
         let mut moved = false;
         for start in 2..6 {
@@ -927,15 +934,7 @@ mod tests {
     fn a_stop_flag_ends_the_search() {
         let (family, evaluator) = setup();
         for optimiser in Optimiser::ALL {
-            let settings = SearchSettings {
-                optimiser,
-                starts: 2,
-                iterations: 100_000,
-                particles: 8,
-                polish_iterations: 100_000,
-                seed: 5,
-                start_jitter: 0.0,
-            };
+            let settings = two_starts(optimiser, 100_000, 8, 100_000, 5);
             let stop = AtomicBool::new(true);
             let started = std::time::Instant::now();
             let result = run(&family, &evaluator, &settings, &stop, Arc::new(Quiet), None);
@@ -970,15 +969,7 @@ mod tests {
     fn an_interrupted_search_resumes_to_the_same_winner() {
         let (family, evaluator) = setup();
         for optimiser in Optimiser::ALL {
-            let settings = SearchSettings {
-                optimiser,
-                starts: 2,
-                iterations: 90,
-                particles: 6,
-                polish_iterations: 50,
-                seed: 11,
-                start_jitter: 0.0,
-            };
+            let settings = two_starts(optimiser, 90, 6, 50, 11);
             let config = serde_json::json!({"optimiser": format!("{optimiser:?}")});
             let root = std::env::temp_dir()
                 .join(format!("lo-resume-{}-{optimiser:?}", std::process::id()));
