@@ -10,8 +10,9 @@
 //! problem becomes an `error` entry and the rest of the batch still runs.
 //!
 //! Output: `{"solver": NAME, "results": [{"id", "rotation", "translation",
-//! "reprojection_rms_px", "seconds"} | {"id", "error"}]}`, where `seconds`
-//! times the solver call alone.
+//! "reprojection_rms_px", "seconds", "start"?} | {"id", "error"}]}`, where
+//! `seconds` times the solver call alone and `start` names the solver whose
+//! pose a refining method (`ml`) started from.
 
 use crate::camera::{Camera, CameraSpec};
 use crate::pnp::Solver;
@@ -76,6 +77,9 @@ pub enum ProblemResult {
         reprojection_rms_px: f64,
         /// Wall time of the solver call alone, seconds.
         seconds: f64,
+        /// The solver whose pose this one refines, if any (`ml`: `sqpnp`).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        start: Option<String>,
     },
     /// A problem that could not be solved, and why.
     Failed {
@@ -175,7 +179,7 @@ fn solve_one(camera: &Camera, solver: Solver, id: &str, problem: &ProblemInput) 
     let outcome = solver.solve_best(&object, &normalised);
     let seconds = start.elapsed().as_secs_f64();
     match outcome {
-        Ok(pose) => solved(id, camera, &pose, &object, &pixels, seconds),
+        Ok(pose) => solved(id, camera, solver, &pose, &object, &pixels, seconds),
         Err(e) => failed(e.to_string()),
     }
 }
@@ -183,6 +187,7 @@ fn solve_one(camera: &Camera, solver: Solver, id: &str, problem: &ProblemInput) 
 fn solved(
     id: &str,
     camera: &Camera,
+    solver: Solver,
     pose: &Pose,
     object: &[Vector3<f64>],
     pixels: &[Vector2<f64>],
@@ -195,6 +200,7 @@ fn solved(
         translation: [pose.translation.x, pose.translation.y, pose.translation.z],
         reprojection_rms_px: reprojection_rms_px(camera, pose, object, pixels),
         seconds,
+        start: solver.start().map(|start| start.name().to_string()),
     }
 }
 

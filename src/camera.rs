@@ -22,8 +22,8 @@ pub const UNDISTORT_TOLERANCE: f64 = 1e-12;
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum CameraError {
-    /// A focal length was not a positive finite number.
-    #[error("camera focal lengths must be positive and finite, got fx = {fx}, fy = {fy}")]
+    /// A focal length was not a number of pixels any camera has.
+    #[error("camera focal lengths must lie between {MIN_FOCAL_PX} and {MAX_FOCAL_PX:e} px, got fx = {fx}, fy = {fy}")]
     BadFocalLength {
         /// Horizontal focal length, px.
         fx: f64,
@@ -135,6 +135,14 @@ fn distortion_from_slice(coefficients: &[f64]) -> Result<[f64; 5], CameraError> 
     Ok(distortion)
 }
 
+/// Smallest focal length accepted, px: below one pixel per unit of
+/// normalised coordinate no lens forms an image worth solving (and a
+/// subnormal value would overflow the normalisation).
+pub const MIN_FOCAL_PX: f64 = 1.0;
+/// Largest focal length accepted, px: a 10⁸ px focal length is a field of
+/// view of about 10⁻⁵ degrees on a 1280 px sensor, beyond any camera.
+pub const MAX_FOCAL_PX: f64 = 1e8;
+
 const PAPER_WIDTH: u32 = 1280;
 const PAPER_HEIGHT: u32 = 720;
 
@@ -146,6 +154,9 @@ impl Camera {
     /// let camera = Camera::new(1000.0, 1000.0, 640.0, 360.0, 1280, 720, [0.0; 5]).unwrap();
     /// assert_eq!(camera.fx(), 1000.0);
     /// assert!(Camera::new(0.0, 1000.0, 640.0, 360.0, 1280, 720, [0.0; 5]).is_err());
+    /// // A subnormal focal length, or one no lens has, is refused too.
+    /// assert!(Camera::new(1e-320, 1000.0, 640.0, 360.0, 1280, 720, [0.0; 5]).is_err());
+    /// assert!(Camera::new(1000.0, 1e12, 640.0, 360.0, 1280, 720, [0.0; 5]).is_err());
     /// ```
     pub fn new(
         fx: f64,
@@ -156,7 +167,8 @@ impl Camera {
         height: u32,
         distortion: [f64; 5],
     ) -> Result<Self, CameraError> {
-        if !(fx.is_finite() && fy.is_finite() && fx > 0.0 && fy > 0.0) {
+        let usable = |f: f64| (MIN_FOCAL_PX..=MAX_FOCAL_PX).contains(&f);
+        if !(usable(fx) && usable(fy)) {
             return Err(CameraError::BadFocalLength { fx, fy });
         }
         for (name, value) in [("cx", cx), ("cy", cy)] {
@@ -554,7 +566,7 @@ mod tests {
         .unwrap();
         assert_eq!(camera.distortion(), [0.1, 0.0, 0.0, 0.0, 0.0]);
         let err = Camera::from_json(r#"{"fx":0,"fy":1,"cx":0,"cy":0}"#).unwrap_err();
-        assert!(err.to_string().contains("positive"), "{err}");
+        assert!(err.to_string().contains("must lie between 1 and"), "{err}");
         let err =
             Camera::from_json(r#"{"fx":1,"fy":1,"cx":0,"cy":0,"distortion":[1,2]}"#).unwrap_err();
         assert!(err.to_string().contains("got 2"), "{err}");

@@ -128,6 +128,9 @@ impl Summary {
 pub struct SolverOutcome {
     /// The solver.
     pub solver: Solver,
+    /// The solver whose pose it refines, if any ([`Solver::start`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub start: Option<Solver>,
     /// Geodesic rotation error, degrees.
     pub rotation_deg: Summary,
     /// The paper's E_rot (eq. 33), degrees.
@@ -383,6 +386,7 @@ fn run_scenario(
             }
             SolverOutcome {
                 solver,
+                start: solver.start(),
                 rotation_deg: Summary::of(rotation),
                 paper_rotation_deg: Summary::of(paper),
                 translation_mm: Summary::of(millimetres),
@@ -401,6 +405,9 @@ fn run_scenario(
 pub struct Pooled {
     /// The solver.
     pub solver: Solver,
+    /// The solver whose pose it refines, if any ([`Solver::start`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub start: Option<Solver>,
     /// Scenarios pooled.
     pub scenarios: usize,
     /// Trials that returned a pose.
@@ -520,6 +527,7 @@ pub fn pool<'a>(
         let n = result.rotation_deg.count;
         let entry = pooled.get_or_insert(Pooled {
             solver: result.solver,
+            start: result.start,
             scenarios: 0,
             trials: 0,
             rms_rotation_deg: 0.0,

@@ -89,7 +89,9 @@ fn malformed_file_is_a_clear_error() {
         .arg(&bad)
         .assert()
         .failure()
-        .stderr(predicate::str::contains("focal lengths must be positive"));
+        .stderr(predicate::str::contains(
+            "focal lengths must lie between 1 and 1e8 px",
+        ));
     layout_opt()
         .args(["solve", "--problems", "/nonexistent/shots.json"])
         .assert()

@@ -183,15 +183,42 @@ impl EpnpSystem {
         Vector4::from_fn(|k, _| self.null_space[k].dot(&stacked))
     }
 
-    /// Lepetit's closed-form β for null-space dimensions N = 1, 2, 3 and the
-    /// linearised approximation for N = 4, in that order.
-    pub fn closed_form_betas(&self) -> [Vector4<f64>; 4] {
+    /// Lepetit's closed-form β for null-space dimensions N = 1, 2, 3
+    /// (linearisation) and N = 4, the last both linearised over four
+    /// products, as the reference implementation does, and by
+    /// relinearisation, as the paper prescribes; in that order.
+    pub fn closed_form_betas(&self) -> [Vector4<f64>; 5] {
         [
             self.betas_dimension_1(),
             self.betas_dimension_2(),
             self.betas_dimension_3(),
+            self.betas_dimension_4_linearised(),
             self.betas_dimension_4(),
         ]
+    }
+
+    /// N = 4 linearised: solve for `[β11, β12, β13, β14]` by least squares,
+    /// the approximation of the reference implementation. Near the camera,
+    /// where the null space is smaller than four, it is the more accurate of
+    /// the two N = 4 starts; far from it, relinearisation is
+    /// ([`EpnpSystem::closed_form_betas`] returns both).
+    fn betas_dimension_4_linearised(&self) -> Vector4<f64> {
+        let l = SMatrix::<f64, 6, 4>::from_columns(&[
+            self.distance_products.column(0).into_owned(),
+            self.distance_products.column(1).into_owned(),
+            self.distance_products.column(3).into_owned(),
+            self.distance_products.column(6).into_owned(),
+        ]);
+        let b = solve_least_squares(&l, &self.control_distances_sq);
+        if b[0] < 0.0 {
+            let root = (-b[0]).sqrt();
+            Vector4::new(root, -b[1] / root, -b[2] / root, -b[3] / root)
+        } else if b[0] > 0.0 {
+            let root = b[0].sqrt();
+            Vector4::new(root, b[1] / root, b[2] / root, b[3] / root)
+        } else {
+            Vector4::zeros()
+        }
     }
 
     /// N = 1: `β = Σ ‖v[a]−v[b]‖·‖c_a−c_b‖ / Σ ‖v[a]−v[b]‖²` (Lepetit eq. 12).
@@ -230,26 +257,66 @@ impl EpnpSystem {
         Vector4::new(b1, b2, b3, 0.0)
     }
 
-    /// N = 4: solve for `[β11, β12, β13, β14]` by least squares, the
-    /// approximation the reference implementation uses in place of full
-    /// relinearisation; GN then corrects it.
+    /// N = 4 by relinearisation (Lepetit §3.3, after Kipnis & Shamir): the
+    /// six equations `L β̄ = ρ` leave the ten products β̄ in a 4-dimensional
+    /// affine space `β̄ = u₀ + Σ λ_i u_i`. The products must come from one
+    /// β (`β̄_ab β̄_cd = β̄_ac β̄_bd`: twenty independent relations), which
+    /// is linear in the fifteen products `λ_i λ_j` (λ₀ = 1); least squares
+    /// gives them, and `λ_i = λ₀ λ_i` gives β̄. Linearising over four of
+    /// the ten products instead, as the reference implementation does,
+    /// drops six terms: far from the camera, where N = 4 is the right
+    /// dimension, that start is grossly wrong (measured: 238 of 300 far-field
+    /// problems off by more than 10° without Gauss–Newton, none with this).
     fn betas_dimension_4(&self) -> Vector4<f64> {
-        let l = SMatrix::<f64, 6, 4>::from_columns(&[
-            self.distance_products.column(0).into_owned(),
-            self.distance_products.column(1).into_owned(),
-            self.distance_products.column(3).into_owned(),
-            self.distance_products.column(6).into_owned(),
-        ]);
-        let b = solve_least_squares(&l, &self.control_distances_sq);
-        if b[0] < 0.0 {
-            let root = (-b[0]).sqrt();
-            Vector4::new(root, -b[1] / root, -b[2] / root, -b[3] / root)
-        } else if b[0] > 0.0 {
-            let root = b[0].sqrt();
-            Vector4::new(root, b[1] / root, b[2] / root, b[3] / root)
-        } else {
-            Vector4::zeros()
+        let Some((particular, null_space)) =
+            minimum_norm_and_null_space(&self.distance_products, &self.control_distances_sq)
+        else {
+            return Vector4::zeros();
+        };
+        // u₀ and the unit null vectors scaled alike, so that the columns of
+        // the relinearised system are of one size.
+        let scale = particular.norm();
+        if !(scale > 0.0 && scale.is_finite()) {
+            return Vector4::zeros();
         }
+        let basis: [SVector<f64, 10>; 5] = [
+            particular,
+            null_space[0] * scale,
+            null_space[1] * scale,
+            null_space[2] * scale,
+            null_space[3] * scale,
+        ];
+        // Column of each product λ_i λ_j (i ≤ j, not (0, 0), which is 1).
+        let mut system = SMatrix::<f64, 20, 14>::zeros();
+        let mut rhs = SVector::<f64, 20>::zeros();
+        for (row, &(p, q, p2, q2)) in RANK_ONE_RELATIONS.iter().enumerate() {
+            let mut column = 0;
+            for i in 0..5 {
+                for j in i..5 {
+                    let coefficient = |p: usize, q: usize| {
+                        if i == j {
+                            basis[i][p] * basis[i][q]
+                        } else {
+                            basis[i][p] * basis[j][q] + basis[j][p] * basis[i][q]
+                        }
+                    };
+                    let value = coefficient(p, q) - coefficient(p2, q2);
+                    if (i, j) == (0, 0) {
+                        rhs[row] = -value;
+                    } else {
+                        system[(row, column)] = value;
+                        column += 1;
+                    }
+                }
+            }
+        }
+        let products = solve_least_squares(&system, &rhs);
+        // λ₀ λ_i for i = 1…4 are the first four unknowns.
+        let mut combined = basis[0];
+        for i in 0..4 {
+            combined += basis[i + 1] * products[i];
+        }
+        betas_from_products(&combined)
     }
 
     /// Recovers the pose from β: camera-frame control points (eq. 9), then
@@ -263,25 +330,102 @@ impl EpnpSystem {
     /// is `C G` (C = [c_0 … c_3], G from [`EpnpSystem::new`]): the same
     /// absolute orientation as over the n points, in O(1).
     pub fn pose_from_betas(&self, betas: &Vector4<f64>) -> Pose {
-        let control = self.control_camera(betas);
-        let mut camera_centroid = control[0] * self.alpha_mean[0]
-            + control[1] * self.alpha_mean[1]
-            + control[2] * self.alpha_mean[2]
-            + control[3] * self.alpha_mean[3];
-        let mut cross_covariance = Matrix3::zeros();
-        for (j, c) in control.iter().enumerate() {
-            cross_covariance += c * self.alpha_object_covariance.row(j);
-        }
-        if camera_centroid.z < 0.0 {
-            camera_centroid = -camera_centroid;
-            cross_covariance = -cross_covariance;
-        }
+        self.recover(betas).pose
+    }
+
+    /// [`EpnpSystem::pose_from_betas`], and whether the reconstruction is a
+    /// mirror image of the object: its cross-covariance with the object
+    /// points has a negative determinant, so the nearest rotation fits it
+    /// badly. The distance constraints of eq. 13 cannot tell a shape from
+    /// its mirror image, and far from the camera the depth-reversed mirror
+    /// (a reflection in a plane facing the camera) projects almost as the
+    /// shape does, so Gauss–Newton can converge to it.
+    pub fn recover(&self, betas: &Vector4<f64>) -> Recovered {
+        let (camera_centroid, cross_covariance) = self.reconstruction_moments(betas);
         // FOAM (no SVD) where the cross-covariance is well conditioned, the
         // SVD projection otherwise: the same rotation either way.
         let rotation = foam::nearest_rotation(&cross_covariance);
         let translation = camera_centroid - rotation * self.object_centroid;
-        Pose::new(rotation, translation)
+        Recovered {
+            pose: Pose::new(rotation, translation),
+            reflected: cross_covariance.determinant() < 0.0,
+        }
     }
+
+    /// The camera-frame control points of β with the sign of β chosen to
+    /// put the reconstruction's centroid in front of the camera, and that
+    /// centroid `C ᾱ`.
+    fn control_in_front(&self, betas: &Vector4<f64>) -> ([Vector3<f64>; 4], Vector3<f64>) {
+        let mut control = self.control_camera(betas);
+        let centroid = control[0] * self.alpha_mean[0]
+            + control[1] * self.alpha_mean[1]
+            + control[2] * self.alpha_mean[2]
+            + control[3] * self.alpha_mean[3];
+        if centroid.z < 0.0 {
+            for c in &mut control {
+                *c = -*c;
+            }
+            return (control, -centroid);
+        }
+        (control, centroid)
+    }
+
+    /// The centroid of the camera-frame reconstruction and its
+    /// cross-covariance `C G` with the object points, in front of the camera.
+    fn reconstruction_moments(&self, betas: &Vector4<f64>) -> (Vector3<f64>, Matrix3<f64>) {
+        let (control, centroid) = self.control_in_front(betas);
+        let mut cross_covariance = Matrix3::zeros();
+        for (j, c) in control.iter().enumerate() {
+            cross_covariance += c * self.alpha_object_covariance.row(j);
+        }
+        (centroid, cross_covariance)
+    }
+
+    /// The β of the depth-reversed mirror of the reconstruction: its control
+    /// points reflected in the plane `z = z̄` through the reconstruction's
+    /// centroid, projected back onto the null space (eq. 16). Lepetit et
+    /// al.'s reference code meets a negative determinant by reflecting in
+    /// camera z; this is that reflection, offered as a further candidate.
+    /// The reconstructions are affine in the control points, so reflecting
+    /// the control points reflects every reconstructed point.
+    pub fn mirrored_betas(&self, betas: &Vector4<f64>) -> Vector4<f64> {
+        let (mut control, centroid) = self.control_in_front(betas);
+        for c in &mut control {
+            c.z = 2.0 * centroid.z - c.z;
+        }
+        self.betas_from_control_camera(&control)
+    }
+
+    /// Appends to `candidates` the pose for `refine(start)` and, when that
+    /// reconstruction is a mirror image of the object
+    /// ([`EpnpSystem::recover`]), the pose for `refine` applied to its
+    /// depth-reversed mirror ([`EpnpSystem::mirrored_betas`]); the
+    /// reprojection error then chooses between them. With `refine` the
+    /// identity this is the unrefined EPnP candidate and its mirror. The
+    /// mirror costs nothing when the reconstruction is proper, the common
+    /// case.
+    pub fn push_candidates(
+        &self,
+        start: &Vector4<f64>,
+        refine: impl Fn(&Vector4<f64>) -> Vector4<f64>,
+        candidates: &mut Candidates,
+    ) {
+        let betas = refine(start);
+        let recovered = self.recover(&betas);
+        candidates.push(recovered.pose);
+        if recovered.reflected {
+            candidates.push(self.pose_from_betas(&refine(&self.mirrored_betas(&betas))));
+        }
+    }
+}
+
+/// A pose recovered from β ([`EpnpSystem::recover`]).
+#[derive(Debug, Clone, Copy)]
+pub struct Recovered {
+    /// The pose: the rotation nearest the reconstruction's cross-covariance.
+    pub pose: Pose,
+    /// Whether the reconstruction is a mirror image of the object.
+    pub reflected: bool,
 }
 
 /// Barycentric coordinates `α` of `p` (eq. 4), given the first control
@@ -392,9 +536,9 @@ fn signed_roots(b11: f64, b22: f64) -> (f64, f64) {
 /// Least squares `min ‖A x − b‖` for a small fixed-size tall matrix, by the
 /// normal equations. If A has lost rank numerically, a ridge of
 /// [`RIDGE_FRACTION`] of the mean diagonal makes the solve well posed.
-fn solve_least_squares<const C: usize>(
-    a: &SMatrix<f64, 6, C>,
-    b: &SVector<f64, 6>,
+fn solve_least_squares<const R: usize, const C: usize>(
+    a: &SMatrix<f64, R, C>,
+    b: &SVector<f64, R>,
 ) -> SVector<f64, C> {
     let mut ata = a.tr_mul(a);
     let atb = a.tr_mul(b);
@@ -408,27 +552,157 @@ fn solve_least_squares<const C: usize>(
     solve_positive_definite(&ata, &atb).unwrap_or_else(SVector::zeros)
 }
 
+/// The twenty independent relations `β̄_p β̄_q = β̄_p' β̄_q'` that ten
+/// products of one β satisfy, as column indices of L `(p, q, p', q')`:
+/// every pair of products with the same four β factors, chained.
+const RANK_ONE_RELATIONS: [(usize, usize, usize, usize); 20] = [
+    (0, 2, 1, 1),
+    (0, 4, 1, 3),
+    (0, 7, 1, 6),
+    (0, 5, 3, 3),
+    (0, 8, 3, 6),
+    (0, 9, 6, 6),
+    (1, 4, 2, 3),
+    (1, 7, 2, 6),
+    (1, 5, 3, 4),
+    (1, 8, 3, 7),
+    (1, 8, 4, 6),
+    (1, 9, 6, 7),
+    (3, 8, 5, 6),
+    (3, 9, 6, 8),
+    (2, 5, 4, 4),
+    (2, 8, 4, 7),
+    (2, 9, 7, 7),
+    (4, 8, 5, 7),
+    (4, 9, 7, 8),
+    (5, 9, 8, 8),
+];
+
+/// Column of L for the product `β_a β_b`.
+pub const PRODUCT_COLUMN: [[usize; 4]; 4] =
+    [[0, 1, 3, 6], [1, 2, 4, 7], [3, 4, 5, 8], [6, 7, 8, 9]];
+
+/// β from its ten products β̄: the root of the largest square, and the other
+/// entries divided by it. The overall sign is free (the pose recovery puts
+/// the points in front); a negative largest square means the products came
+/// out with the opposite sign, so they are negated first.
+fn betas_from_products(products: &SVector<f64, 10>) -> Vector4<f64> {
+    let square_of = |j: usize| products[PRODUCT_COLUMN[j][j]];
+    let k = (1..4).fold(0, |k, j| {
+        if square_of(j).abs() > square_of(k).abs() {
+            j
+        } else {
+            k
+        }
+    });
+    let square = products[PRODUCT_COLUMN[k][k]];
+    let sign = if square < 0.0 { -1.0 } else { 1.0 };
+    let root = (sign * square).sqrt();
+    if !(root > 0.0 && root.is_finite()) {
+        return Vector4::zeros();
+    }
+    Vector4::from_fn(|j, _| {
+        if j == k {
+            root
+        } else {
+            sign * products[PRODUCT_COLUMN[j][k]] / root
+        }
+    })
+}
+
+/// The minimum-norm solution of the underdetermined `L x = ρ` (6×10, full
+/// row rank) and an orthonormal basis of the null space of L, from a
+/// Householder QR of `Lᵀ = Q R` (Golub & Van Loan §5.2): `x = Q₁ R⁻ᵀ ρ`
+/// and the null space is spanned by the last four columns of Q. `None` if
+/// L has lost rank. Fixed arrays, nothing allocated.
+#[allow(clippy::needless_range_loop)]
+fn minimum_norm_and_null_space(
+    l: &SMatrix<f64, 6, 10>,
+    rho: &SVector<f64, 6>,
+) -> Option<(SVector<f64, 10>, [SVector<f64, 10>; 4])> {
+    // Columns of Lᵀ (the rows of L), reduced in place to R.
+    let mut columns: [[f64; 10]; 6] = std::array::from_fn(|k| std::array::from_fn(|i| l[(k, i)]));
+    let mut reflectors = [[0.0f64; 10]; 6];
+    let mut factors = [0.0f64; 6];
+    let scale = l.amax();
+    if !(scale > 0.0 && scale.is_finite()) {
+        return None;
+    }
+    for k in 0..6 {
+        let norm = columns[k][k..].iter().map(|v| v * v).sum::<f64>().sqrt();
+        // Written so that a NaN norm counts as rank lost.
+        if norm.is_nan() || norm <= NULL_SPACE_RANK_TOLERANCE * scale {
+            return None;
+        }
+        let alpha = if columns[k][k] > 0.0 { -norm } else { norm };
+        let v = &mut reflectors[k];
+        v[k..].copy_from_slice(&columns[k][k..]);
+        v[k] -= alpha;
+        let v_norm_sq: f64 = v[k..].iter().map(|x| x * x).sum();
+        factors[k] = 2.0 / v_norm_sq;
+        for j in k..6 {
+            let projection = factors[k] * (k..10).map(|i| v[i] * columns[j][i]).sum::<f64>();
+            for i in k..10 {
+                columns[j][i] -= projection * v[i];
+            }
+        }
+    }
+    // Q y = H₀ H₁ … H₅ y.
+    let apply_q = |mut y: [f64; 10]| -> SVector<f64, 10> {
+        for k in (0..6).rev() {
+            let v = &reflectors[k];
+            let projection = factors[k] * (k..10).map(|i| v[i] * y[i]).sum::<f64>();
+            for i in k..10 {
+                y[i] -= projection * v[i];
+            }
+        }
+        SVector::from(y)
+    };
+    // Rᵀ y = ρ, R upper triangular: R[i][j] is columns[j][i].
+    let mut y = [0.0f64; 10];
+    for i in 0..6 {
+        let mut value = rho[i];
+        for k in 0..i {
+            value -= columns[i][k] * y[k];
+        }
+        y[i] = value / columns[i][i];
+    }
+    let null_space = std::array::from_fn(|m| {
+        let mut unit = [0.0f64; 10];
+        unit[6 + m] = 1.0;
+        apply_q(unit)
+    });
+    Some((apply_q(y), null_space))
+}
+
+/// Below this fraction of L's largest entry a Householder column norm
+/// counts as zero: L has lost rank and relinearisation is not posed.
+pub const NULL_SPACE_RANK_TOLERANCE: f64 = 1e-12;
+
 /// Ridge added to a rank-deficient normal matrix, relative to its mean diagonal.
 pub const RIDGE_FRACTION: f64 = 1e-12;
 
 /// EPnP (`refine = false`) or EPnP+GN (`refine = true`): one candidate per
-/// null-space dimension N = 1…4.
+/// null-space dimension N = 1…4, plus the depth-reversed mirror of any
+/// candidate whose reconstruction is a mirror image of the object
+/// ([`EpnpSystem::push_candidates`]).
 pub fn solve(
     object: &[Vector3<f64>],
     image: &[Vector2<f64>],
     refine: bool,
 ) -> Result<Candidates, PnpError> {
     let system = EpnpSystem::new(principal_control_points(object), object, image)?;
-    Ok(system
-        .closed_form_betas()
-        .iter()
-        .map(|betas| {
-            let betas = if refine {
-                gauss_newton::refine_betas(&system, betas, &gauss_newton::UNIT_WEIGHTS)
-            } else {
-                *betas
-            };
-            system.pose_from_betas(&betas)
-        })
-        .collect())
+    let mut candidates = Candidates::new();
+    for betas in &system.closed_form_betas() {
+        if refine {
+            system.push_candidates(
+                betas,
+                |start| gauss_newton::refine_betas(&system, start, &gauss_newton::UNIT_WEIGHTS),
+                &mut candidates,
+            );
+        } else {
+            system.push_candidates(betas, |start| *start, &mut candidates);
+        }
+    }
+    Ok(candidates)
 }

@@ -6,14 +6,21 @@
 //! products of β. Gauss–Newton minimises `Σ_k w_k r_k²` over the four β;
 //! with unit weights this is eq. 10, with the weights of eq. 30 it is eq. 31.
 
-use super::epnp::EpnpSystem;
+use super::epnp::{EpnpSystem, PRODUCT_COLUMN};
 use crate::linalg::solve_positive_definite;
 use nalgebra::{Matrix4, SVector, Vector4, Vector6};
 
 /// Unit weights: plain EPnP Gauss–Newton (eq. 10).
 pub const UNIT_WEIGHTS: [f64; 6] = [1.0; 6];
-/// Upper bound on Gauss–Newton iterations (the reference implementation runs 5).
-pub const MAX_ITERATIONS: usize = 10;
+/// Upper bound on Gauss–Newton iterations. The reference implementation
+/// runs 5 full steps; converged problems stop on [`STEP_TOLERANCE`] after
+/// 2–4, so the bound only matters for starts far from the solution, where
+/// backtracked steps need more iterations.
+pub const MAX_ITERATIONS: usize = 20;
+/// Step halvings tried when a full step raises the cost, before the
+/// iteration stops. 2⁻³⁰ of a step is below anything that can still lower
+/// a cost evaluated in double precision.
+pub const MAX_HALVINGS: usize = 30;
 /// Stop after an accepted step that changed β by at most this fraction of
 /// ‖β‖. Below it the cost comparison itself is rounding noise: the
 /// residuals `ρ_k − L_k β̄` cancel terms of size ‖c_a − c_b‖², and on
@@ -66,13 +73,11 @@ pub fn cost(system: &EpnpSystem, betas: &Vector4<f64>, weights: &[f64; 6]) -> f6
 /// reference implementation) and `L_k β̄ = ½ βᵀ (2 Q_k β)`, so one 4×4
 /// product per pair gives both the Jacobian row and the residual.
 fn quadratic_forms(system: &EpnpSystem) -> [[[f64; 4]; 4]; 6] {
-    // Column of L for the product β_i β_j.
-    const COLUMN: [[usize; 4]; 4] = [[0, 1, 3, 6], [1, 2, 4, 7], [3, 4, 5, 8], [6, 7, 8, 9]];
     let l = system.distance_products();
     std::array::from_fn(|k| {
         std::array::from_fn(|i| {
             std::array::from_fn(|j| {
-                let coefficient = l[(k, COLUMN[i][j])];
+                let coefficient = l[(k, PRODUCT_COLUMN[i][j])];
                 if i == j {
                     coefficient
                 } else {
@@ -105,10 +110,16 @@ fn linearise(
     (jacobian, residuals)
 }
 
-/// Refines β by Gauss–Newton on the weighted distance residuals. A step that
-/// does not lower the cost ends the iteration, so the result is never worse
-/// than the start; so does a step shorter than [`STEP_TOLERANCE`] (after it
-/// is taken). Fixed-size 6×4 Jacobian and 4×4 normal equations, nothing
+/// Refines β by Gauss–Newton on the weighted distance residuals, with a
+/// backtracking line search: a step that raises the cost is halved until it
+/// lowers it (at most [`MAX_HALVINGS`] times), and only a direction that no
+/// halving makes a descent ends the iteration. So the result is never worse
+/// than the start, and a start whose first full step overshoots (the
+/// quartic cost often rises on it, e.g. 1.0·10⁷ → 7.4·10⁷, before falling
+/// to rounding) still converges. The full step is tried first, so a problem
+/// that plain Gauss–Newton solves takes exactly the same steps. The
+/// iteration also stops after a step shorter than [`STEP_TOLERANCE`] (after
+/// it is taken). Fixed-size 6×4 Jacobian and 4×4 normal equations, nothing
 /// allocated; the linearisation of an accepted candidate is reused for the
 /// next step.
 pub fn refine_betas(system: &EpnpSystem, start: &Vector4<f64>, weights: &[f64; 6]) -> Vector4<f64> {
@@ -131,7 +142,7 @@ pub fn refine_betas(system: &EpnpSystem, start: &Vector4<f64>, weights: &[f64; 6
             }
             gradient += weighted * current_residuals[k];
         }
-        let step = match solve_positive_definite(&normal, &gradient) {
+        let mut step = match solve_positive_definite(&normal, &gradient) {
             Some(step) => step,
             None => {
                 normal.fill_upper_triangle_with_lower_triangle();
@@ -144,12 +155,26 @@ pub fn refine_betas(system: &EpnpSystem, start: &Vector4<f64>, weights: &[f64; 6
         if !step.iter().all(|v| v.is_finite()) {
             break;
         }
-        let candidate = betas + step;
-        let (candidate_jacobian, candidate_residuals) = linearise(&forms, rho, &candidate);
-        let candidate_cost = weighted_sum_sq(&candidate_residuals, weights);
-        if candidate_cost > current_cost {
-            break;
+        let mut accepted = None;
+        for _ in 0..=MAX_HALVINGS {
+            let candidate = betas + step;
+            let (candidate_jacobian, candidate_residuals) = linearise(&forms, rho, &candidate);
+            let candidate_cost = weighted_sum_sq(&candidate_residuals, weights);
+            if candidate_cost <= current_cost {
+                accepted = Some((
+                    candidate,
+                    candidate_jacobian,
+                    candidate_residuals,
+                    candidate_cost,
+                ));
+                break;
+            }
+            step *= 0.5;
         }
+        let Some((candidate, candidate_jacobian, candidate_residuals, candidate_cost)) = accepted
+        else {
+            break;
+        };
         betas = candidate;
         jacobian = candidate_jacobian;
         current_residuals = candidate_residuals;

@@ -13,7 +13,6 @@ use super::epnp::{principal_control_points, EpnpSystem};
 use super::{gauss_newton, Candidates, PnpError};
 use crate::pose::{nearest_rotation, Pose};
 use nalgebra::{Matrix3, Vector2, Vector3};
-use smallvec::smallvec;
 
 /// The weak-perspective pose about the centroid of the object points.
 pub fn weak_perspective_pose(
@@ -60,7 +59,8 @@ pub fn weak_perspective_pose(
     Ok(Pose::new(rotation, translation))
 }
 
-/// IEPnP: weak-perspective β0, then Gauss–Newton. One candidate.
+/// IEPnP: weak-perspective β0, then Gauss–Newton. One candidate, and its
+/// depth-reversed mirror when the reconstruction is a mirror image.
 pub fn solve(object: &[Vector3<f64>], image: &[Vector2<f64>]) -> Result<Candidates, PnpError> {
     let initial = weak_perspective_pose(object, image)?;
     let control_world = principal_control_points(object);
@@ -68,6 +68,11 @@ pub fn solve(object: &[Vector3<f64>], image: &[Vector2<f64>]) -> Result<Candidat
     let control_camera: [Vector3<f64>; 4] =
         std::array::from_fn(|j| initial.transform(&control_world[j]));
     let start = system.betas_from_control_camera(&control_camera);
-    let betas = gauss_newton::refine_betas(&system, &start, &gauss_newton::UNIT_WEIGHTS);
-    Ok(smallvec![system.pose_from_betas(&betas)])
+    let mut candidates = Candidates::new();
+    system.push_candidates(
+        &start,
+        |betas| gauss_newton::refine_betas(&system, betas, &gauss_newton::UNIT_WEIGHTS),
+        &mut candidates,
+    );
+    Ok(candidates)
 }

@@ -32,9 +32,10 @@ pub mod rpnp;
 pub mod sqpnp;
 pub mod three_cubics;
 
-/// Candidate poses returned by a solver. Four fit inline, so the common
-/// solvers allocate nothing.
-pub type Candidates = SmallVec<[Pose; 4]>;
+/// Candidate poses returned by a solver. Six fit inline, so the common
+/// solvers allocate nothing (EPnP returns five closed forms; a mirror
+/// candidate, rare, may spill).
+pub type Candidates = SmallVec<[Pose; 6]>;
 
 /// Relative size of the smallest principal extent of the object points,
 /// below which they count as coplanar (and of the second, as collinear).
@@ -42,6 +43,13 @@ pub const PLANARITY_TOLERANCE: f64 = 1e-6;
 /// Two object points closer than this fraction of the point spread are
 /// duplicates.
 pub const DUPLICATE_TOLERANCE: f64 = 1e-9;
+/// Object coordinates (about their centroid) and normalised image
+/// coordinates must lie within `MIN_COORDINATE_SCALE..MAX_COORDINATE_SCALE`
+/// in size: the solvers form squared distances and, in DLS and OPnP, fourth
+/// and higher powers of them, which must neither overflow nor underflow.
+pub const MAX_COORDINATE_SCALE: f64 = 1e60;
+/// See [`MAX_COORDINATE_SCALE`].
+pub const MIN_COORDINATE_SCALE: f64 = 1e-60;
 
 /// Why a solver could not return a pose.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -81,6 +89,25 @@ pub enum PnpError {
         /// Index of the second point.
         second: usize,
     },
+    /// Object coordinates too large or too small to square in double
+    /// precision (the methods work with squared distances and higher
+    /// powers).
+    #[error("{kind} point coordinates of size {magnitude:e} are outside the range {MIN_COORDINATE_SCALE:e}..{MAX_COORDINATE_SCALE:e} that PnP can work in; rescale the units")]
+    BadScale {
+        /// "object" or "image".
+        kind: &'static str,
+        /// The largest absolute coordinate (object: about the centroid).
+        magnitude: f64,
+    },
+    /// Every image point is the same point: the image says nothing about
+    /// rotation or distance.
+    #[error("all image points coincide; no PnP method can recover a pose from one image point")]
+    CoincidentImagePoints,
+    /// The image points lie on one line, which a noncoplanar object cannot
+    /// project to (and a planar one only seen edge-on, where the pose is
+    /// undetermined).
+    #[error("the image points are collinear; no PnP method can recover the pose")]
+    CollinearImagePoints,
     /// All object points lie on one line: no method can recover the roll about it.
     #[error("object points are collinear; no PnP method can recover the pose")]
     Collinear,
@@ -153,9 +180,9 @@ pub enum Solver {
     /// OPnP: every local minimum of the algebraic cost in a non-unit
     /// quaternion, by a Gröbner-basis solver (Zheng et al., ICCV 2013).
     Opnp,
-    /// Levenberg–Marquardt on reprojection error from the paper's
-    /// parallel-weighted pose: the maximum-likelihood estimate under
-    /// isotropic Gaussian noise.
+    /// Levenberg–Marquardt on reprojection error from the best SQPnP
+    /// candidate: the maximum-likelihood estimate under isotropic Gaussian
+    /// noise.
     Ml,
 }
 
@@ -230,7 +257,19 @@ impl Solver {
             Solver::Rpnp => "RPnP: every local minimum of the degree-7 cost about the widest edge, then 3D alignment (Li, Xu & Xie 2012)",
             Solver::Sqpnp => "SQPnP: SQP over the rotation entries from the null-space starts, all local minima; coplanar points allowed (Terzakis & Lourakis 2020)",
             Solver::Opnp => "OPnP: all minima of the algebraic cost in a non-unit quaternion, Gröbner-basis solver (Zheng et al. 2013)",
-            Solver::Ml => "Levenberg-Marquardt on reprojection error from the paper's parallel-weighted pose (maximum likelihood)",
+            Solver::Ml => "Levenberg-Marquardt on reprojection error from the best SQPnP candidate (maximum likelihood); coplanar points allowed",
+        }
+    }
+
+    /// The solver whose pose a refining method starts from, where the
+    /// method is a refinement of another's result (`ml` refines SQPnP's
+    /// best candidate); `None` for the methods that start from their own
+    /// closed forms. Reports and `solve`'s output name it, so no start is
+    /// hidden.
+    pub fn start(self) -> Option<Solver> {
+        match self {
+            Solver::Ml => Some(ml::START),
+            _ => None,
         }
     }
 
@@ -253,7 +292,7 @@ impl Solver {
     pub fn needs_noncoplanar(self) -> bool {
         // Exhaustive, so every new method has to decide.
         match self {
-            Solver::Dls | Solver::Sqpnp | Solver::Opnp => false,
+            Solver::Dls | Solver::Sqpnp | Solver::Opnp | Solver::Ml => false,
             Solver::Dlt
             | Solver::Epnp
             | Solver::EpnpGn
@@ -262,8 +301,7 @@ impl Solver {
             | Solver::ParallelGn
             | Solver::ParallelWeighted
             | Solver::Lhm
-            | Solver::Rpnp
-            | Solver::Ml => true,
+            | Solver::Rpnp => true,
         }
     }
 
@@ -356,7 +394,7 @@ pub fn best_candidate(
 
 /// The sum of squared reprojection errors on the normalised image plane,
 /// or `None` if some point is not strictly in front of the camera.
-fn reprojection_error_sq_in_front(
+pub(crate) fn reprojection_error_sq_in_front(
     pose: &Pose,
     object: &[Vector3<f64>],
     image: &[Vector2<f64>],
@@ -456,14 +494,20 @@ pub fn validate_input(
             index,
         });
     }
-    let spread = Spread::of(object);
-    let scale = spread.extents[0];
-    if scale == 0.0 {
+    let centroid = object.iter().sum::<Vector3<f64>>() / object.len() as f64;
+    let object_magnitude = object
+        .iter()
+        .map(|p| (p - centroid).amax())
+        .fold(0.0, f64::max);
+    if object_magnitude == 0.0 {
         return Err(PnpError::DuplicatePoints {
             first: 0,
             second: 1,
         });
     }
+    check_scale("object", object_magnitude)?;
+    let spread = Spread::of(object);
+    let scale = spread.extents[0];
     let duplicate_distance = DUPLICATE_TOLERANCE * scale;
     let duplicate_distance_sq = duplicate_distance * duplicate_distance;
     for (i, a) in object.iter().enumerate() {
@@ -483,6 +527,57 @@ pub fn validate_input(
         return Err(PnpError::Coplanar {
             solver: solver.display_name(),
         });
+    }
+    let image_magnitude = image.iter().map(|m| m.amax()).fold(0.0, f64::max);
+    if image_magnitude > MAX_COORDINATE_SCALE {
+        return Err(PnpError::BadScale {
+            kind: "image",
+            magnitude: image_magnitude,
+        });
+    }
+    check_image_spread(image)?;
+    Ok(())
+}
+
+/// Refuses object coordinates whose size (about the centroid) cannot be
+/// squared and raised to the fourth power in double precision.
+fn check_scale(kind: &'static str, magnitude: f64) -> Result<(), PnpError> {
+    if (MIN_COORDINATE_SCALE..=MAX_COORDINATE_SCALE).contains(&magnitude) {
+        Ok(())
+    } else {
+        Err(PnpError::BadScale { kind, magnitude })
+    }
+}
+
+/// Refuses image points that all coincide or all lie on one line: their
+/// 2×2 scatter about the centroid has a zero (or, relative to the largest,
+/// below [`PLANARITY_TOLERANCE`]²) eigenvalue.
+fn check_image_spread(image: &[Vector2<f64>]) -> Result<(), PnpError> {
+    if image.iter().all(|m| *m == image[0]) {
+        return Err(PnpError::CoincidentImagePoints);
+    }
+    let count = image.len() as f64;
+    let centroid = image.iter().sum::<Vector2<f64>>() / count;
+    // Scale by the largest offset first, so that the scatter neither
+    // overflows nor underflows.
+    let largest = image
+        .iter()
+        .map(|m| (m - centroid).amax())
+        .fold(0.0, f64::max);
+    let (mut xx, mut xy, mut yy) = (0.0, 0.0, 0.0);
+    for m in image {
+        let d = (m - centroid) / largest;
+        xx += d.x * d.x;
+        xy += d.x * d.y;
+        yy += d.y * d.y;
+    }
+    // Eigenvalues of [[xx, xy], [xy, yy]]: the smaller is the determinant
+    // over the larger.
+    let half_trace = 0.5 * (xx + yy);
+    let larger = half_trace + (0.25 * (xx - yy).powi(2) + xy * xy).sqrt();
+    let smaller = (xx * yy - xy * xy) / larger;
+    if smaller <= PLANARITY_TOLERANCE * PLANARITY_TOLERANCE * larger {
+        return Err(PnpError::CollinearImagePoints);
     }
     Ok(())
 }
@@ -551,5 +646,49 @@ mod tests {
             err.to_string(),
             "object points are coplanar; DLT needs noncoplanar points"
         );
+    }
+
+    /// Degenerate images and coordinates that cannot be squared are refused
+    /// with errors that say so, for every solver, before any method runs.
+    #[test]
+    fn degenerate_images_and_scales_are_refused() {
+        let object = cube();
+        let spread_image: Vec<_> = (0..6)
+            .map(|i| Vector2::new(0.01 * i as f64, 0.02 * ((i * i) % 5) as f64))
+            .collect();
+        for &solver in Solver::ALL {
+            if object.len() < solver.min_points() {
+                continue;
+            }
+            assert_eq!(validate_input(solver, &object, &spread_image), Ok(()));
+            let same_pixel = vec![Vector2::new(0.1, -0.2); 6];
+            assert_eq!(
+                solver.solve(&object, &same_pixel).unwrap_err(),
+                PnpError::CoincidentImagePoints,
+                "{solver}"
+            );
+            let on_a_line: Vec<_> = (0..6)
+                .map(|i| Vector2::new(0.01 * i as f64, 0.5 - 0.03 * i as f64))
+                .collect();
+            assert_eq!(
+                solver.solve(&object, &on_a_line).unwrap_err(),
+                PnpError::CollinearImagePoints,
+                "{solver}"
+            );
+            for factor in [1e200, 1e-200, 1e70, 1e-70] {
+                let scaled: Vec<_> = object.iter().map(|p| p * factor).collect();
+                let err = solver.solve(&scaled, &spread_image).unwrap_err();
+                assert!(
+                    matches!(err, PnpError::BadScale { kind: "object", .. }),
+                    "{solver} at scale {factor:e}: {err}"
+                );
+                assert!(err.to_string().contains("rescale the units"), "{err}");
+            }
+            let far: Vec<_> = spread_image.iter().map(|m| m * 1e70).collect();
+            assert!(matches!(
+                solver.solve(&object, &far).unwrap_err(),
+                PnpError::BadScale { kind: "image", .. }
+            ));
+        }
     }
 }

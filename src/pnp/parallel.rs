@@ -33,9 +33,25 @@
 //! * `parallel` iterates the paraperspective equations with Horaud's
 //!   perspective correction `(x_i − u0)(1 + ε_i) = I·P_i`, `ε_i = k·P_i / tz`,
 //!   until the corrections stop changing; its first iteration is eqs. 17–21.
+//!   It returns the iterate with the lowest reprojection error and stops on
+//!   divergence ([`solve_iterative`]).
+//!
+//! # Where the single start holds
+//! The paper's method starts Gauss–Newton once, from the paraperspective
+//! pose, and we keep it that way: `parallel-weighted` is the method as
+//! published. Two generic safeguards of the shared β machinery apply to it
+//! as to every EPnP-family solver: backtracking Gauss–Newton
+//! ([`gauss_newton::refine_betas`]) and the depth-reversed mirror candidate
+//! ([`EpnpSystem::push_candidates`]). What remains are local minima reached
+//! from a paraperspective start that is far off: under strong perspective
+//! (depth/size near 1) and for thin, nearly planar objects the first-order
+//! paraperspective pose can be 30–40° from the truth, and Gauss–Newton on
+//! the six control-point distances then settles in the minimum nearest that
+//! start. `reports/solvers/` measures where (the conformance sweep,
+//! `cargo run --release --example conformance`).
 
 use super::epnp::{EpnpSystem, PAIRS};
-use super::{gauss_newton, Candidates, PnpError};
+use super::{gauss_newton, reprojection_error_sq_in_front, Candidates, PnpError};
 use crate::error_model::transfer::eq30_weight;
 use crate::pose::{nearest_rotation, Pose};
 use nalgebra::{Matrix3, Rotation3, Vector2, Vector3, Vector4};
@@ -48,6 +64,11 @@ pub const M_O_FLOOR_FRACTION: f64 = 0.5;
 pub const ITERATION_TOLERANCE: f64 = 1e-14;
 /// Upper bound on Horaud's iterations.
 pub const MAX_ITERATIONS: usize = 500;
+/// Horaud's iteration stops as diverging when its corrections have grown
+/// for this many iterations in a row. A converging iteration shrinks them
+/// every step once it is near its fixed point; an oscillation or a drift
+/// grows them.
+pub const DIVERGENCE_PATIENCE: usize = 5;
 
 const SOLVER: &str = "Paraperspective";
 
@@ -165,6 +186,13 @@ impl<'a> Paraperspective<'a> {
         })
     }
 
+    /// Sum of squared reprojection errors of a pose in the shifted frame;
+    /// infinite if a point is not in front of the camera.
+    fn reprojection_error_sq(&self, pose: &Pose) -> f64 {
+        reprojection_error_sq_in_front(&self.unshift(pose), self.object, self.image)
+            .unwrap_or(f64::INFINITY)
+    }
+
     /// Back to the caller's object frame.
     fn unshift(&self, pose: &Pose) -> Pose {
         pose.with_object_origin_shifted(&self.shift)
@@ -173,17 +201,37 @@ impl<'a> Paraperspective<'a> {
 
 /// `parallel`: the paraperspective pose of eqs. 17–21, iterated with
 /// Horaud's perspective correction until it converges to the full
-/// perspective pose. Returns one candidate.
+/// perspective pose. Returns one candidate: the iterate with the lowest
+/// reprojection error.
+///
+/// Horaud et al. (§5) show the iteration converges when the object's depth
+/// extent is small against its distance (the corrections ε_i stay well
+/// below 1). Under strong perspective (depth/size near 1, or a thin object
+/// seen edge-on) it can instead wander, or settle on a fixed point far from
+/// the pose, with tens to thousands of pixels of reprojection error. So the
+/// iteration keeps the best iterate by reprojection error, and stops when
+/// the corrections have grown for [`DIVERGENCE_PATIENCE`] iterations in a
+/// row or when an iterate is degenerate, returning that best iterate.
 pub fn solve_iterative(
     object: &[Vector3<f64>],
     image: &[Vector2<f64>],
 ) -> Result<Candidates, PnpError> {
     let problem = Paraperspective::new(object, image)?;
     let mut current = problem.solve(|_| 1.0)?;
+    let mut best = (problem.reprojection_error_sq(&current.pose), current.pose);
+    let mut previous_change = f64::INFINITY;
+    let mut growing = 0;
     for _ in 0..MAX_ITERATIONS {
         let previous = current;
         let tz = previous.pose.translation.z;
-        current = problem.solve(|index| 1.0 + previous.k.dot(&problem.shifted(index)) / tz)?;
+        current = match problem.solve(|index| 1.0 + previous.k.dot(&problem.shifted(index)) / tz) {
+            Ok(next) => next,
+            Err(_) => break,
+        };
+        let error_sq = problem.reprojection_error_sq(&current.pose);
+        if error_sq < best.0 {
+            best = (error_sq, current.pose);
+        }
         let change = (0..object.len())
             .map(|index| {
                 (current.k / current.pose.translation.z - previous.k / tz)
@@ -191,11 +239,20 @@ pub fn solve_iterative(
                     .abs()
             })
             .fold(0.0, f64::max);
-        if change <= ITERATION_TOLERANCE {
+        if change.is_nan() || change <= ITERATION_TOLERANCE {
             break;
         }
+        growing = if change > previous_change {
+            growing + 1
+        } else {
+            0
+        };
+        if growing >= DIVERGENCE_PATIENCE {
+            break;
+        }
+        previous_change = change;
     }
-    Ok(smallvec![problem.unshift(&current.pose)])
+    Ok(smallvec![problem.unshift(&best.1)])
 }
 
 /// Control points of the paper's method: the reference point (origin of the
@@ -244,7 +301,9 @@ pub fn eq30_weights(control_world: &[Vector3<f64>; 4], pose: &Pose) -> [f64; 6] 
 /// `parallel-weighted` (`weighted = true`, the paper's method) or the
 /// `parallel-gn` ablation (`weighted = false`): single-step paraperspective
 /// (eqs. 17–21) → control points (eq. 14) → β0 (eq. 16) → Gauss–Newton
-/// (eq. 31 or eq. 10) → pose. Returns one candidate.
+/// (eq. 31 or eq. 10) → pose. Returns one candidate, and its depth-reversed
+/// mirror when the reconstruction is a mirror image of the object
+/// ([`EpnpSystem::push_candidates`]).
 pub fn solve_with_gauss_newton(
     object: &[Vector3<f64>],
     image: &[Vector2<f64>],
@@ -270,6 +329,11 @@ pub fn solve_with_gauss_newton(
     let system = EpnpSystem::new(control_world, object, image)?;
     // Eq. 16.
     let start: Vector4<f64> = system.betas_from_control_camera(&control_camera);
-    let betas = gauss_newton::refine_betas(&system, &start, &weights);
-    Ok(smallvec![system.pose_from_betas(&betas)])
+    let mut candidates = Candidates::new();
+    system.push_candidates(
+        &start,
+        |betas| gauss_newton::refine_betas(&system, betas, &weights),
+        &mut candidates,
+    );
+    Ok(candidates)
 }

@@ -339,7 +339,7 @@ fn error_messages_name_the_method_and_the_input() {
     let err = Solver::Dls.solve(&object, &image).unwrap_err();
     assert_eq!(
         err.to_string(),
-        "DLS failed: all image points lie on one ray"
+        "all image points coincide; no PnP method can recover a pose from one image point"
     );
     let err = PnpError::PolynomialSolver {
         solver: "DLS",
