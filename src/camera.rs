@@ -349,10 +349,11 @@ impl Camera {
             && pixel.y <= self.height as f64 - margin_px
     }
 
-    /// Loads a camera from our JSON format or an OpenCV calibration
-    /// YAML/XML-as-YAML file (`camera_matrix`, `distortion_coefficients`,
-    /// `image_width`, `image_height`). The format is chosen by content:
-    /// a file whose first non-blank character is `{` is JSON.
+    /// Loads a camera from our JSON format or an OpenCV calibration YAML
+    /// file (`camera_matrix`, `distortion_coefficients`, `image_width`,
+    /// `image_height`). The format is chosen by content: a file whose first
+    /// non-blank character is `{` is JSON, anything else is parsed as YAML,
+    /// so OpenCV's XML form is not read (convert it to YAML first).
     pub fn load(path: &Path) -> Result<Self, CameraError> {
         let text = std::fs::read_to_string(path).map_err(|source| CameraError::Io {
             path: path.display().to_string(),
