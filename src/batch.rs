@@ -1,4 +1,5 @@
-//! The correspondence-batch contract of `layout-opt solve` (DESIGN.md).
+//! The correspondence-batch contract of `layout-opt solve`
+//! (docs/formats.md, "`solve` batch").
 //!
 //! Input:
 //! ```json

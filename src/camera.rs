@@ -1,8 +1,8 @@
 //! Pinhole camera with Brown–Conrady distortion, as OpenCV defines it.
 //!
-//! Conventions (DESIGN.md, contract): OpenCV's camera frame (x right, y down,
-//! z forward along the optical axis); intrinsics in pixels; distortion
-//! coefficients `[k1, k2, p1, p2, k3]`.
+//! Conventions (docs/formats.md, "Conventions" and "Camera file", contract):
+//! OpenCV's camera frame (x right, y down, z forward along the optical
+//! axis); intrinsics in pixels; distortion coefficients `[k1, k2, p1, p2, k3]`.
 //!
 //! Solvers never see pixels: [`Camera::pixel_to_normalised`] removes the
 //! intrinsics and the distortion (iteratively, as OpenCV's `undistortPoints`),
@@ -87,8 +87,9 @@ pub struct Camera {
     distortion: [f64; 5],
 }
 
-/// The JSON form of a camera (DESIGN.md, contract). `width`, `height` and
-/// `distortion` are optional so that a solve batch may give intrinsics only.
+/// The JSON form of a camera (docs/formats.md, "Camera file", contract).
+/// `width`, `height` and `distortion` are optional so that a solve batch may
+/// give intrinsics only.
 #[derive(Debug, Clone, Deserialize)]
 pub struct CameraSpec {
     /// Horizontal focal length, px.
@@ -360,10 +361,11 @@ impl Camera {
             && pixel.y <= self.height as f64 - margin_px
     }
 
-    /// Loads a camera from our JSON format or an OpenCV calibration
-    /// YAML/XML-as-YAML file (`camera_matrix`, `distortion_coefficients`,
-    /// `image_width`, `image_height`). The format is chosen by content:
-    /// a file whose first non-blank character is `{` is JSON.
+    /// Loads a camera from our JSON format or an OpenCV calibration YAML
+    /// file (`camera_matrix`, `distortion_coefficients`, `image_width`,
+    /// `image_height`). The format is chosen by content: a file whose first
+    /// non-blank character is `{` is JSON, anything else is parsed as YAML,
+    /// so OpenCV's XML form is not read (convert it to YAML first).
     pub fn load(path: &Path) -> Result<Self, CameraError> {
         let text = std::fs::read_to_string(path).map_err(|source| CameraError::Io {
             path: path.display().to_string(),

@@ -1,4 +1,4 @@
-//! The layout file (DESIGN.md, "Layout file", contract): named feature
+//! The layout file (docs/formats.md, "Layout file", contract): named feature
 //! points in millimetres, the diameter of the spheres that mark them, and
 //! optional `family` and `provenance` records that are kept verbatim.
 //!

@@ -1,6 +1,6 @@
 //! Scenarios: one camera pose of the marker plus one noise level, built as a
-//! grid from CLI ranges (DESIGN.md), and the visibility rules every scenario
-//! is checked against.
+//! grid from CLI ranges (docs/formats.md, "Ranges on the command line"), and
+//! the visibility rules every scenario is checked against.
 //!
 //! **Scenario pose (contract).** The marker origin sits at
 //! `(offset_x, offset_y, depth)` in the camera frame; its attitude is

@@ -33,9 +33,9 @@ pub struct ExportArgs {
     /// Meshing grid spacing, mm (default 0.5, finer if a feature needs it).
     #[arg(long, value_name = "MM")]
     resolution: Option<f64>,
-    /// Main viewing direction: the camera looks along it (+z: DESIGN.md's
-    /// base attitude). Struts are routed so as not to cover spheres seen
-    /// from there.
+    /// Main viewing direction: the camera looks along it (+z: the base
+    /// attitude of docs/formats.md, "Conventions"). Struts are routed so as
+    /// not to cover spheres seen from there.
     #[arg(
         long,
         value_name = "AXIS",

@@ -1,4 +1,5 @@
-//! First-order pose covariance `Σ = (Jᵀ W J)⁻¹` (DESIGN.md, "Error models").
+//! First-order pose covariance `Σ = (Jᵀ W J)⁻¹` (docs/paper-notes.md, "Error
+//! models beside the paper's").
 //!
 //! J is the 2n×6 Jacobian of the pixel reprojections with respect to the pose
 //! perturbation `(ω, δt)` (`R ← exp([ω]×) R`, `t ← t + δt`; ω in radians about

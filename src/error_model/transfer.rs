@@ -1,7 +1,9 @@
 //! The seed paper's error-transfer model (§3.3, eqs. 26–30) and Qu & Hou's
 //! planar model (§2.2, eqs. 11–13).
 //!
-//! # Per segment (eqs. 28–29, as NOTES.md reads the garbled eq. 27)
+//! # Per segment (eqs. 28–29)
+//! The garbled eq. 27 is read as in docs/paper-notes.md, "Eqs. 26–29: error
+//! transfer along one segment".
 //! For a segment from the reference point P0 (object origin, image
 //! `(u0, v0)`, depth tz) to a feature P_i, with 3D length d, projected length m
 //! on the normalised image plane, `m_o = √(u0² + v0²)`, angle β to the optical

@@ -4,10 +4,10 @@
 //! one analytic signed-distance function ([`Marker::sample`]); sphere
 //! centres are exactly the layout's coordinates.
 //!
-//! **Routing.** The main viewing direction `view` (default `+z`: DESIGN.md's
-//! base attitude puts the camera on the marker's −z side, looking along +z)
-//! decides where the struts go, so that in the main (orthographic) view no
-//! strut covers another sphere:
+//! **Routing.** The main viewing direction `view` (default `+z`: the base
+//! attitude of docs/formats.md, "Conventions", puts the camera on the
+//! marker's −z side, looking along +z) decides where the struts go, so that
+//! in the main (orthographic) view no strut covers another sphere:
 //! 1. Each sphere gets a *post* running straight back along `view`, which in
 //!    the main view hides behind the sphere itself (struts are thinner than
 //!    spheres). When a post would pass within the clearance of a sphere

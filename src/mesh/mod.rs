@@ -1,4 +1,4 @@
-//! Printable marker meshes (DESIGN.md, "Export for fabrication"): one
+//! Printable marker meshes (docs/formats.md, "Report files", `export`): one
 //! watertight, outward-wound, manifold solid — a sphere per feature point,
 //! struts to a hub, a mounting stub and base plate — written as STL, OBJ,
 //! glTF or GLB, with a fabrication sheet.

@@ -143,7 +143,7 @@ pub enum PnpError {
     },
 }
 
-/// Every solver, by stable CLI name (DESIGN.md).
+/// Every solver, by stable CLI name (docs/formats.md, "Solver names").
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
 #[non_exhaustive]
 pub enum Solver {

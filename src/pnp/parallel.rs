@@ -12,7 +12,7 @@
 //! it is the origin; the pose is shifted back at the end. Reports name the
 //! point (`reference_index`).
 //!
-//! # Choices the paper leaves open (see `shared/seed/NOTES.md`)
+//! # Choices the paper leaves open (docs/paper-notes.md, "Eq. 19" to "`parallel` and the `parallel-gn` ablation")
 //! * Eq. 19 is used as corrected: `tz = ½(√(1+u0²)/‖I‖ + √(1+v0²)/‖J‖)`.
 //! * The near-rotation `[i j k]ᵀ` of eq. 21 is projected onto SO(3) by SVD.
 //! * Control points of the paper's method (§4.1): the reference point plus one
@@ -155,7 +155,7 @@ impl<'a> Paraperspective<'a> {
                 reason: "the image has no extent around the reference point",
             });
         }
-        // Eq. 19, as corrected in NOTES.md.
+        // Eq. 19, as corrected in docs/paper-notes.md, "Eq. 19: depth from ‖I‖ and ‖J‖".
         let tz = 0.5 * ((1.0 + u0 * u0).sqrt() / norm_i + (1.0 + v0 * v0).sqrt() / norm_j);
         // Eq. 21: (Id − tz v0 [I]× + tz u0 [J]×) k = tz² (I × J).
         let system = Matrix3::identity() - big_i.cross_matrix() * (tz * v0)

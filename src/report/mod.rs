@@ -1,7 +1,7 @@
 //! Report writers: SVG plots (plotters), markdown tables and CSV files.
 //! Reports go to `reports/<name>/` as `report.md` + `summary.json` + CSV +
-//! SVG (DESIGN.md, "Reports"); the commands that build them own their
-//! content, this module only draws and formats.
+//! SVG (docs/formats.md, "Report files"); the commands that build them own
+//! their content, this module only draws and formats.
 
 pub mod plots;
 

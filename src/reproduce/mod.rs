@@ -17,7 +17,8 @@
 //! later appear without changes here. Claims that name a solver this build
 //! lacks are reported as *not evaluated*.
 //!
-//! **Reading of the paper** (documented choices, see `shared/seed/NOTES.md`):
+//! **Reading of the paper** (documented choices, see docs/paper-notes.md,
+//! "Simulation experiments (§4.3)"):
 //! * "noise with a variance of 0.2" is σ = √0.2 ≈ 0.447 px ([`paper_sigma_px`]);
 //!   the noise sweep's "0~10 pixels, step 0.5" is σ = 0.5…10 px;
 //! * the "6-point biprism" is the paper's Fig. 6 marker: six vertices at ±L
