@@ -1539,7 +1539,7 @@ mod tests {
         while worst.cases < 1000 {
             let mut rng = stream_rng(SEED, 4, case);
             case += 1;
-            let object = if case % 2 == 0 {
+            let object = if case.is_multiple_of(2) {
                 biprism_points(50.0)
             } else {
                 let n = rng.random_range(6..=40);

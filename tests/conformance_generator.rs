@@ -1,7 +1,9 @@
 //! The conformance sweep's problem generator (`layout_opt::conformance`):
 //! seeded reproducibility, every point in front of the camera, the requested
-//! n / thickness / depth ratio honoured, and noise-free problems solved
-//! exactly (rotation error < 1e-6°) by SQPnP and ML on a handful of cells.
+//! n / thickness / depth ratio honoured; and noise-free problems across the
+//! sweep's axes solved exactly (rotation error < 1e-6°) by every solver,
+//! with the exceptions listed, and bounded, in
+//! [`noise_free_exception`].
 
 use layout_opt::conformance::{
     diameter, generate, Cell, OffAxis, MIN_DEPTH_FRACTION, OBJECT_DIAMETER_MM,
@@ -144,66 +146,130 @@ fn the_centroid_lands_on_its_pixel_target() {
     }
 }
 
-/// Noise-free cells across the sweep's axes: the pose is determined exactly.
+/// Noise-free cells across the sweep's axes (depth/size 0.5…200, n 4…200,
+/// planar to cube, off-axis to the image corner, distortion on and off):
+/// the pose is determined exactly.
 fn noise_free_cells() -> Vec<Cell> {
-    let noise_free = |depth_ratio, points, thickness, off_axis, distortion| Cell {
-        depth_ratio,
-        points,
-        thickness,
-        off_axis,
-        distortion,
-        sigma_px: 0.0,
-    };
-    let corner = OffAxis::TowardCorner(1.0);
-    vec![
-        noise_free(5.0, 10, 1.0, OffAxis::Uniform, false),
-        noise_free(1.0, 6, 1.0, corner, true),
-        noise_free(0.5, 20, 0.3, OffAxis::Uniform, true),
-        noise_free(20.0, 8, 0.1, OffAxis::TowardCorner(0.5), false),
-        noise_free(3.0, 50, 0.01, OffAxis::Uniform, true),
-        noise_free(2.0, 6, 0.0, corner, false),
-    ]
+    let mut cells = Vec::new();
+    for depth_ratio in [0.5, 1.0, 5.0, 200.0] {
+        for (points, thickness) in [(4, 1.0), (6, 0.0), (10, 0.01), (200, 0.3)] {
+            for (off_axis, distortion) in [
+                (OffAxis::Uniform, false),
+                (OffAxis::TowardCorner(1.0), true),
+            ] {
+                cells.push(Cell {
+                    sigma_px: 0.0,
+                    distortion,
+                    ..cell(depth_ratio, points, thickness, off_axis)
+                });
+            }
+        }
+    }
+    cells
 }
 
-/// Every noise-free problem of [`noise_free_cells`] that `solver` accepts
-/// must come back with rotation error < 1e-6°.
-fn assert_solves_noise_free_exactly(solver: Solver) {
-    let mut misses = Vec::new();
-    for c in noise_free_cells() {
-        if c.thickness == 0.0 && solver.needs_noncoplanar() {
-            continue;
+/// Where a solver may miss a noise-free pose, and the reason; `None` where
+/// it must recover it exactly. Every exception is a method that starts a
+/// local iteration once, from an approximation that its own paper limits:
+/// - DLT on thin sets: the 11-parameter projection matrix needs a
+///   noncoplanar object (Hartley & Zisserman §7.1), and a 1%-thin set
+///   leaves its system nearly singular in double precision;
+/// - unrefined EPnP with four points: Lepetit et al.'s closed forms assume
+///   the null-space dimension N, and at n = 4 the 8×12 system has N = 4 for
+///   every pose, where the relinearised system is itself ill-conditioned;
+///   EPnP+GN recovers every one of these;
+/// - IEPnP and the paraperspective family: one start from an affine camera
+///   (weak perspective, paper §2.1; paraperspective, Horaud et al. 1997 §5,
+///   valid while the object's depth extent is small against its distance),
+///   so close up (depth/size ≤ 5) and for thin sets seen obliquely the
+///   iteration settles in the minimum nearest a start 30–180° off;
+/// - LHM: orthogonal iteration converges globally to *a* critical point of
+///   the object-space error, not always the global minimum (Lu, Hager &
+///   Mjolsness 2000 §4.3).
+fn noise_free_exception(solver: Solver, cell: &Cell) -> Option<&'static str> {
+    let close_or_thin = cell.depth_ratio <= 5.0 || cell.thickness <= 0.01;
+    match solver {
+        Solver::Dlt if cell.thickness <= 0.01 => Some("DLT needs a noncoplanar object"),
+        Solver::Epnp if cell.points == 4 => Some("EPnP's closed forms at N = 4"),
+        Solver::Iepnp | Solver::Parallel | Solver::ParallelGn | Solver::ParallelWeighted
+            if close_or_thin =>
+        {
+            Some("one start from an affine camera model")
         }
-        for case in 0..CASES {
-            let p = generate(&c, SEED, case).problem;
-            match solver.solve_best(&p.object, &p.normalised) {
-                Ok(pose) => {
-                    let error = rotation_error_deg(&p.truth.rotation, &pose.rotation);
-                    if error >= 1e-6 {
-                        misses.push(format!("{c:?} case {case}: {error:.3e}°"));
-                    }
-                }
-                Err(e) => misses.push(format!("{c:?} case {case}: {e}")),
+        Solver::Lhm => Some("orthogonal iteration converges to a critical point"),
+        _ => None,
+    }
+}
+
+/// Every solver, on every noise-free problem of [`noise_free_cells`] that it
+/// accepts and that is not a listed exception, recovers the rotation to
+/// < 1e-6°. The exceptions are counted and printed, and may not exceed the
+/// miss rate measured when they were set (plus a small margin), so a
+/// regression there fails too.
+#[test]
+fn noise_free_problems_are_solved_exactly_by_every_solver() {
+    let mut misses = Vec::new();
+    for &solver in Solver::ALL {
+        let (mut excepted_misses, mut excepted_runs) = (0usize, 0usize);
+        for c in noise_free_cells() {
+            if (c.thickness == 0.0 && solver.needs_noncoplanar()) || c.points < solver.min_points()
+            {
+                continue;
             }
+            let exception = noise_free_exception(solver, &c);
+            for case in 0..CASES {
+                let p = generate(&c, SEED, case).problem;
+                let outcome = solver
+                    .solve_best(&p.object, &p.normalised)
+                    .map(|pose| rotation_error_deg(&p.truth.rotation, &pose.rotation));
+                let missed = !matches!(outcome, Ok(error) if error < 1e-6);
+                if exception.is_some() {
+                    excepted_runs += 1;
+                    excepted_misses += usize::from(missed);
+                } else if missed {
+                    misses.push(format!("{solver} {c:?} case {case}: {outcome:?}"));
+                }
+            }
+        }
+        if excepted_runs > 0 {
+            let rate = excepted_misses as f64 / excepted_runs as f64;
+            eprintln!("{solver}: {excepted_misses} misses in {excepted_runs} excepted problems");
+            assert!(
+                rate <= max_excepted_miss_rate(solver),
+                "{solver}: {excepted_misses} of {excepted_runs} excepted noise-free problems missed"
+            );
         }
     }
     assert!(
         misses.is_empty(),
-        "{solver}: {} noise-free problems not solved to < 1e-6°:\n{}",
+        "{} noise-free problems not solved to < 1e-6°:\n{}",
         misses.len(),
         misses.join("\n")
     );
 }
 
-#[test]
-fn noise_free_problems_are_solved_exactly_by_sqpnp() {
-    assert_solves_noise_free_exactly(Solver::Sqpnp);
+/// The miss rate measured in each solver's excepted cells, plus a margin.
+fn max_excepted_miss_rate(solver: Solver) -> f64 {
+    match solver {
+        Solver::Dlt => MEASURED_DLT,
+        Solver::Epnp => MEASURED_EPNP,
+        Solver::Iepnp => MEASURED_IEPNP,
+        Solver::Parallel => MEASURED_PARALLEL,
+        Solver::ParallelGn | Solver::ParallelWeighted => MEASURED_PARALLEL_GN,
+        Solver::Lhm => MEASURED_LHM,
+        _ => 0.0,
+    }
 }
 
-/// Fails on the solvers of 2026-03 (before the solver fixes): ML returns
-/// `BehindCamera` on 4 of the 25 depth/size 0.5 problems (its start, the
-/// paper's parallel-weighted pose, is poor that close). Not loosened: the
-/// conformance sweep's report carries the same finding.
-#[test]
-fn noise_free_problems_are_solved_exactly_by_ml() {
-    assert_solves_noise_free_exactly(Solver::Ml);
-}
+// Measured (2026-11-23, after the backtracking and mirror fixes) on the
+// excepted problems of `noise_free_cells`, 25 cases each, and the cap set
+// just above: DLT 0 of 200 (the sweep's one DLT miss, 1.1e-3° at depth/size
+// 50 and 0.1% thickness, is not among these draws), EPnP 104 of 200,
+// IEPnP 49 of 500, paraperspective 196 of 500, parallel-gn 23 and
+// parallel-weighted 20 of 500, LHM 103 of 600.
+const MEASURED_DLT: f64 = 0.01;
+const MEASURED_EPNP: f64 = 0.55;
+const MEASURED_IEPNP: f64 = 0.11;
+const MEASURED_PARALLEL: f64 = 0.42;
+const MEASURED_PARALLEL_GN: f64 = 0.05;
+const MEASURED_LHM: f64 = 0.19;

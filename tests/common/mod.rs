@@ -82,7 +82,7 @@ pub fn problem(seed: u64, family: Family, case: u64, sigma_px: f64) -> Problem {
         if spread.extents[thin_axis] < MIN_THICKNESS * spread.extents[0] {
             continue;
         }
-        let ratio = if case % 2 == 0 {
+        let ratio = if case.is_multiple_of(2) {
             2.0 * 10f64.powf(rng.random::<f64>()) // near field: 2–20
         } else {
             20.0 * 10f64.powf(rng.random::<f64>()) // far field: 20–200

@@ -300,7 +300,7 @@ fn hessenberg_eigenvalues<const N: usize>(
             h[high - 1][high],
             h[high][high],
         );
-        let (shift_sum, shift_product) = if iterations % EXCEPTIONAL_SHIFT_EVERY == 0 {
+        let (shift_sum, shift_product) = if iterations.is_multiple_of(EXCEPTIONAL_SHIFT_EVERY) {
             // Wilkinson's exceptional shift (as in EISPACK `hqr`).
             let s = h[high - 1][high].abs() + h[high - 2][high - 1].abs();
             (2.0 * d + 1.5 * s, d * d + 1.5 * s * d + s * s)
