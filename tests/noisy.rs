@@ -1,10 +1,12 @@
 //! Noisy data, judged statistically: on 500 seeded near-field problems
 //! (the biprism and random n = 6…100 sets, depth/size 2–20, σ = 0.5 px) the RMS
 //! rotation error, each problem normalised by its first-order (Cramér–Rao)
-//! limit `σ²(JᵀJ)⁻¹`, must be within 10% of the limit for `ml` and within 25%
-//! for `parallel-weighted` and `epnp-gn`, 10% for `sqpnp`, 20% for `lhm` and
-//! 30% for `rpnp` (see its test). No solver may return a non-finite
-//! pose; gross failures (> 10°) are counted and printed.
+//! limit `σ²(JᵀJ)⁻¹`, must be within a band of the limit set just above what
+//! was measured (2026-11-23, worst of the two families), so that a
+//! regression fails: `ml` 3% (measured 0.5%), `sqpnp`, `lhm`, `opnp` and
+//! `dls` 4% (1.7–1.8%), `epnp-gn` 13% (10.2%), `parallel-weighted` 14%
+//! (11.8%) and `rpnp` 30% (27.1%, see its test). No solver may return a
+//! non-finite pose; gross failures (> 10°) are counted and printed.
 
 mod common;
 
@@ -85,22 +87,22 @@ fn check(solver: Solver, tolerance: f64) {
 
 #[test]
 fn ml_reaches_the_first_order_limit() {
-    check(Solver::Ml, 0.10);
+    check(Solver::Ml, 0.03);
 }
 
 #[test]
-fn parallel_weighted_is_within_25_percent_of_the_limit() {
-    check(Solver::ParallelWeighted, 0.25);
+fn parallel_weighted_is_within_14_percent_of_the_limit() {
+    check(Solver::ParallelWeighted, 0.14);
 }
 
 #[test]
-fn epnp_gn_is_within_25_percent_of_the_limit() {
-    check(Solver::EpnpGn, 0.25);
+fn epnp_gn_is_within_13_percent_of_the_limit() {
+    check(Solver::EpnpGn, 0.13);
 }
 
 #[test]
-fn dls_is_within_10_percent_of_the_limit() {
-    check(Solver::Dls, 0.10);
+fn dls_is_within_4_percent_of_the_limit() {
+    check(Solver::Dls, 0.04);
 }
 
 /// Every other solver: finite poses always, and the ratio printed (no bound:
@@ -118,8 +120,8 @@ fn other_solvers_return_finite_poses() {
 }
 
 #[test]
-fn sqpnp_is_within_10_percent_of_the_limit() {
-    check(Solver::Sqpnp, 0.10);
+fn sqpnp_is_within_4_percent_of_the_limit() {
+    check(Solver::Sqpnp, 0.04);
 }
 
 /// RPnP was asked to be within 20%; it is not on the random sets. Measured
@@ -177,11 +179,11 @@ fn rpnp_reaches_the_limit_when_its_axis_pair_is_noise_free() {
 }
 
 #[test]
-fn lhm_is_within_20_percent_of_the_limit() {
-    check(Solver::Lhm, 0.20);
+fn lhm_is_within_4_percent_of_the_limit() {
+    check(Solver::Lhm, 0.04);
 }
 
 #[test]
 fn opnp_reaches_the_first_order_limit() {
-    check(Solver::Opnp, 0.10);
+    check(Solver::Opnp, 0.04);
 }
