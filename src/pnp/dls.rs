@@ -51,10 +51,13 @@
 //!    half-turns (the unit quaternions with component `c` zero, where its
 //!    Cayley vector is infinite) is a zero-cost pose, and is ill-conditioned
 //!    when one is nearly as cheap as the minimum. With `J(R(q)) = z(q)ᵀ K z(q)`
-//!    over the ten quadratic monomials of the quaternion, the least cost of
-//!    chart `c`'s half-turns is a ternary quartic form, sampled on 64 fixed
-//!    directions ([`CostMatrices::equator_cost`], about 10 k flops); the
-//!    chart whose half-turns cost the most is solved first;
+//!    over the ten quadratic monomials of the quaternion, the cost of
+//!    chart `c`'s half-turns is a ternary quartic form; its least value
+//!    ([`CostMatrices::equator_cost`]) is found by sampling 64 fixed
+//!    directions and running Newton's method on the sphere from every
+//!    sample that is a local minimum among its neighbours. The chart whose
+//!    half-turns cost the most is solved first ([`CostMatrices::first_chart`],
+//!    which refines only the charts that can still win: about 4 µs);
 //! 2. solves again, in the chart nearest to it (`covering_chart`: the
 //!    largest quaternion component), every critical point found beyond a
 //!    solved chart's trusted region, every real eigenvalue whose root could
@@ -70,6 +73,25 @@
 //!    are singular, or where their weighting `1/cos⁴(θ/2)` of the cost has
 //!    bent its minimum away (noise can remove a minimum near a chart's
 //!    half-turns that way).
+//!
+//! **Why the least cost, not the least sample.** Sampling alone (as this
+//! module first did) overestimates the least cost by orders of magnitude
+//! when the cost valley around a well-determined pose is narrower than the
+//! samples' spacing (16°; every direction is within 14° of one). A seven-point layout from our own search
+//! showed it: at a tilt of 30° about x, the pose (quaternion
+//! `(cos 15°, sin 15°, 0, 0)`) is a zero-cost half-turn of the y and z
+//! charts, yet the y chart's least sample cost 0.16, more than any other
+//! chart's, so it was solved first. There the true minimum is a double root
+//! at infinity, which rounding turns into a complex pair of modulus ≈ 5·10⁶
+//! (not a real root beyond the trusted region, not a rejected real
+//! eigenvalue, not a singular template), while a spurious local minimum
+//! 177° away put every point in front of the camera: nothing asked for
+//! another chart, and DLS returned the flip (noise-free; with σ = 0.5 px
+//! the layout's validation run had 74 gross failures). Over 2000 test
+//! problems (half of them tilts about x, the validation protocol's poses)
+//! the least sample picked a chart whose half-turns cost at least 10% less
+//! than another's 596 times, the refined least cost never (against a dense
+//! 20 000-direction search refined by Newton's method).
 //!
 //! Measured with `cargo run --release --example dls_report 200` (σ = 0.5 px,
 //! depth/size 2–200, n = 4…104): 1.5–1.9 charts on average (median 1–2, max
@@ -99,7 +121,8 @@
 //! planar and quasi-planar sets).
 //!
 //! **Deviations from the paper.** (1) Four charts instead of DLS+++'s three,
-//! solved on demand (see above). (2) The action matrix is for multiplication by one variable
+//! solved on demand, the first chosen by the least cost of its half-turns
+//! (see above). (2) The action matrix is for multiplication by one variable
 //! after a fixed generic change of variables, and the template is
 //! eliminated block by block, rather than the paper's Schur complement with
 //! a random linear form (same basis, same template rows, fewer flops, no
@@ -153,7 +176,8 @@ pub const DUPLICATE_ROTATION_RAD: f64 = 1e-6;
 pub const CHART_TRUST_CAYLEY_NORM: f64 = 3.732_050_807_568_877;
 
 /// Number of directions on which [`CostMatrices::equator_cost`] samples a
-/// chart's singular set (a 2-sphere of half-turns, up to sign).
+/// chart's singular set (a 2-sphere of half-turns, up to sign) to seed its
+/// Newton descents.
 pub const EQUATOR_DIRECTIONS: usize = 64;
 
 /// Fibonacci-lattice directions on the upper unit hemisphere: nearly even
@@ -168,6 +192,210 @@ static EQUATOR_SAMPLES: std::sync::LazyLock<[[f64; 3]; EQUATOR_DIRECTIONS]> =
             [r * phi.cos(), r * phi.sin(), z]
         })
     });
+
+/// Each sample of [`CostMatrices::equator_minimum`] is compared with this
+/// many nearest samples (up to sign; the Fibonacci lattice is nearly
+/// hexagonal); a sample no costlier than all of them seeds a Newton descent.
+pub const EQUATOR_NEIGHBOURS: usize = 6;
+
+/// Most Newton steps of one descent on a chart's singular set (from within
+/// a sample spacing of the minimum it converges in 3–6).
+pub const EQUATOR_NEWTON_ITERATIONS: usize = 8;
+
+/// A Newton step on the singular set is capped at this angle (radians,
+/// 29°, about twice the farthest any direction is from a sample), so that
+/// a descent stays near its basin.
+pub const EQUATOR_MAX_STEP_RAD: f64 = 0.5;
+
+/// A descent on the singular set has converged when its step is shorter
+/// than this (radians).
+pub const EQUATOR_STEP_TOLERANCE_RAD: f64 = 1e-6;
+
+/// Halvings of a Newton step that does not lower the cost before the
+/// descent stops.
+pub const EQUATOR_BACKTRACKS: usize = 12;
+
+/// The Riemannian Hessian of a descent is raised to at least this fraction
+/// of its largest eigenvalue, so every step goes downhill (a Newton step
+/// towards a saddle otherwise).
+pub const EQUATOR_HESSIAN_FLOOR: f64 = 1e-3;
+
+/// For each of [`EQUATOR_SAMPLES`], its [`EQUATOR_NEIGHBOURS`] nearest
+/// others, with `u` and `−u` the same direction (the singular set is a
+/// projective plane: `q` and `−q` are one rotation).
+static EQUATOR_NEIGHBOUR_TABLE: std::sync::LazyLock<
+    [[usize; EQUATOR_NEIGHBOURS]; EQUATOR_DIRECTIONS],
+> = std::sync::LazyLock::new(|| {
+    let samples = &*EQUATOR_SAMPLES;
+    std::array::from_fn(|i| {
+        let closeness = |j: usize| {
+            let (a, b) = (samples[i], samples[j]);
+            (a[0] * b[0] + a[1] * b[1] + a[2] * b[2]).abs()
+        };
+        let mut nearest = [usize::MAX; EQUATOR_NEIGHBOURS];
+        for slot in 0..EQUATOR_NEIGHBOURS {
+            nearest[slot] = (0..EQUATOR_DIRECTIONS)
+                .filter(|&j| j != i && !nearest[..slot].contains(&j))
+                .max_by(|&a, &b| closeness(a).total_cmp(&closeness(b)))
+                .unwrap_or(i);
+        }
+        nearest
+    })
+});
+
+/// `(u0², u0u1, u0u2, u1², u1u2, u2²)`.
+fn ternary_quadratics(u: &Vector3<f64>) -> SVector<f64, 6> {
+    SVector::<f64, 6>::new(
+        u.x * u.x,
+        u.x * u.y,
+        u.x * u.z,
+        u.y * u.y,
+        u.y * u.z,
+        u.z * u.z,
+    )
+}
+
+/// The cost on one chart's singular set: `f(u) = z(u)ᵀ K z(u)` with
+/// `z` = [`ternary_quadratics`], a quartic form in `u ∈ ℝ³`, `|u| = 1`.
+struct EquatorForm {
+    /// `K` restricted to the six monomials without the chart's component.
+    gram: SMatrix<f64, 6, 6>,
+}
+
+impl EquatorForm {
+    /// The form of chart `chart` (an index into [`CHARTS`]) from the
+    /// quaternion Gram matrix `K`.
+    fn new(gram: &SMatrix<f64, 10, 10>, chart: usize) -> Self {
+        // The six monomials without q_chart, and K restricted to them. In
+        // QUATERNION_MONOMIALS' order they are, for the free components
+        // u = (q_i, q_j, q_k) (i < j < k), (u0², u0u1, u0u2, u1², u1u2, u2²):
+        // the order of `ternary_quadratics`.
+        let mut kept = [0usize; 6];
+        for (slot, m) in (0..10)
+            .filter(|&m| QUATERNION_MONOMIALS[m].0 != chart && QUATERNION_MONOMIALS[m].1 != chart)
+            .enumerate()
+        {
+            kept[slot] = m;
+        }
+        Self {
+            gram: SMatrix::<f64, 6, 6>::from_fn(|i, j| gram[(kept[i], kept[j])]),
+        }
+    }
+
+    /// `f` on [`EQUATOR_SAMPLES`].
+    fn sampled(&self) -> [f64; EQUATOR_DIRECTIONS] {
+        let samples = &*EQUATOR_SAMPLES;
+        std::array::from_fn(|i| self.value(&Vector3::from(samples[i])))
+    }
+
+    /// The least of `f` (and where): Newton descents from every sample no
+    /// costlier than its neighbours (`values` = [`Self::sampled`]).
+    fn minimum(&self, values: &[f64; EQUATOR_DIRECTIONS]) -> (f64, Vector3<f64>) {
+        let samples = &*EQUATOR_SAMPLES;
+        let mut best = (f64::INFINITY, Vector3::z());
+        for (i, neighbours) in EQUATOR_NEIGHBOUR_TABLE.iter().enumerate() {
+            if values[i] < best.0 {
+                best = (values[i], Vector3::from(samples[i]));
+            }
+            if neighbours.iter().all(|&j| values[j] >= values[i]) {
+                let refined = self.descend(Vector3::from(samples[i]), values[i]);
+                if refined.0 < best.0 {
+                    best = refined;
+                }
+            }
+        }
+        best
+    }
+
+    fn value(&self, u: &Vector3<f64>) -> f64 {
+        let z = ternary_quadratics(u);
+        z.dot(&(self.gram * z))
+    }
+
+    /// Gradient and Hessian of `f` in ℝ³.
+    fn derivatives(&self, u: &Vector3<f64>) -> (Vector3<f64>, Matrix3<f64>) {
+        let w = self.gram * ternary_quadratics(u);
+        // ∂z/∂u, one row per monomial.
+        #[rustfmt::skip]
+        let dz = SMatrix::<f64, 6, 3>::new(
+            2.0 * u.x, 0.0, 0.0,
+            u.y, u.x, 0.0,
+            u.z, 0.0, u.x,
+            0.0, 2.0 * u.y, 0.0,
+            0.0, u.z, u.y,
+            0.0, 0.0, 2.0 * u.z,
+        );
+        // Σ_m w_m ∂²z_m/∂u².
+        #[rustfmt::skip]
+        let curvature = Matrix3::new(
+            2.0 * w[0], w[1], w[2],
+            w[1], 2.0 * w[3], w[4],
+            w[2], w[4], 2.0 * w[5],
+        );
+        let gradient = 2.0 * dz.tr_mul(&w);
+        let hessian = 2.0 * dz.tr_mul(&(self.gram * dz)) + 2.0 * curvature;
+        (gradient, hessian)
+    }
+
+    /// Riemannian Newton's method for `f` on the unit sphere from `u`
+    /// (with cost `value`), each step capped, made to descend and
+    /// backtracked: the local minimum `(f, u)` of `u`'s basin.
+    fn descend(&self, mut u: Vector3<f64>, mut value: f64) -> (f64, Vector3<f64>) {
+        for _ in 0..EQUATOR_NEWTON_ITERATIONS {
+            let (gradient, hessian) = self.derivatives(&u);
+            // An orthonormal basis of the tangent plane at u.
+            let helper = if u.x.abs() < 0.6 {
+                Vector3::x()
+            } else {
+                Vector3::y()
+            };
+            let e1 = u.cross(&helper).normalize();
+            let basis = nalgebra::Matrix3x2::from_columns(&[e1, u.cross(&e1)]);
+            // On the sphere: projected gradient, and Hessian Bᵀ(∇²f − (uᵀ∇f) I)B.
+            let tangent_gradient = basis.tr_mul(&gradient);
+            let mut tangent_hessian =
+                basis.tr_mul(&(hessian * basis)) - nalgebra::Matrix2::identity() * u.dot(&gradient);
+            // Its eigenvalues, in closed form.
+            let half_trace = 0.5 * tangent_hessian.trace();
+            let radius = (half_trace * half_trace - tangent_hessian.determinant())
+                .max(0.0)
+                .sqrt();
+            let (smallest, largest) = (half_trace - radius, half_trace + radius);
+            let floor = EQUATOR_HESSIAN_FLOOR * smallest.abs().max(largest.abs());
+            if smallest < floor {
+                tangent_hessian += nalgebra::Matrix2::identity() * (floor - smallest);
+            }
+            let Some(mut step) = tangent_hessian
+                .try_inverse()
+                .map(|inverse| -(inverse * tangent_gradient))
+                .filter(|step| step.iter().all(|v| v.is_finite()))
+            else {
+                break;
+            };
+            if step.norm() > EQUATOR_MAX_STEP_RAD {
+                step *= EQUATOR_MAX_STEP_RAD / step.norm();
+            }
+            let converged = step.norm() < EQUATOR_STEP_TOLERANCE_RAD;
+            let mut accepted = false;
+            // A converged step is taken if it helps, never halved.
+            let tries = if converged { 1 } else { EQUATOR_BACKTRACKS };
+            for _ in 0..tries {
+                let next = (u + basis * step).normalize();
+                let next_value = self.value(&next);
+                if next_value < value {
+                    (u, value) = (next, next_value);
+                    accepted = true;
+                    break;
+                }
+                step *= 0.5;
+            }
+            if converged || !accepted {
+                break;
+            }
+        }
+        (value, u)
+    }
+}
 
 /// The factors `(a, b)` of each quaternion monomial `q_a q_b` of
 /// [`CostMatrices::quaternion_gram`], with `q = (w, x, y, z)`.
@@ -328,38 +556,65 @@ impl CostMatrices {
     /// The least cost `J` over the singular set of chart `chart` (an index
     /// into [`CHARTS`]): the rotations a half-turn away from its centre, the
     /// unit quaternions with component `chart` zero, where its Cayley vector
-    /// is infinite. Evaluated on [`EQUATOR_DIRECTIONS`] fixed directions.
+    /// is infinite. See [`CostMatrices::equator_minimum`].
     pub fn equator_cost(&self, gram: &SMatrix<f64, 10, 10>, chart: usize) -> f64 {
-        // The six monomials without q_chart, and K restricted to them.
-        let mut kept = [0usize; 6];
-        for (slot, m) in (0..10)
-            .filter(|&m| QUATERNION_MONOMIALS[m].0 != chart && QUATERNION_MONOMIALS[m].1 != chart)
-            .enumerate()
-        {
-            kept[slot] = m;
-        }
-        let restricted = SMatrix::<f64, 6, 6>::from_fn(|i, j| gram[(kept[i], kept[j])]);
-        // The three free components, in order, for a direction u.
+        self.equator_minimum(gram, chart).0
+    }
+
+    /// The least cost `J` over chart `chart`'s half-turns and the unit
+    /// quaternion `(w, x, y, z)` (component `chart` zero) attaining it.
+    ///
+    /// On those quaternions `J` is a ternary quartic form `f(u)` of the
+    /// three free components `u` (unit). It is sampled on
+    /// [`EQUATOR_DIRECTIONS`] fixed directions, and every sample that is no
+    /// costlier than its [`EQUATOR_NEIGHBOURS`] nearest neighbours seeds
+    /// Newton's method on the sphere, which converges to the local minimum
+    /// of `f` in that basin. The samples alone are not enough: near a
+    /// well-determined pose `J` rises steeply (the cost valley can be
+    /// narrower than the samples' spacing of 16°), so the least sample
+    /// can exceed the least cost by orders of magnitude and misrank the
+    /// charts (module documentation, "Why the least cost, not the least
+    /// sample").
+    pub fn equator_minimum(&self, gram: &SMatrix<f64, 10, 10>, chart: usize) -> (f64, [f64; 4]) {
+        let form = EquatorForm::new(gram, chart);
+        let (value, u) = form.minimum(&form.sampled());
         let free: [usize; 3] = match chart {
             0 => [1, 2, 3],
             1 => [0, 2, 3],
             2 => [0, 1, 3],
             _ => [0, 1, 2],
         };
-        EQUATOR_SAMPLES
-            .iter()
-            .map(|u| {
-                let mut q = [0.0; 4];
-                for (slot, value) in free.iter().zip(u) {
-                    q[*slot] = *value;
-                }
-                let z = SVector::<f64, 6>::from_fn(|m, _| {
-                    let (a, b) = QUATERNION_MONOMIALS[kept[m]];
-                    q[a] * q[b]
-                });
-                z.dot(&(restricted * z))
-            })
-            .fold(f64::INFINITY, f64::min)
+        let mut q = [0.0; 4];
+        for (slot, component) in free.iter().zip(u.iter()) {
+            q[*slot] = *component;
+        }
+        (value, q)
+    }
+
+    /// The chart whose half-turns cost the most ([`CostMatrices::equator_cost`]
+    /// largest; the lowest index on a tie), the one [`ChartPolicy::OnDemand`]
+    /// solves first. The same as comparing the four equator costs, with less
+    /// work: a chart's least sample bounds its least cost from above, so a
+    /// chart whose least sample is below the largest least cost found so far
+    /// cannot win and is not refined.
+    pub fn first_chart(&self, gram: &SMatrix<f64, 10, 10>) -> usize {
+        let forms: [EquatorForm; 4] = std::array::from_fn(|c| EquatorForm::new(gram, c));
+        let sampled: [[f64; EQUATOR_DIRECTIONS]; 4] = std::array::from_fn(|c| forms[c].sampled());
+        let upper: [f64; 4] =
+            std::array::from_fn(|c| sampled[c].iter().copied().fold(f64::INFINITY, f64::min));
+        let mut order = [0, 1, 2, 3];
+        order.sort_by(|&a, &b| upper[b].total_cmp(&upper[a]).then(a.cmp(&b)));
+        let mut best = (f64::NEG_INFINITY, 0);
+        for c in order {
+            if upper[c] < best.0 || (upper[c] == best.0 && c > best.1) {
+                continue;
+            }
+            let (least, _) = forms[c].minimum(&sampled[c]);
+            if least > best.0 || (least == best.0 && c < best.1) {
+                best = (least, c);
+            }
+        }
+        best.1
     }
 
     /// `J(R) = vec(R)ᵀ M vec(R)` for a rotation in the normalised frame.
@@ -476,11 +731,7 @@ pub fn solve_with_statistics_in(
         ChartPolicy::OnDemand => {
             // Start in the chart farthest from its singularity: the one
             // whose half-turns cost the most (module documentation).
-            let gram = matrices.quaternion_gram();
-            let costs: [f64; 4] = std::array::from_fn(|c| matrices.equator_cost(&gram, c));
-            let first = (0..CHARTS.len())
-                .max_by(|&a, &b| costs[a].total_cmp(&costs[b]))
-                .unwrap_or(0);
+            let first = matrices.first_chart(&matrices.quaternion_gram());
             let mut wanted = [false; 4];
             wanted[first] = true;
             wanted
