@@ -182,7 +182,8 @@ fn noise_free_cells() -> Vec<Cell> {
 ///   (weak perspective, paper §2.1; paraperspective, Horaud et al. 1997 §5,
 ///   valid while the object's depth extent is small against its distance),
 ///   so close up (depth/size ≤ 5) and for thin sets seen obliquely the
-///   iteration settles in the minimum nearest a start 30–180° off;
+///   iteration settles in the minimum nearest a start far off (the
+///   sweep's noise-free misses reach 150–180°);
 /// - LHM: orthogonal iteration converges globally to *a* critical point of
 ///   the object-space error, not always the global minimum (Lu, Hager &
 ///   Mjolsness 2000 §4.3).
