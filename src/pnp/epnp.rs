@@ -293,31 +293,37 @@ impl EpnpSystem {
             null_space[2] * scale,
             null_space[3] * scale,
         ];
-        // Column of each product λ_i λ_j (i ≤ j, not (0, 0), which is 1).
-        let mut system = SMatrix::<f64, 20, 14>::zeros();
-        let mut rhs = SVector::<f64, 20>::zeros();
+        // Each relation is one row over the products λ_i λ_j (i ≤ j, not
+        // (0, 0), which is 1). For a product pair (p, q) the coefficient of
+        // λ_i λ_j is `a_i b_j + a_j b_i` (`a_i b_i` on the diagonal), with
+        // a, b the p-th and q-th entries of the basis. The system is kept
+        // by columns, so that each entry of its normal equations (lower
+        // triangle only) is one dot product of length 20.
+        let entries: [[f64; 5]; 10] = std::array::from_fn(|p| std::array::from_fn(|i| basis[i][p]));
+        let mut columns = [[0.0f64; 20]; 15];
         for (row, &(p, q, p2, q2)) in RANK_ONE_RELATIONS.iter().enumerate() {
+            let (a, b, c, d) = (&entries[p], &entries[q], &entries[p2], &entries[q2]);
             let mut column = 0;
             for i in 0..5 {
-                for j in i..5 {
-                    let coefficient = |p: usize, q: usize| {
-                        if i == j {
-                            basis[i][p] * basis[i][q]
-                        } else {
-                            basis[i][p] * basis[j][q] + basis[j][p] * basis[i][q]
-                        }
-                    };
-                    let value = coefficient(p, q) - coefficient(p2, q2);
-                    if (i, j) == (0, 0) {
-                        rhs[row] = -value;
-                    } else {
-                        system[(row, column)] = value;
-                        column += 1;
-                    }
+                columns[column][row] = a[i] * b[i] - c[i] * d[i];
+                column += 1;
+                for j in i + 1..5 {
+                    columns[column][row] = a[i] * b[j] + a[j] * b[i] - c[i] * d[j] - c[j] * d[i];
+                    column += 1;
                 }
             }
         }
-        let products = solve_least_squares(&system, &rhs);
+        // Column 0 multiplies λ₀² = 1: it moves to the right-hand side.
+        let dot = |x: &[f64; 20], y: &[f64; 20]| x.iter().zip(y).map(|(x, y)| x * y).sum::<f64>();
+        let mut normal = SMatrix::<f64, 14, 14>::zeros();
+        let mut moment = SVector::<f64, 14>::zeros();
+        for r in 0..14 {
+            moment[r] = -dot(&columns[r + 1], &columns[0]);
+            for c in 0..=r {
+                normal[(r, c)] = dot(&columns[r + 1], &columns[c + 1]);
+            }
+        }
+        let products = solve_normal_equations(normal, &moment);
         // λ₀ λ_i for i = 1…4 are the first four unknowns.
         let mut combined = basis[0];
         for i in 0..4 {
@@ -547,16 +553,24 @@ fn solve_least_squares<const R: usize, const C: usize>(
     a: &SMatrix<f64, R, C>,
     b: &SVector<f64, R>,
 ) -> SVector<f64, C> {
-    let mut ata = a.tr_mul(a);
-    let atb = a.tr_mul(b);
-    if let Some(solution) = solve_positive_definite(&ata, &atb) {
+    solve_normal_equations(a.tr_mul(a), &a.tr_mul(b))
+}
+
+/// Solves the normal equations `AᵀA x = Aᵀb` (lower triangle read), with a
+/// ridge of [`RIDGE_FRACTION`] of the mean diagonal if `AᵀA` has lost rank
+/// numerically; zeros if even that fails.
+fn solve_normal_equations<const C: usize>(
+    mut ata: SMatrix<f64, C, C>,
+    atb: &SVector<f64, C>,
+) -> SVector<f64, C> {
+    if let Some(solution) = solve_positive_definite(&ata, atb) {
         return solution;
     }
     let ridge = RIDGE_FRACTION * ata.trace() / C as f64;
     for d in 0..C {
         ata[(d, d)] += ridge;
     }
-    solve_positive_definite(&ata, &atb).unwrap_or_else(SVector::zeros)
+    solve_positive_definite(&ata, atb).unwrap_or_else(SVector::zeros)
 }
 
 /// The twenty independent relations `β̄_p β̄_q = β̄_p' β̄_q'` that ten
