@@ -183,17 +183,16 @@ impl EpnpSystem {
         Vector4::from_fn(|k, _| self.null_space[k].dot(&stacked))
     }
 
-    /// Lepetit's closed-form β for null-space dimensions N = 1, 2, 3
-    /// (linearisation) and N = 4, the last both linearised over four
-    /// products, as the reference implementation does, and by
-    /// relinearisation, as the paper prescribes; in that order.
-    pub fn closed_form_betas(&self) -> [Vector4<f64>; 5] {
+    /// Lepetit's closed-form β for null-space dimensions N = 1…4, all
+    /// linearised as the reference implementation does (N = 4 over four of
+    /// the ten products), in that order: the starts of EPnP+GN.
+    /// [`EpnpSystem::relinearised_betas`] is the paper's N = 4.
+    pub fn closed_form_betas(&self) -> [Vector4<f64>; 4] {
         [
             self.betas_dimension_1(),
             self.betas_dimension_2(),
             self.betas_dimension_3(),
             self.betas_dimension_4_linearised(),
-            self.betas_dimension_4(),
         ]
     }
 
@@ -203,7 +202,7 @@ impl EpnpSystem {
     /// the two N = 4 starts (6 or 10 points in a 1 m cube at 0.5–1.5 m, 300
     /// problems at σ = 0.5 px: unrefined EPnP at 1.29× the first-order limit
     /// with it, 2.78× with relinearisation in its place); far from it,
-    /// relinearisation is ([`EpnpSystem::closed_form_betas`] returns both).
+    /// relinearisation is (unrefined EPnP returns both).
     fn betas_dimension_4_linearised(&self) -> Vector4<f64> {
         let l = SMatrix::<f64, 6, 4>::from_columns(&[
             self.distance_products.column(0).into_owned(),
@@ -270,11 +269,14 @@ impl EpnpSystem {
     /// dimension, that start is grossly wrong. Measured on the conformance
     /// sweep's far-field regime (a 50 mm biprism at 1–3 m, σ = 0.5 px, 300
     /// problems, no Gauss–Newton): 247 off by more than 10° with the four
-    /// linearised closed forms, 34 with this one beside them (which
-    /// [`EpnpSystem::closed_form_betas`] returns, for the near field's
-    /// sake). On a similar draw of 300 problems, 257 fell to 15 with this
-    /// one in place of the N = 4 linearisation and to 34 with both.
-    fn betas_dimension_4(&self) -> Vector4<f64> {
+    /// linearised closed forms, 34 with this one beside them (unrefined
+    /// EPnP returns both, for the near field's sake). On a similar draw of
+    /// 300 problems, 257 fell to 15 with this one in place of the N = 4
+    /// linearisation and to 34 with both. Gauss–Newton with backtracking
+    /// and the mirror candidate needs no relinearised start (EPnP+GN: 0
+    /// gross failures there from the four linearised ones), so EPnP+GN does
+    /// not pay for it.
+    pub fn relinearised_betas(&self) -> Vector4<f64> {
         let Some((particular, null_space)) =
             minimum_norm_and_null_space(&self.distance_products, &self.control_distances_sq)
         else {
@@ -700,11 +702,19 @@ fn minimum_norm_and_null_space(
 /// counts as zero: L has lost rank and relinearisation is not posed.
 pub const NULL_SPACE_RANK_TOLERANCE: f64 = 1e-12;
 
+/// EPnP+GN also starts from the relinearised N = 4 β up to this many points:
+/// with n points M has 2n rows, so n = 4 leaves a null space of dimension
+/// 12 − 8 = 4 for every pose.
+pub const RELINEARISED_START_MAX_POINTS: usize = 4;
+
 /// Ridge added to a rank-deficient normal matrix, relative to its mean diagonal.
 pub const RIDGE_FRACTION: f64 = 1e-12;
 
-/// EPnP (`refine = false`) or EPnP+GN (`refine = true`): one candidate per
-/// null-space dimension N = 1…4, plus the depth-reversed mirror of any
+/// EPnP (`refine = false`): one candidate per closed form, the four
+/// linearised ones and the relinearised N = 4; or EPnP+GN (`refine = true`):
+/// the four linearised closed forms refined by Gauss–Newton, as in the
+/// reference implementation, and the relinearised one too where N = 4 for
+/// every pose ([`RELINEARISED_START_MAX_POINTS`]). Either adds the depth-reversed mirror of any
 /// candidate whose reconstruction is a mirror image of the object
 /// ([`EpnpSystem::push_candidates`]).
 pub fn solve(
@@ -714,14 +724,23 @@ pub fn solve(
 ) -> Result<Candidates, PnpError> {
     let system = EpnpSystem::new(principal_control_points(object), object, image)?;
     let mut candidates = Candidates::new();
-    for betas in &system.closed_form_betas() {
-        if refine {
-            system.push_candidates(
-                betas,
-                |start| gauss_newton::refine_betas(&system, start, &gauss_newton::UNIT_WEIGHTS),
-                &mut candidates,
-            );
-        } else {
+    if refine {
+        let refine = |start: &Vector4<f64>| {
+            gauss_newton::refine_betas(&system, start, &gauss_newton::UNIT_WEIGHTS)
+        };
+        for betas in &system.closed_form_betas() {
+            system.push_candidates(betas, refine, &mut candidates);
+        }
+        // With four points M is 8×12, so its null space is 4-dimensional
+        // whatever the pose: only N = 4 is right, and the linearised N = 4
+        // start is far off often enough to matter (sweep, noise-free n = 4:
+        // 30 of 600 missed without this start, none with it).
+        if object.len() <= RELINEARISED_START_MAX_POINTS {
+            system.push_candidates(&system.relinearised_betas(), refine, &mut candidates);
+        }
+    } else {
+        let starts = system.closed_form_betas();
+        for betas in starts.iter().chain([&system.relinearised_betas()]) {
             system.push_candidates(betas, |start| *start, &mut candidates);
         }
     }
