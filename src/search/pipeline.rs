@@ -662,3 +662,102 @@ pub fn run(
     result.total_seconds = total_seconds;
     Ok(result)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::observer::{Collect, Silent};
+
+    fn small(dir: &Path) -> SearchConfig {
+        let mut config = SearchConfig::new("t", dir);
+        config.grid = ScenarioGrid::new(
+            "300,800".parse().unwrap(),
+            "0,60".parse().unwrap(),
+            Range::single(0.0),
+            "-40..40:20".parse().unwrap(),
+            Range::single(0.0),
+            Range::single(0.0),
+            Range::single(0.5),
+        )
+        .unwrap();
+        config.search.starts = 2;
+        config.search.iterations = 100;
+        config.compare_trials = 10;
+        config.validate_solvers = vec![Solver::ParallelWeighted];
+        config
+    }
+
+    #[test]
+    fn a_search_writes_every_output_where_the_config_says() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut config = small(dir.path());
+        config.report_dir = dir.path().join("elsewhere/report");
+        let mut observer = Collect::default();
+        let outcome = run(&config, &mut observer).unwrap();
+        assert!(!outcome.interrupted);
+        assert!(observer.lines.is_empty(), "{:?}", observer.lines);
+        assert_eq!(Layout::load(&config.layout_path).unwrap(), outcome.winner);
+        assert!(config.report_dir.join("report.md").exists());
+        assert!(config
+            .report_dir
+            .join("winner-validation/report.md")
+            .exists());
+        assert!(!outcome.checkpoints.exists());
+        assert!(!dir.path().join("t-report").exists());
+        let summary = outcome.summary.unwrap();
+        assert_eq!(summary.designs[0].name, "t");
+    }
+
+    /// Interrupts as soon as the search has made progress.
+    #[derive(Default)]
+    struct StopEarly {
+        progressed: bool,
+    }
+
+    impl Observer for StopEarly {
+        fn progress(&mut self, phase: &str, done: u64, _total: u64) {
+            assert_eq!(phase, PHASE_SEARCH, "no phase runs after a stop");
+            self.progressed |= done > 0;
+        }
+        fn interrupted(&self) -> bool {
+            self.progressed
+        }
+    }
+
+    #[test]
+    fn an_interrupted_search_keeps_its_best_layout_and_checkpoints() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut config = small(dir.path());
+        config.search.iterations = 100_000;
+        let outcome = run(&config, &mut StopEarly::default()).unwrap();
+        assert!(outcome.interrupted && outcome.summary.is_none());
+        assert!(outcome.checkpoints.exists());
+        assert!(config.layout_path.exists());
+        assert!(!config.report_dir.exists());
+    }
+
+    #[test]
+    fn bad_settings_are_typed_errors() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut config = small(dir.path());
+        config.compare_trials = 0;
+        assert!(matches!(
+            run(&config, &mut Silent),
+            Err(SearchError::Config(_))
+        ));
+        config.compare_trials = 10;
+        config.search.iterations = 0;
+        assert!(matches!(
+            run(&config, &mut Silent),
+            Err(SearchError::Optimise(_))
+        ));
+    }
+
+    #[test]
+    fn the_report_goes_beside_the_layout() {
+        assert_eq!(
+            report_dir_beside(Path::new("out/marker.json")),
+            Path::new("out/marker-report")
+        );
+    }
+}
