@@ -6,18 +6,15 @@ use super::common::{command_line, CameraArgs, GridArgs};
 use super::{progress, GlobalOptions};
 use anyhow::Context;
 use clap::{Args, ValueEnum};
-use indicatif::ProgressBar;
 use layout_opt::family::{Constraints, Envelope, FamilyKind};
 use layout_opt::layout::Layout;
 use layout_opt::mesh::Format;
 use layout_opt::noise::NoiseModel;
-use layout_opt::observer::Observer;
 use layout_opt::pnp::Solver;
 use layout_opt::search::optimise::{Optimiser, SearchSettings};
 use layout_opt::search::pipeline::{self, MeshExport, SearchConfig};
 use layout_opt::search::{Aggregate, Objective, ObjectiveSettings};
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicBool, Ordering};
 
 /// Layout families.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -148,41 +145,6 @@ pub struct SearchArgs {
     export_dir: Option<PathBuf>,
 }
 
-/// Progress bars (one per phase) and Ctrl-C.
-struct Terminal {
-    quiet: bool,
-    phase: String,
-    bar: Option<ProgressBar>,
-}
-
-static STOP: AtomicBool = AtomicBool::new(false);
-
-impl Observer for Terminal {
-    fn progress(&mut self, phase: &str, done: u64, total: u64) {
-        if self.phase != phase || self.bar.is_none() {
-            if let Some(bar) = self.bar.take() {
-                bar.finish_and_clear();
-            }
-            self.phase = phase.to_string();
-            self.bar = Some(progress::bar(total, phase, self.quiet));
-        }
-        if let Some(bar) = &self.bar {
-            bar.set_position(done);
-        }
-    }
-
-    fn interrupted(&self) -> bool {
-        STOP.load(Ordering::SeqCst)
-    }
-
-    fn log(&mut self, line: &str) {
-        match &self.bar {
-            Some(bar) => bar.suspend(|| eprintln!("{line}")),
-            None => eprintln!("{line}"),
-        }
-    }
-}
-
 /// The flags as a pipeline configuration; the default paths are relative to
 /// the working directory.
 fn config(args: SearchArgs, global: &GlobalOptions) -> anyhow::Result<SearchConfig> {
@@ -284,18 +246,10 @@ fn config(args: SearchArgs, global: &GlobalOptions) -> anyhow::Result<SearchConf
 
 pub fn run(args: SearchArgs, global: &GlobalOptions) -> anyhow::Result<()> {
     let config = config(args, global)?;
-    // A second handler cannot be installed in the same process; that only
-    // matters to tests that call run twice, and they never press Ctrl-C.
-    let _ = ctrlc::set_handler(|| STOP.store(true, Ordering::SeqCst));
-    let mut terminal = Terminal {
-        quiet: global.quiet,
-        phase: String::new(),
-        bar: None,
-    };
-    let result = pipeline::run(&config, &mut terminal);
-    if let Some(bar) = terminal.bar.take() {
-        bar.finish_and_clear();
-    }
+    progress::catch_ctrl_c();
+    let mut bars = progress::Bars::new(global.quiet);
+    let result = pipeline::run(&config, &mut bars);
+    bars.finish();
     let outcome = result?;
     let layout_path = config.layout_path.display();
     let search_seconds = outcome.search_seconds;
