@@ -4,6 +4,8 @@
 //! into progress bars and Ctrl-C handling and a library user may ignore
 //! ([`Silent`]).
 
+use std::sync::atomic::{AtomicBool, Ordering};
+
 /// The caller's side of a pipeline run. Every method has a do-nothing
 /// default; the pipeline calls them from the thread that called it.
 pub trait Observer {
@@ -53,26 +55,43 @@ pub(crate) fn watch<T: Send>(
     phase: &str,
     total: u64,
     done: impl Fn() -> u64,
-    stop: Option<&std::sync::atomic::AtomicBool>,
+    stop: Option<&AtomicBool>,
+    work: impl FnOnce() -> T + Send,
+) -> T {
+    observer.progress(phase, 0, total);
+    relay(
+        observer,
+        |o| o.progress(phase, done().min(total), total),
+        stop,
+        work,
+    )
+}
+
+/// Runs `work` on a scoped thread while this thread calls `report` on
+/// `observer` every few milliseconds (and once at the end) and, when `stop`
+/// is given, sets it once the observer is [`Observer::interrupted`].
+pub(crate) fn relay<O: Observer, T: Send>(
+    observer: &mut O,
+    report: impl Fn(&mut O),
+    stop: Option<&AtomicBool>,
     work: impl FnOnce() -> T + Send,
 ) -> T {
     const POLL: std::time::Duration = std::time::Duration::from_millis(20);
     std::thread::scope(|scope| {
         let handle = scope.spawn(work);
-        observer.progress(phase, 0, total);
         while !handle.is_finished() {
             std::thread::sleep(POLL);
             if let Some(stop) = stop {
                 if observer.interrupted() {
-                    stop.store(true, std::sync::atomic::Ordering::SeqCst);
+                    stop.store(true, Ordering::SeqCst);
                 }
             }
-            observer.progress(phase, done().min(total), total);
+            report(observer);
         }
         let result = handle
             .join()
             .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
-        observer.progress(phase, done().min(total), total);
+        report(observer);
         result
     })
 }
