@@ -21,6 +21,7 @@ pub mod linalg;
 pub mod mesh;
 pub mod montecarlo;
 pub mod noise;
+pub mod observer;
 pub mod pnp;
 pub mod pose;
 pub mod report;

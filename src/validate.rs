@@ -36,6 +36,9 @@ pub enum ValidateError {
     /// The report could not be written.
     #[error(transparent)]
     Report(#[from] ReportError),
+    /// A setting is out of range.
+    #[error("invalid validation settings: {0}")]
+    Config(String),
 }
 
 /// Where every number came from.
@@ -753,4 +756,157 @@ fn markdown(summary: &Summary) -> String {
     }
     let _ = writeln!(out, "## Marker\n\n![three views](marker_views.svg)\n");
     out
+}
+
+/// A validation as one call: the Monte-Carlo run, the report and `run.json`,
+/// into the directory the configuration names, with progress through an
+/// [`Observer`](crate::observer::Observer).
+pub mod pipeline {
+    use super::{run as validate, write_report, ValidateError, Validation};
+    use crate::camera::Camera;
+    use crate::layout::Layout;
+    use crate::montecarlo::MonteCarloConfig;
+    use crate::observer::{watch, Observer};
+    use crate::report::{write_text, ReportError};
+    use crate::scenario::ScenarioGrid;
+    use std::path::PathBuf;
+    use std::sync::atomic::{AtomicU64, Ordering};
+    use std::time::Instant;
+
+    /// Progress phase of the Monte-Carlo run (one step per scenario).
+    pub const PHASE: &str = "validating";
+
+    /// Every input and the output directory of a validation.
+    #[derive(Debug, Clone)]
+    pub struct ValidateConfig {
+        /// The layout.
+        pub layout: Layout,
+        /// The simulated camera.
+        pub camera: Camera,
+        /// The scenarios.
+        pub grid: ScenarioGrid,
+        /// Trials, seed, solvers, noise and gross-failure threshold.
+        pub monte_carlo: MonteCarloConfig,
+        /// The command that asked for the run, for the report header.
+        pub command: String,
+        /// A remark on how the grid was chosen, recorded in `run.json`.
+        pub grid_note: Option<String>,
+        /// The report directory.
+        pub out_dir: PathBuf,
+    }
+
+    /// What a validation produced.
+    #[derive(Debug, Clone)]
+    pub struct ValidateOutcome {
+        /// The summary and every scenario's outcome.
+        pub validation: Validation,
+        /// Solves attempted (successful ones plus solver errors).
+        pub solves: usize,
+        /// Wall-clock seconds of the Monte-Carlo run.
+        pub seconds: f64,
+    }
+
+    /// Validates [`ValidateConfig::layout`] and writes its report, with
+    /// `run.json` (timing, threads, solves, the grid note), into
+    /// [`ValidateConfig::out_dir`].
+    pub fn run(
+        config: &ValidateConfig,
+        observer: &mut impl Observer,
+    ) -> Result<ValidateOutcome, ValidateError> {
+        let threshold = config.monte_carlo.gross_threshold_deg;
+        if !(threshold > 0.0 && threshold.is_finite()) {
+            return Err(ValidateError::Config(
+                "the gross-failure threshold must be a positive number of degrees".into(),
+            ));
+        }
+        let done = AtomicU64::new(0);
+        let started = Instant::now();
+        let validation = watch(
+            observer,
+            PHASE,
+            config.grid.len() as u64,
+            || done.load(Ordering::Relaxed),
+            None,
+            || {
+                validate(
+                    &config.layout,
+                    &config.camera,
+                    &config.grid,
+                    &config.monte_carlo,
+                    &config.command,
+                    &|finished| done.store(finished as u64, Ordering::Relaxed),
+                )
+            },
+        )?;
+        let seconds = started.elapsed().as_secs_f64();
+        write_report(&config.out_dir, &config.layout, &validation)?;
+        let solves: usize = validation
+            .outcomes
+            .iter()
+            .flat_map(|o| o.solvers.iter())
+            .map(|r| r.rotation_deg.count + r.solver_errors)
+            .sum();
+        let run_path = config.out_dir.join("run.json");
+        let run = serde_json::json!({
+            "tilt_step_note": config.grid_note,
+            "wall_seconds": seconds,
+            "threads": rayon::current_num_threads(),
+            "solves": solves,
+            "solves_per_second": solves as f64 / seconds,
+        });
+        let text =
+            serde_json::to_string_pretty(&run).map_err(|e| ReportError::write(&run_path, e))?;
+        write_text(&run_path, &(text + "\n"))?;
+        Ok(ValidateOutcome {
+            validation,
+            solves,
+            seconds,
+        })
+    }
+
+    #[cfg(test)]
+    mod tests {
+        use super::*;
+        use crate::observer::Silent;
+        use crate::pnp::Solver;
+        use crate::scenario::Range;
+
+        #[test]
+        fn writes_the_report_and_run_json_where_the_config_says() {
+            let dir = tempfile::tempdir().unwrap();
+            let mut config = ValidateConfig {
+                layout: Layout::paper_biprism(),
+                camera: Camera::paper(),
+                grid: ScenarioGrid::new(
+                    "300,600".parse().unwrap(),
+                    Range::single(0.0),
+                    Range::single(0.0),
+                    "-20,20".parse().unwrap(),
+                    Range::single(0.0),
+                    Range::single(0.0),
+                    Range::single(0.5),
+                )
+                .unwrap(),
+                monte_carlo: MonteCarloConfig {
+                    trials: 5,
+                    seed: 1,
+                    solvers: vec![Solver::ParallelWeighted],
+                    noise: Default::default(),
+                    gross_threshold_deg: crate::montecarlo::DEFAULT_GROSS_THRESHOLD_DEG,
+                },
+                command: "test".into(),
+                grid_note: None,
+                out_dir: dir.path().join("report"),
+            };
+            let outcome = run(&config, &mut Silent).unwrap();
+            assert_eq!(outcome.solves, 4 * 5);
+            assert!(config.out_dir.join("report.md").exists());
+            assert!(config.out_dir.join("run.json").exists());
+            config.monte_carlo.gross_threshold_deg = 0.0;
+            assert!(matches!(
+                run(&config, &mut Silent),
+                Err(ValidateError::Config(_))
+            ));
+        }
+    }
 }

@@ -295,3 +295,31 @@ fn resume_refuses_a_stale_checkpoint_and_export_writes_the_winner() {
         .stderr(predicate::str::contains("Rerun without --resume"));
     assert!(stale.join("config.json").exists());
 }
+
+#[test]
+fn out_elsewhere_puts_the_report_beside_the_layout() {
+    // The working directory stands in for a checkout: a search whose --out
+    // points elsewhere must write nothing under its reports/ or layouts/.
+    let checkout = tempfile::tempdir().unwrap();
+    let elsewhere = tempfile::tempdir().unwrap();
+    let out = elsewhere.path().join("marker.json");
+    layout_opt()
+        .current_dir(checkout.path())
+        .arg("search")
+        .args(SMALL)
+        .arg("3")
+        .args(["--iterations", "100"])
+        .arg("--out")
+        .arg(&out)
+        .assert()
+        .success()
+        .stdout(predicate::str::contains("marker-report"));
+    assert!(out.exists());
+    assert!(elsewhere.path().join("marker-report/report.md").exists());
+    assert!(elsewhere
+        .path()
+        .join("marker-report/winner-validation/summary.json")
+        .exists());
+    assert!(!checkout.path().join("reports").exists());
+    assert!(!checkout.path().join("layouts").exists());
+}

@@ -2,7 +2,9 @@
 //! was not given.
 
 use indicatif::{ProgressBar, ProgressStyle};
+use layout_opt::observer::Observer;
 use std::io::IsTerminal;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 /// A progress bar of `total` steps, hidden when not on a terminal or quiet.
 pub fn bar(total: u64, message: &str, quiet: bool) -> ProgressBar {
@@ -17,4 +19,64 @@ pub fn bar(total: u64, message: &str, quiet: bool) -> ProgressBar {
     );
     bar.set_message(message.to_string());
     bar
+}
+
+/// Set by Ctrl-C once [`catch_ctrl_c`] ran.
+static STOP: AtomicBool = AtomicBool::new(false);
+
+/// Turns Ctrl-C into [`Bars::interrupted`] instead of ending the process.
+pub fn catch_ctrl_c() {
+    // A second handler cannot be installed in the same process; that only
+    // matters to tests that call run twice, and they never press Ctrl-C.
+    let _ = ctrlc::set_handler(|| STOP.store(true, Ordering::SeqCst));
+}
+
+/// The terminal's observer: one progress bar per phase, log lines on
+/// stderr, Ctrl-C as interruption.
+pub struct Bars {
+    quiet: bool,
+    phase: String,
+    bar: Option<ProgressBar>,
+}
+
+impl Bars {
+    /// No bar yet; `quiet` hides them all.
+    pub fn new(quiet: bool) -> Self {
+        Self {
+            quiet,
+            phase: String::new(),
+            bar: None,
+        }
+    }
+
+    /// Clears the last bar.
+    pub fn finish(&mut self) {
+        if let Some(bar) = self.bar.take() {
+            bar.finish_and_clear();
+        }
+    }
+}
+
+impl Observer for Bars {
+    fn progress(&mut self, phase: &str, done: u64, total: u64) {
+        if self.phase != phase || self.bar.is_none() {
+            self.finish();
+            self.phase = phase.to_string();
+            self.bar = Some(bar(total, phase, self.quiet));
+        }
+        if let Some(bar) = &self.bar {
+            bar.set_position(done);
+        }
+    }
+
+    fn interrupted(&self) -> bool {
+        STOP.load(Ordering::SeqCst)
+    }
+
+    fn log(&mut self, line: &str) {
+        match &self.bar {
+            Some(bar) => bar.suspend(|| eprintln!("{line}")),
+            None => eprintln!("{line}"),
+        }
+    }
 }

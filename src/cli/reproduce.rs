@@ -3,12 +3,10 @@
 
 use super::common::command_line;
 use super::{progress, GlobalOptions};
-use anyhow::Context;
 use clap::Args;
+use layout_opt::reproduce::pipeline::{self, ReproduceConfig, ReproduceOutcome};
 use layout_opt::reproduce::{self, claims::Verdict, Config};
 use std::path::PathBuf;
-use std::sync::Mutex;
-use std::time::Instant;
 
 /// Flags of `reproduce`.
 #[derive(Debug, Args)]
@@ -38,35 +36,19 @@ pub fn run(args: ReproduceArgs, global: &GlobalOptions) -> anyhow::Result<()> {
         trials: args.trials,
         quick: args.quick,
     };
-    let bar = progress::bar(0, "reproducing", global.quiet);
-    let current = Mutex::new(String::new());
-    let started = Instant::now();
-    let reproduction = reproduce::run(&config, &command_line(), &|name, done, total| {
-        let mut current = current.lock().expect("progress lock");
-        if *current != name {
-            *current = name.to_string();
-            bar.set_message(name.to_string());
-            bar.set_length(total as u64);
-        }
-        bar.set_position(done as u64);
-    })?;
-    let seconds = started.elapsed().as_secs_f64();
-    bar.finish_and_clear();
-    reproduce::write_report(&args.out, &reproduction)
-        .with_context(|| format!("writing the report to {}", args.out.display()))?;
-    let run = serde_json::json!({
-        "wall_seconds": seconds,
-        "threads": rayon::current_num_threads(),
-        "experiments": reproduction
-            .wall_seconds
-            .iter()
-            .map(|(e, s)| serde_json::json!({"experiment": e.name(), "wall_seconds": s}))
-            .collect::<Vec<_>>(),
-    });
-    let path = args.out.join("run.json");
-    std::fs::write(&path, serde_json::to_string_pretty(&run)? + "\n")
-        .with_context(|| format!("writing {}", path.display()))?;
-
+    let config = ReproduceConfig {
+        experiments: config,
+        command: command_line(),
+        out_dir: args.out.clone(),
+    };
+    let mut bars = progress::Bars::new(global.quiet);
+    let result = pipeline::run(&config, &mut bars);
+    bars.finish();
+    let ReproduceOutcome {
+        reproduction,
+        seconds,
+    } = result?;
+    let config = &config.experiments;
     println!(
         "reproduce: seed {}{}, {} threads",
         config.seed,

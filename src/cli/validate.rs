@@ -9,9 +9,8 @@ use layout_opt::montecarlo::{MonteCarloConfig, DEFAULT_GROSS_THRESHOLD_DEG};
 use layout_opt::noise::NoiseModel;
 use layout_opt::pnp::Solver;
 use layout_opt::scenario::ScenarioGrid;
-use layout_opt::validate;
+use layout_opt::validate::pipeline::{self, ValidateConfig, ValidateOutcome};
 use std::path::PathBuf;
-use std::time::Instant;
 
 /// Tilt step of the default grid, degrees (the paper's protocol).
 pub const DEFAULT_TILT_STEP_DEG: f64 = 2.0;
@@ -86,55 +85,40 @@ pub fn run(args: ValidateArgs, global: &GlobalOptions) -> anyhow::Result<()> {
     let coarsened = polynomial && args.grid.tilt.is_none();
     let grid = args.grid.grid(&ScenarioGrid::paper_protocol(tilt_step))?;
     anyhow::ensure!(args.trials > 0, "--trials must be at least 1");
-    anyhow::ensure!(
-        args.gross_threshold > 0.0 && args.gross_threshold.is_finite(),
-        "--gross-threshold must be a positive number of degrees"
-    );
-    let config = MonteCarloConfig {
-        trials: args.trials,
-        seed: global.seed,
-        solvers,
-        noise: args.noise_model,
-        gross_threshold_deg: args.gross_threshold,
-    };
-    let out = args
-        .out
-        .clone()
-        .unwrap_or_else(|| PathBuf::from("reports").join(&layout.name));
-
-    let bar = progress::bar(grid.len() as u64, "validating", global.quiet);
-    let started = Instant::now();
-    let validation = validate::run(&layout, &camera, &grid, &config, &command_line(), &|done| {
-        bar.set_position(done as u64)
-    })?;
-    let seconds = started.elapsed().as_secs_f64();
-    bar.finish_and_clear();
-    validate::write_report(&out, &layout, &validation)?;
-
-    let solves: usize = validation
-        .outcomes
-        .iter()
-        .flat_map(|o| o.solvers.iter())
-        .map(|r| r.rotation_deg.count + r.solver_errors)
-        .sum();
-    let threads = rayon::current_num_threads();
     let tilt_note = coarsened.then(|| {
         format!(
             "default tilt step {POLYNOMIAL_TILT_STEP_DEG}° instead of the paper's {DEFAULT_TILT_STEP_DEG}° because the solvers include dls or opnp; pass --tilt -90..90:{DEFAULT_TILT_STEP_DEG} for the full protocol"
         )
     });
-    let run = serde_json::json!({
-        "tilt_step_note": tilt_note,
-        "wall_seconds": seconds,
-        "threads": threads,
-        "solves": solves,
-        "solves_per_second": solves as f64 / seconds,
-    });
-    std::fs::write(
-        out.join("run.json"),
-        serde_json::to_string_pretty(&run)? + "\n",
-    )
-    .with_context(|| format!("writing {}", out.join("run.json").display()))?;
+    let config = ValidateConfig {
+        out_dir: args
+            .out
+            .clone()
+            .unwrap_or_else(|| PathBuf::from("reports").join(&layout.name)),
+        layout,
+        camera,
+        grid,
+        monte_carlo: MonteCarloConfig {
+            trials: args.trials,
+            seed: global.seed,
+            solvers,
+            noise: args.noise_model,
+            gross_threshold_deg: args.gross_threshold,
+        },
+        command: command_line(),
+        grid_note: tilt_note.clone(),
+    };
+    let mut bars = progress::Bars::new(global.quiet);
+    let result = pipeline::run(&config, &mut bars);
+    bars.finish();
+    let ValidateOutcome {
+        validation,
+        solves,
+        seconds,
+    } = result?;
+    let (layout, out) = (&config.layout, &config.out_dir);
+    let config = &config.monte_carlo;
+    let threads = rayon::current_num_threads();
 
     if let Some(note) = &tilt_note {
         println!("note: {note}");

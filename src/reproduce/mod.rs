@@ -698,3 +698,83 @@ fn markdown(reproduction: &Reproduction) -> String {
     );
     out
 }
+
+/// A reproduction as one call: the experiments, the report and `run.json`,
+/// into the directory the configuration names, with progress through an
+/// [`Observer`](crate::observer::Observer) (one phase per experiment).
+pub mod pipeline {
+    use super::{run as reproduce, write_report, Config, ReproduceError, Reproduction};
+    use crate::observer::{relay, Observer};
+    use crate::report::{write_text, ReportError};
+    use std::path::PathBuf;
+    use std::sync::Mutex;
+    use std::time::Instant;
+
+    /// Every input and the output directory of a reproduction.
+    #[derive(Debug, Clone)]
+    pub struct ReproduceConfig {
+        /// Experiments, seed and trials.
+        pub experiments: Config,
+        /// The command that asked for the run, for the report header.
+        pub command: String,
+        /// The report directory.
+        pub out_dir: PathBuf,
+    }
+
+    /// What a reproduction produced.
+    #[derive(Debug, Clone)]
+    pub struct ReproduceOutcome {
+        /// Every experiment's panels and claims.
+        pub reproduction: Reproduction,
+        /// Wall-clock seconds of the experiments.
+        pub seconds: f64,
+    }
+
+    /// Runs the experiments and writes the report, with `run.json` (timing
+    /// per experiment, threads), into [`ReproduceConfig::out_dir`].
+    pub fn run(
+        config: &ReproduceConfig,
+        observer: &mut impl Observer,
+    ) -> Result<ReproduceOutcome, ReproduceError> {
+        let latest = Mutex::new(None::<(String, u64, u64)>);
+        let started = Instant::now();
+        let reproduction = relay(
+            observer,
+            |o| {
+                let latest = latest.lock().expect("progress lock").clone();
+                if let Some((phase, done, total)) = latest {
+                    o.progress(&phase, done, total);
+                }
+            },
+            None,
+            || {
+                reproduce(
+                    &config.experiments,
+                    &config.command,
+                    &|name, done, total| {
+                        *latest.lock().expect("progress lock") =
+                            Some((name.to_string(), done as u64, total as u64));
+                    },
+                )
+            },
+        )?;
+        let seconds = started.elapsed().as_secs_f64();
+        write_report(&config.out_dir, &reproduction)?;
+        let run = serde_json::json!({
+            "wall_seconds": seconds,
+            "threads": rayon::current_num_threads(),
+            "experiments": reproduction
+                .wall_seconds
+                .iter()
+                .map(|(e, s)| serde_json::json!({"experiment": e.name(), "wall_seconds": s}))
+                .collect::<Vec<_>>(),
+        });
+        let path = config.out_dir.join("run.json");
+        let text = serde_json::to_string_pretty(&run).map_err(|e| ReportError::write(&path, e))?;
+        write_text(&path, &(text + "\n"))?;
+        Ok(ReproduceOutcome {
+            reproduction,
+            seconds,
+        })
+    }
+}

@@ -34,6 +34,7 @@
 pub mod checkpoint;
 pub mod compare;
 pub mod optimise;
+pub mod pipeline;
 pub mod report;
 
 use crate::camera::Camera;
