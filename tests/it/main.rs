@@ -3,6 +3,9 @@
 //! was a separate `tests/*.rs` file; `common` and `export_common` are the
 //! helpers they share. Run one module's tests with a filter, e.g.
 //! `cargo test --release --test it search::`.
+//!
+//! The modules that run the `layout-opt` binary need the `cli` feature (on
+//! by default); without it only the library's tests are compiled.
 
 mod common;
 mod export_common;
@@ -14,8 +17,13 @@ mod noise_free;
 mod noisy;
 mod sqpnp_crosscheck;
 
+#[cfg(feature = "cli")]
 mod cli_solve;
+#[cfg(feature = "cli")]
 mod export_cli;
+#[cfg(feature = "cli")]
 mod reproduce;
+#[cfg(feature = "cli")]
 mod search;
+#[cfg(feature = "cli")]
 mod validate;
