@@ -44,11 +44,11 @@
 //!
 //! **Accuracy.** On noisy data RPnP is near the first-order limit for the
 //! biprism but 1.27× above it on random n = 6…100 sets, more for larger n
-//! (tests/noisy.rs). That is the method's, not this implementation's: the
+//! (tests/it/noisy.rs). That is the method's, not this implementation's: the
 //! axis in the camera frame is fixed by the two image points of the widest
 //! pair (and τ), so their noise does not average out as n grows, and the
 //! final alignment corrects only part of it. With those two image points
-//! noise-free the same code is at the limit (tests/noisy.rs measures both).
+//! noise-free the same code is at the limit (tests/it/noisy.rs measures both).
 //!
 //! Equation numbers are not cited: this follows the authors' reference code,
 //! read for understanding, and the paper's description of the method.

@@ -7,9 +7,7 @@
 //! volume of the analytic solid, with sphere centres fitted from the mesh
 //! within 0.05 mm of the layout's and faces within 0.1 mm of the surface.
 
-mod export_common;
-
-use export_common::*;
+use crate::export_common::*;
 use layout_opt::layout::Layout;
 use layout_opt::mesh::geometry::{gltf_rotation, print_rotation};
 use layout_opt::mesh::{

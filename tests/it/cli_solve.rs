@@ -32,7 +32,7 @@ fn default_run_solves_the_demo_batch_with_every_solver() {
             assert!(result["error"].is_null(), "{solver}: {result}");
             let rms = result["reprojection_rms_px"].as_f64().unwrap();
             // A sanity bound only (DLT on 7 points at 1 m is ~2.6 px at σ 0.5):
-            // accuracy is judged in tests/noisy.rs.
+            // accuracy is judged in tests/it/noisy.rs.
             assert!(rms.is_finite() && rms < 10.0, "{solver}: rms {rms}");
             assert!(result["seconds"].as_f64().unwrap() > 0.0);
             let rotation = result["rotation"].as_array().unwrap();

@@ -5,9 +5,7 @@
 //! methods that accept coplanar points (SQPnP) also on planar and
 //! quasi-planar sets.
 
-mod common;
-
-use common::{errors, problem, Family};
+use crate::common::{errors, problem, Family};
 use layout_opt::pnp::Solver;
 
 const ROTATION_TOLERANCE_DEG: f64 = 1e-6;

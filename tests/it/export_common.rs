@@ -2,8 +2,6 @@
 //! crates that readers use (`stl_io`, `tobj`, `gltf`), and check a mesh
 //! with code independent of the library's own topology counts.
 
-#![allow(dead_code)]
-
 use layout_opt::layout::{Layout, LayoutPoint};
 use layout_opt::mesh::geometry::{gltf_rotation, print_rotation, Marker, Node};
 use layout_opt::synthetic::stream_rng;

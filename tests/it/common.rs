@@ -1,5 +1,4 @@
 //! Shared helpers for the integration tests: seeded problem families.
-#![allow(dead_code)]
 
 use layout_opt::camera::Camera;
 use layout_opt::pnp::Spread;

@@ -17,9 +17,7 @@
 //!
 //! The worst deviations seen are printed.
 
-mod common;
-
-use common::{problem, Family};
+use crate::common::{problem, Family};
 use layout_opt::pnp::sqpnp::{self as ours, OrthogonalStart};
 use layout_opt::pnp::{best_candidate, validate_input, Solver};
 use layout_opt::pose::rotation_error_deg;

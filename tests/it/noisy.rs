@@ -8,9 +8,7 @@
 //! (11.8%) and `rpnp` 30% (27.1%, see its test). No solver may return a
 //! non-finite pose; gross failures (> 10°) are counted and printed.
 
-mod common;
-
-use common::{errors, problem, Family};
+use crate::common::{errors, problem, Family};
 use layout_opt::camera::Camera;
 use layout_opt::error_model::first_order::pose_covariance_isotropic;
 use layout_opt::pnp::{best_candidate, rpnp, Solver};

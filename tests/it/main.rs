@@ -1,0 +1,29 @@
+//! The integration tests, compiled into one test binary (`it`) so that
+//! `cargo test` links the crate once rather than once per file. Each module
+//! was a separate `tests/*.rs` file; `common` and `export_common` are the
+//! helpers they share. Run one module's tests with a filter, e.g.
+//! `cargo test --release --test it search::`.
+//!
+//! The modules that run the `layout-opt` binary need the `cli` feature (on
+//! by default); without it only the library's tests are compiled.
+
+mod common;
+mod export_common;
+
+mod bad_input;
+mod conformance_generator;
+mod export;
+mod noise_free;
+mod noisy;
+mod sqpnp_crosscheck;
+
+#[cfg(feature = "cli")]
+mod cli_solve;
+#[cfg(feature = "cli")]
+mod export_cli;
+#[cfg(feature = "cli")]
+mod reproduce;
+#[cfg(feature = "cli")]
+mod search;
+#[cfg(feature = "cli")]
+mod validate;
