@@ -269,7 +269,7 @@ impl EpnpSystem {
     /// dimension, that start is grossly wrong. Measured on the conformance
     /// sweep's far-field regime (a 50 mm biprism at 1–3 m, σ = 0.5 px, 300
     /// problems, no Gauss–Newton): 247 off by more than 10° with the four
-    /// linearised closed forms, 34 with this one beside them (unrefined
+    /// linearised closed forms, 33 with this one beside them (unrefined
     /// EPnP returns both, for the near field's sake). On a similar draw of
     /// 300 problems, 257 fell to 15 with this one in place of the N = 4
     /// linearisation and to 34 with both. Gauss–Newton with backtracking
