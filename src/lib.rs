@@ -28,5 +28,5 @@ pub mod report;
 pub mod reproduce;
 pub mod scenario;
 pub mod search;
+pub mod sensitivity;
 pub mod synthetic;
-pub mod validate;

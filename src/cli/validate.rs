@@ -9,7 +9,7 @@ use layout_opt::montecarlo::{MonteCarloConfig, DEFAULT_GROSS_THRESHOLD_DEG};
 use layout_opt::noise::NoiseModel;
 use layout_opt::pnp::Solver;
 use layout_opt::scenario::ScenarioGrid;
-use layout_opt::validate::pipeline::{self, ValidateConfig, ValidateOutcome};
+use layout_opt::sensitivity::pipeline::{self, SensitivityConfig, SensitivityOutcome};
 use std::path::PathBuf;
 
 /// Tilt step of the default grid, degrees (the paper's protocol).
@@ -90,7 +90,7 @@ pub fn run(args: ValidateArgs, global: &GlobalOptions) -> anyhow::Result<()> {
             "default tilt step {POLYNOMIAL_TILT_STEP_DEG}° instead of the paper's {DEFAULT_TILT_STEP_DEG}° because the solvers include dls or opnp; pass --tilt -90..90:{DEFAULT_TILT_STEP_DEG} for the full protocol"
         )
     });
-    let config = ValidateConfig {
+    let config = SensitivityConfig {
         out_dir: args
             .out
             .clone()
@@ -111,7 +111,7 @@ pub fn run(args: ValidateArgs, global: &GlobalOptions) -> anyhow::Result<()> {
     let mut bars = progress::Bars::new(global.quiet);
     let result = pipeline::run(&config, &mut bars);
     bars.finish();
-    let ValidateOutcome {
+    let SensitivityOutcome {
         validation,
         solves,
         seconds,

@@ -32,7 +32,7 @@ use crate::observer::{watch, Observer};
 use crate::pnp::Solver;
 use crate::report::{write_text, ReportError};
 use crate::scenario::{Range, ScenarioGrid};
-use crate::validate::{self, ValidateError};
+use crate::sensitivity::{self, SensitivityError};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
@@ -272,7 +272,7 @@ pub enum SearchError {
     MonteCarlo(#[from] MonteCarloError),
     /// The winner's validation failed.
     #[error(transparent)]
-    Validate(#[from] ValidateError),
+    Sensitivity(#[from] SensitivityError),
     /// A report file could not be written.
     #[error(transparent)]
     Report(#[from] ReportError),
@@ -616,7 +616,7 @@ pub fn run(
         || scenarios_done.load(Ordering::Relaxed),
         None,
         || {
-            validate::run(
+            sensitivity::run(
                 &winner,
                 &config.camera,
                 &config.grid,
@@ -628,7 +628,7 @@ pub fn run(
             )
         },
     )?;
-    validate::write_report(
+    sensitivity::write_report(
         &config.report_dir.join("winner-validation"),
         &winner,
         &validation,

@@ -1,4 +1,4 @@
-//! `validate`: a layout's sensitivity report. Monte-Carlo runs of real solvers
+//! Sensitivity analysis of a layout (the `validate` command). Monte-Carlo runs of real solvers
 //! over a scenario grid, beside the first-order (Cramér–Rao) and transfer-model
 //! predictions, with visibility counted per scenario.
 //!
@@ -26,7 +26,7 @@ use std::path::Path;
 /// Why a validation could not run.
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
-pub enum ValidateError {
+pub enum SensitivityError {
     /// The layout is unusable.
     #[error("invalid layout: {0}")]
     Layout(#[from] LayoutError),
@@ -147,7 +147,7 @@ pub struct Summary {
 
 /// A finished validation: the summary and every scenario's outcome.
 #[derive(Debug, Clone)]
-pub struct Validation {
+pub struct Analysis {
     /// Pooled results.
     pub summary: Summary,
     /// Per-scenario results, in grid order.
@@ -162,7 +162,7 @@ pub fn run(
     config: &MonteCarloConfig,
     command: &str,
     on_scenario_done: &(dyn Fn(usize) + Sync),
-) -> Result<Validation, ValidateError> {
+) -> Result<Analysis, SensitivityError> {
     layout.validate()?;
     let object = layout.positions();
     let sigmas = layout.point_sigmas();
@@ -198,7 +198,7 @@ pub fn run(
         solvers: solver_rows(&outcomes, config.solvers.len()),
         curves: curves(grid, &outcomes, config),
     };
-    Ok(Validation { summary, outcomes })
+    Ok(Analysis { summary, outcomes })
 }
 
 fn visible(outcome: &ScenarioOutcome) -> bool {
@@ -374,8 +374,8 @@ fn curves(
 pub fn write_report(
     dir: &Path,
     layout: &Layout,
-    validation: &Validation,
-) -> Result<(), ValidateError> {
+    validation: &Analysis,
+) -> Result<(), SensitivityError> {
     std::fs::create_dir_all(dir).map_err(|e| ReportError::write(dir, e))?;
     let summary = &validation.summary;
     let json = serde_json::to_string_pretty(summary)
@@ -430,7 +430,7 @@ pub fn write_report(
     Ok(())
 }
 
-fn write_curve(dir: &Path, curve: &Curve) -> Result<(), ValidateError> {
+fn write_curve(dir: &Path, curve: &Curve) -> Result<(), SensitivityError> {
     let mut table = Table::new(
         [
             format!("{} ({})", curve.axis, curve.unit),
@@ -506,7 +506,7 @@ fn write_curve(dir: &Path, curve: &Curve) -> Result<(), ValidateError> {
     Ok(())
 }
 
-fn scenario_table(layout: &Layout, validation: &Validation) -> Table {
+fn scenario_table(layout: &Layout, validation: &Analysis) -> Table {
     let mut table = Table::new([
         "scenario",
         "depth_mm",
@@ -762,7 +762,7 @@ fn markdown(summary: &Summary) -> String {
 /// into the directory the configuration names, with progress through an
 /// [`Observer`](crate::observer::Observer).
 pub mod pipeline {
-    use super::{run as validate, write_report, ValidateError, Validation};
+    use super::{run as analyse, write_report, Analysis, SensitivityError};
     use crate::camera::Camera;
     use crate::layout::Layout;
     use crate::montecarlo::MonteCarloConfig;
@@ -778,7 +778,7 @@ pub mod pipeline {
 
     /// Every input and the output directory of a validation.
     #[derive(Debug, Clone)]
-    pub struct ValidateConfig {
+    pub struct SensitivityConfig {
         /// The layout.
         pub layout: Layout,
         /// The simulated camera.
@@ -797,25 +797,25 @@ pub mod pipeline {
 
     /// What a validation produced.
     #[derive(Debug, Clone)]
-    pub struct ValidateOutcome {
+    pub struct SensitivityOutcome {
         /// The summary and every scenario's outcome.
-        pub validation: Validation,
+        pub validation: Analysis,
         /// Solves attempted (successful ones plus solver errors).
         pub solves: usize,
         /// Wall-clock seconds of the Monte-Carlo run.
         pub seconds: f64,
     }
 
-    /// Validates [`ValidateConfig::layout`] and writes its report, with
+    /// Validates [`SensitivityConfig::layout`] and writes its report, with
     /// `run.json` (timing, threads, solves, the grid note), into
-    /// [`ValidateConfig::out_dir`].
+    /// [`SensitivityConfig::out_dir`].
     pub fn run(
-        config: &ValidateConfig,
+        config: &SensitivityConfig,
         observer: &mut impl Observer,
-    ) -> Result<ValidateOutcome, ValidateError> {
+    ) -> Result<SensitivityOutcome, SensitivityError> {
         let threshold = config.monte_carlo.gross_threshold_deg;
         if !(threshold > 0.0 && threshold.is_finite()) {
-            return Err(ValidateError::Config(
+            return Err(SensitivityError::Config(
                 "the gross-failure threshold must be a positive number of degrees".into(),
             ));
         }
@@ -828,7 +828,7 @@ pub mod pipeline {
             || done.load(Ordering::Relaxed),
             None,
             || {
-                validate(
+                analyse(
                     &config.layout,
                     &config.camera,
                     &config.grid,
@@ -857,7 +857,7 @@ pub mod pipeline {
         let text =
             serde_json::to_string_pretty(&run).map_err(|e| ReportError::write(&run_path, e))?;
         write_text(&run_path, &(text + "\n"))?;
-        Ok(ValidateOutcome {
+        Ok(SensitivityOutcome {
             validation,
             solves,
             seconds,
@@ -874,7 +874,7 @@ pub mod pipeline {
         #[test]
         fn writes_the_report_and_run_json_where_the_config_says() {
             let dir = tempfile::tempdir().unwrap();
-            let mut config = ValidateConfig {
+            let mut config = SensitivityConfig {
                 layout: Layout::paper_biprism(),
                 camera: Camera::paper(),
                 grid: ScenarioGrid::new(
@@ -905,7 +905,7 @@ pub mod pipeline {
             config.monte_carlo.gross_threshold_deg = 0.0;
             assert!(matches!(
                 run(&config, &mut Silent),
-                Err(ValidateError::Config(_))
+                Err(SensitivityError::Config(_))
             ));
         }
     }
