@@ -78,10 +78,11 @@ use clap::Parser;
 use layout_opt::camera::Camera;
 use layout_opt::conformance::{self, generate, Cell, OffAxis};
 use layout_opt::montecarlo::DEFAULT_GROSS_THRESHOLD_DEG;
-use layout_opt::pnp::{PnpError, Solver, Spread};
+use layout_opt::pnp::{PnpError, Solver};
 use layout_opt::pose::{rotation_error_deg, Pose};
 use layout_opt::report::{significant, write_text, Table};
 use layout_opt::scenario::ScenarioGrid;
+use layout_opt::spread::Spread;
 use layout_opt::synthetic::{
     biprism_points, project_with_noise, stream_rng, uniform_rotation, Problem,
 };

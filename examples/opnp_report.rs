@@ -16,7 +16,8 @@
 //! machine; the median over problems is reported.
 
 use layout_opt::camera::Camera;
-use layout_opt::pnp::{opnp, Solver, Spread};
+use layout_opt::pnp::{opnp, Solver};
+use layout_opt::spread::Spread;
 use layout_opt::synthetic::{
     biprism_points, project_with_noise, random_points, random_pose, stream_rng, Problem,
 };

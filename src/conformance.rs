@@ -33,8 +33,8 @@
 
 use crate::camera::Camera;
 use crate::error_model::first_order::pose_covariance_isotropic;
-use crate::pnp::Spread;
 use crate::pose::Pose;
+use crate::spread::Spread;
 use crate::synthetic::{project_with_noise, stream_rng, uniform_rotation, Problem};
 use nalgebra::{Rotation3, Vector2, Vector3};
 use rand::Rng;

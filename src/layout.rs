@@ -20,8 +20,23 @@
 //! points, finite, distinct, noncoplanar, spheres apart). A layout can also
 //! be imported from an OBJ point set or an OBJ of spheres
 //! ([`Layout::from_obj`]).
+//!
+//! ```
+//! use layout_opt::layout::{Layout, LayoutError};
+//!
+//! let text = r#"{"name": "tetra", "points": [
+//!     {"name": "A", "position": [0, 0, 0]}, {"name": "B", "position": [60, 0, 0]},
+//!     {"name": "C", "position": [0, 60, 0]}, {"name": "D", "position": [0, 0, 60]}]}"#;
+//! let layout = Layout::from_json(text)?;
+//! layout.validate()?;
+//! assert_eq!(layout.positions().len(), 4);
+//! // Coplanar points are refused with a reason.
+//! let flat = text.replace("[0, 0, 60]", "[60, 60, 0]");
+//! assert!(Layout::from_json(&flat)?.validate().is_err());
+//! # Ok::<(), LayoutError>(())
+//! ```
 
-use crate::pnp::{Spread, DUPLICATE_TOLERANCE, PLANARITY_TOLERANCE};
+use crate::spread::{Spread, DUPLICATE_TOLERANCE, PLANARITY_TOLERANCE};
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
@@ -209,14 +224,38 @@ pub struct ObjImport {
     pub name: Option<String>,
 }
 
+/// The paper's biprism (Fig. 6): the centre O0 and six vertices at distance
+/// `arm_mm` on ±x, ±y, ±z, named and ordered as the paper does
+/// (O0P1 = +z, O0P2 = +x, O0P5 = +y).
+pub fn biprism(arm_mm: f64) -> Vec<(String, Vector3<f64>)> {
+    let l = arm_mm;
+    [
+        ("O0", Vector3::new(0.0, 0.0, 0.0)),
+        ("P1", Vector3::new(0.0, 0.0, l)),
+        ("P2", Vector3::new(l, 0.0, 0.0)),
+        ("P3", Vector3::new(0.0, 0.0, -l)),
+        ("P4", Vector3::new(-l, 0.0, 0.0)),
+        ("P5", Vector3::new(0.0, l, 0.0)),
+        ("P6", Vector3::new(0.0, -l, 0.0)),
+    ]
+    .into_iter()
+    .map(|(name, p)| (name.to_string(), p))
+    .collect()
+}
+
+/// The biprism's points without names.
+pub fn biprism_points(arm_mm: f64) -> Vec<Vector3<f64>> {
+    biprism(arm_mm).into_iter().map(|(_, p)| p).collect()
+}
+
 impl Layout {
     /// The paper's biprism (its Fig. 6): O0 at the origin and P1..P6 at
     /// ±[`PAPER_ARM_MM`] on the axes, in the order and with the names of
-    /// [`crate::synthetic::biprism`], with 10 mm spheres.
+    /// [`biprism`], with 10 mm spheres.
     pub fn paper_biprism() -> Layout {
         Layout {
             name: "biprism-paper".to_string(),
-            points: crate::synthetic::biprism(PAPER_ARM_MM)
+            points: biprism(PAPER_ARM_MM)
                 .into_iter()
                 .map(|(name, position)| LayoutPoint::new(name, position))
                 .collect(),
@@ -602,14 +641,21 @@ mod tests {
     }
 
     #[test]
-    fn paper_biprism_is_valid_and_matches_synthetic() {
+    fn paper_biprism_is_valid_and_drawn_as_in_the_paper() {
         let layout = Layout::paper_biprism();
         layout.validate().unwrap();
-        assert_eq!(
-            layout.positions(),
-            crate::synthetic::biprism_points(PAPER_ARM_MM)
-        );
-        assert_eq!(layout.points[0].name, "O0");
+        let names: Vec<&str> = layout.points.iter().map(|p| p.name.as_str()).collect();
+        assert_eq!(names, ["O0", "P1", "P2", "P3", "P4", "P5", "P6"]);
+        // O0P1 = +z, O0P2 = +x, O0P5 = +y, each PAPER_ARM_MM long, and the
+        // opposite vertices mirror them through O0.
+        let p = layout.positions();
+        assert_eq!(p[0], Vector3::zeros());
+        assert_eq!(p[1], Vector3::z() * PAPER_ARM_MM);
+        assert_eq!(p[2], Vector3::x() * PAPER_ARM_MM);
+        assert_eq!(p[5], Vector3::y() * PAPER_ARM_MM);
+        for (a, b) in [(1, 3), (2, 4), (5, 6)] {
+            assert_eq!(p[a], -p[b]);
+        }
     }
 
     #[test]

@@ -3,6 +3,22 @@
 //! A [`Pose`] maps object (marker) coordinates to camera coordinates,
 //! `X_cam = R · X_obj + t` (paper eq. 3, OpenCV). Rotation errors are in
 //! degrees at this boundary; code inside works in radians.
+//!
+//! ```
+//! use layout_opt::pose::{nearest_rotation, rotation_error_deg, Pose};
+//! use nalgebra::{Matrix3, Rotation3, Vector3};
+//!
+//! let truth = Pose::new(
+//!     Rotation3::from_euler_angles(0.1, 0.2, 0.3),
+//!     Vector3::new(0.0, 0.0, 500.0),
+//! );
+//! let p = Vector3::new(10.0, 0.0, 0.0);
+//! assert!((truth.transform(&p) - (truth.rotation * p + truth.translation)).norm() < 1e-12);
+//! // The rotation nearest to a perturbed rotation matrix is close to it.
+//! let noisy = truth.rotation.matrix() + Matrix3::from_element(1e-4);
+//! let projected = nearest_rotation(&noisy);
+//! assert!(rotation_error_deg(&truth.rotation, &projected) < 0.02);
+//! ```
 
 use crate::linalg::orthogonalise_columns_3x3;
 use nalgebra::{Matrix2x3, Matrix3, Rotation3, SMatrix, Vector2, Vector3, SVD};
@@ -145,24 +161,104 @@ pub fn reprojection_rms_px(
     (sum / object_points.len().max(1) as f64).sqrt()
 }
 
+/// The rotation nearest to `m` in the Frobenius norm: the `R` in SO(3)
+/// maximising `tr(Rᵀ m)`, for `m = U Σ Vᵀ` the SVD projection
+/// `R = U diag(1, 1, det(U Vᵀ)) Vᵀ`. This is the crate's one projection onto
+/// SO(3); every solver uses it.
+///
+/// The fast path is Markley's FOAM ("Attitude Determination Using Vector
+/// Observations: A Fast Optimal Matrix Algorithm", J. Astronaut. Sci. 41(2),
+/// 1993), as Lourakis & Terzakis use it for absolute orientation and in
+/// SQPnP's reference code. No SVD is needed: with singular values
+/// `s₁ ≥ s₂ ≥ s₃`, the optimum `λ = s₁ + s₂ + sign(det m)·s₃` is the largest
+/// root of `(λ² − ‖m‖²)² − 8 λ det m − 4 ‖adj m‖² = 0` (Markley eq. 23,
+/// Frobenius norms), found by Newton from `λ₀ = √3 ‖m‖ ≥ λ`, where the
+/// quartic is convex. Then, with `κ = (λ² − ‖m‖²)/2` and `ζ = κλ − det m`,
+/// `R = ((κ + ‖m‖²) m + λ adj(m)ᵀ − m mᵀ m) / ζ` (eqs. 14, 18, 19).
+///
+/// The formula holds for either sign of `det m`. Its divisor is
+/// `ζ = (s₁ + s₂)(s₁ + s₃)(s₂ + s₃)` when `det m ≥ 0` and
+/// `(s₁ + s₂)(s₁ − s₃)(s₂ − s₃)` when `det m < 0`, small only where the
+/// nearest rotation is itself ill-determined (`m` nearly of rank one, or
+/// `s₂ ≈ s₃` with a negative determinant). There, and when the result is
+/// not orthogonal to [`FOAM_ORTHOGONALITY_SQUARED_TOLERANCE`] (λ is then a
+/// nearly double root, found inaccurately), the SVD decides: a one-sided
+/// Jacobi sweep ([`crate::linalg::orthogonalise_columns_3x3`]), and for
+/// matrices of rank below two `nalgebra::SVD`.
+pub fn nearest_rotation(m: &Matrix3<f64>) -> Rotation3<f64> {
+    match foam(m) {
+        Some(rotation) => Rotation3::from_matrix_unchecked(rotation),
+        None => nearest_rotation_jacobi(m),
+    }
+}
+
+/// [`nearest_rotation`] leaves `m` to the SVD when
+/// `ζ < MIN_ZETA_FRACTION (‖m‖²/3)^{3/2}` (a division by nearly zero).
+/// FOAM's rounding grows like `ε / ζ`; the orthogonality test catches what
+/// this lets through.
+pub const MIN_ZETA_FRACTION: f64 = 1e-6;
+/// A FOAM result whose `‖R Rᵀ − I‖²` exceeds this is discarded for the SVD
+/// (it would mean λ, and with it the rotation, is inaccurate).
+pub const FOAM_ORTHOGONALITY_SQUARED_TOLERANCE: f64 = 1e-24;
+/// Upper bound on FOAM's Newton steps for λ (it converges in a handful).
+pub const FOAM_MAX_NEWTON_STEPS: usize = 30;
+/// FOAM's Newton stops when a step changes λ by less than this fraction of λ.
+pub const FOAM_NEWTON_TOLERANCE: f64 = 1e-15;
 /// Below this ratio of its second to its largest singular value a matrix
 /// counts as rank one for [`nearest_rotation`]: the rotation is then not
 /// unique, and the general SVD picks one.
 pub const NEAREST_ROTATION_RANK_TOLERANCE: f64 = 1e-10;
 
-/// The rotation nearest to `m` in the Frobenius norm (SVD projection onto
-/// SO(3), with the determinant forced to +1): for `m = U Σ Vᵀ`,
-/// `R = U diag(1, 1, det(U Vᵀ)) Vᵀ`, the maximiser of `tr(Rᵀ m)`.
-///
-/// The SVD is a one-sided Jacobi sweep
-/// ([`crate::linalg::orthogonalise_columns_3x3`]), allocation-free and
+/// FOAM's rotation for `m`, or `None` where it is ill-conditioned (see
+/// [`nearest_rotation`]).
+fn foam(m: &Matrix3<f64>) -> Option<Matrix3<f64>> {
+    let det = m.determinant();
+    let norm_sq = m.norm_squared();
+    if !norm_sq.is_finite() || det.is_nan() || norm_sq == 0.0 {
+        return None;
+    }
+    // adj(m)ᵀ = cofactor matrix; ‖adj m‖² is the same either way.
+    let cofactor = Matrix3::from_columns(&[
+        m.column(1).cross(&m.column(2)),
+        m.column(2).cross(&m.column(0)),
+        m.column(0).cross(&m.column(1)),
+    ]);
+    let adj_norm_sq = cofactor.norm_squared();
+    let mut lambda = (3.0 * norm_sq).sqrt();
+    for _ in 0..FOAM_MAX_NEWTON_STEPS {
+        let shifted = lambda * lambda - norm_sq;
+        let value = shifted * shifted - 8.0 * lambda * det - 4.0 * adj_norm_sq;
+        let slope = 4.0 * lambda * shifted - 8.0 * det;
+        if slope.is_nan() || slope <= 0.0 {
+            break;
+        }
+        let step = value / slope;
+        lambda -= step;
+        if step.abs() <= FOAM_NEWTON_TOLERANCE * lambda.abs() {
+            break;
+        }
+    }
+    let kappa = 0.5 * (lambda * lambda - norm_sq);
+    let zeta = kappa * lambda - det;
+    // (‖m‖²/3)^{3/2}, without libm's pow.
+    let unit = norm_sq / 3.0;
+    // NaN is refused too.
+    if zeta.is_nan() || zeta < MIN_ZETA_FRACTION * unit * unit.sqrt() {
+        return None;
+    }
+    let r = ((kappa + norm_sq) * m + lambda * cofactor - m * m.transpose() * m) / zeta;
+    let orthogonality = (r * r.transpose() - Matrix3::identity()).norm_squared();
+    (orthogonality <= FOAM_ORTHOGONALITY_SQUARED_TOLERANCE).then_some(r)
+}
+
+/// [`nearest_rotation`] by a one-sided Jacobi SVD: allocation-free, and
 /// several times faster than `nalgebra::SVD` (which forms `mᵀm` and runs the
 /// general symmetric eigen-solver). Only the two largest singular pairs are
 /// used: with `ũ3 = u1 × u2` and `ṽ3 = v1 × v2`,
-/// `R = u1 v1ᵀ + u2 v2ᵀ + ũ3 ṽ3ᵀ`, which is the formula above whatever the
+/// `R = u1 v1ᵀ + u2 v2ᵀ + ũ3 ṽ3ᵀ`, which is the SVD projection whatever the
 /// signs of `det U` and `det V` (`u1 × u2 = det(U) u3`). A matrix of rank
-/// below two (or with a non-finite entry) goes to `nalgebra::SVD`, as before.
-pub fn nearest_rotation(m: &Matrix3<f64>) -> Rotation3<f64> {
+/// below two (or with a non-finite entry) goes to `nalgebra::SVD`.
+fn nearest_rotation_jacobi(m: &Matrix3<f64>) -> Rotation3<f64> {
     // R does not depend on the scale of m; unit max-norm keeps the squared
     // norms of the Jacobi sweep away from overflow and underflow.
     let max_abs = m.amax();
@@ -346,7 +442,7 @@ mod tests {
                 singular[2] = 0.0;
                 m = svd.u.unwrap() * Matrix3::from_diagonal(&singular) * svd.v_t.unwrap();
             }
-            let fast = nearest_rotation(&m);
+            let fast = nearest_rotation_jacobi(&m);
             let reference = nearest_rotation_svd(&m);
             let r = fast.matrix();
             assert!((r - reference.matrix()).norm() < 1e-9, "case {case}: {m}");
@@ -368,6 +464,45 @@ mod tests {
         let truth = Rotation3::from_euler_angles(0.3, -1.1, 2.5);
         let m = truth.matrix() * Matrix3::from_diagonal(&Vector3::new(3.0, 2.0, 1e-3));
         assert!((nearest_rotation(&m).matrix() - truth.matrix()).norm() < 1e-14);
+    }
+
+    /// FOAM and the Jacobi fallback each agree with `nalgebra::SVD` on
+    /// random matrices of any scale and sign of determinant, including
+    /// nearly singular ones (s₃ shrunk by up to 1e-12), and FOAM takes the
+    /// well-conditioned ones.
+    #[test]
+    fn both_paths_agree_with_the_svd_projection() {
+        use crate::synthetic::stream_rng;
+        use rand::Rng;
+        let mut foam_taken = 0;
+        for case in 0..4000u64 {
+            let mut rng = stream_rng(11, 81, case);
+            let scale = 10f64.powf(rng.random_range(-3.0..3.0));
+            let mut m = Matrix3::from_fn(|_, _| rng.random_range(-1.0..1.0)) * scale;
+            if case % 2 == 1 {
+                let svd = m.svd(true, true);
+                let mut s = svd.singular_values;
+                s[2] *= 10f64.powf(rng.random_range(-12.0..0.0));
+                m = svd.u.unwrap() * Matrix3::from_diagonal(&s) * svd.v_t.unwrap();
+            }
+            let reference = nearest_rotation_svd(&m);
+            let foam_result = foam(&m);
+            foam_taken += usize::from(foam_result.is_some());
+            for r in [
+                foam_result.unwrap_or_else(|| *reference.matrix()),
+                *nearest_rotation_jacobi(&m).matrix(),
+                *nearest_rotation(&m).matrix(),
+            ] {
+                let difference = (r - reference.matrix()).norm();
+                let ortho = (r.transpose() * r - Matrix3::identity()).norm();
+                assert!(
+                    difference < 1e-9 && ortho < 1e-12,
+                    "case {case}: {difference:e}, {ortho:e}\n{m}"
+                );
+                assert!((r.determinant() - 1.0).abs() < 1e-12);
+            }
+        }
+        assert!(foam_taken > 3000, "FOAM took only {foam_taken} of 4000");
     }
 
     #[test]

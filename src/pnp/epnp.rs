@@ -19,9 +19,10 @@
 //! and only its four smallest eigenpairs are computed
 //! ([`crate::linalg::smallest_eigenpairs`]).
 
-use super::{foam, gauss_newton, Candidates, PnpError, Spread};
+use super::{gauss_newton, Candidates, PnpError};
 use crate::linalg::{smallest_eigenpairs, solve_positive_definite, EigenError};
-use crate::pose::Pose;
+use crate::pose::{nearest_rotation, Pose};
+use crate::spread::Spread;
 use nalgebra::{Matrix3, SMatrix, SVector, Vector2, Vector3, Vector4};
 
 /// The six control-point pairs `i < j`, in the order of the rows of L and ρ.
@@ -359,7 +360,7 @@ impl EpnpSystem {
         let (camera_centroid, cross_covariance) = self.reconstruction_moments(betas);
         // FOAM (no SVD) where the cross-covariance is well conditioned, the
         // SVD projection otherwise: the same rotation either way.
-        let rotation = foam::nearest_rotation(&cross_covariance);
+        let rotation = nearest_rotation(&cross_covariance);
         let translation = camera_centroid - rotation * self.object_centroid;
         Recovered {
             pose: Pose::new(rotation, translation),

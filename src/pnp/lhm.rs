@@ -16,7 +16,7 @@
 //! sight, `q_i = V_i (R_k p_i + t(R_k))`, and solve the absolute-orientation
 //! problem `p_i → q_i` in closed form for `R_{k+1}`: the rotation nearest to
 //! `Σ_i (q_i − q̄)(p_i − p̄)ᵀ` (the paper uses its SVD; we use FOAM,
-//! [`super::foam`], which gives the same rotation faster). The error never
+//! [`crate::pose::nearest_rotation`], which gives the same rotation faster). The error never
 //! increases, and the iteration converges to a critical point from any
 //! start (the paper's global-convergence result).
 //!
@@ -43,8 +43,8 @@
 //! the authors' reference code (`objpose.m`), read for understanding, and
 //! the paper's description of the method.
 
-use super::foam::nearest_rotation;
 use super::{Candidates, PnpError};
+use crate::pose::nearest_rotation;
 use crate::pose::Pose;
 use nalgebra::{Matrix3, Rotation3, SMatrix, Vector2, Vector3};
 use smallvec::{smallvec, SmallVec};

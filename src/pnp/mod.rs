@@ -11,16 +11,40 @@
 //! reprojection error among those that put every point in front of the
 //! camera. No solver falls back to another: a method either runs itself or
 //! returns a [`PnpError`] that says why.
+//!
+//! ```
+//! use layout_opt::layout::Layout;
+//! use layout_opt::pnp::{PnpError, Solver};
+//! use layout_opt::pose::{rotation_error_deg, Pose};
+//! use nalgebra::{Rotation3, Vector2, Vector3};
+//!
+//! let object = Layout::paper_biprism().positions();
+//! let truth = Pose::new(
+//!     Rotation3::from_euler_angles(0.2, -0.1, 0.05),
+//!     Vector3::new(20.0, -10.0, 600.0),
+//! );
+//! let image: Vec<Vector2<f64>> = object.iter().map(|p| truth.project_normalised(p)).collect();
+//! // Noise-free data: every solver recovers the pose.
+//! for solver in [Solver::Epnp, Solver::ParallelWeighted, Solver::Sqpnp, Solver::Ml] {
+//!     let pose = solver.solve_best(&object, &image)?;
+//!     assert!(rotation_error_deg(&truth.rotation, &pose.rotation) < 1e-6);
+//! }
+//! // Bad input is an error, never a panic.
+//! assert!(matches!(
+//!     Solver::Epnp.solve_best(&object[..3], &image[..3]),
+//!     Err(PnpError::TooFewPoints { .. })
+//! ));
+//! # Ok::<(), PnpError>(())
+//! ```
 
-use crate::linalg::symmetric_eigen_3x3;
 use crate::pose::Pose;
-use nalgebra::{Matrix3, Vector2, Vector3};
+use crate::spread::{Spread, DUPLICATE_TOLERANCE, PLANARITY_TOLERANCE};
+use nalgebra::{Vector2, Vector3};
 use smallvec::SmallVec;
 
 pub mod dls;
 pub mod dlt;
 pub mod epnp;
-pub mod foam;
 pub mod gauss_newton;
 pub mod iepnp;
 pub mod lhm;
@@ -37,12 +61,6 @@ pub mod three_cubics;
 /// candidate, rare, may spill).
 pub type Candidates = SmallVec<[Pose; 6]>;
 
-/// Relative size of the smallest principal extent of the object points,
-/// below which they count as coplanar (and of the second, as collinear).
-pub const PLANARITY_TOLERANCE: f64 = 1e-6;
-/// Two object points closer than this fraction of the point spread are
-/// duplicates.
-pub const DUPLICATE_TOLERANCE: f64 = 1e-9;
 /// Object coordinates (about their centroid) and normalised image
 /// coordinates must lie within `MIN_COORDINATE_SCALE..MAX_COORDINATE_SCALE`
 /// in size: the solvers form squared distances and, in DLS and OPnP, fourth
@@ -425,40 +443,6 @@ pub fn centroid_and_rms_radius(points: &[Vector3<f64>]) -> (Vector3<f64>, f64) {
         / count)
         .sqrt();
     (centroid, rms)
-}
-
-/// Principal spread of a point set: centroid and the singular values
-/// (square roots of the scatter eigenvalues, largest first) with their axes
-/// as columns.
-#[derive(Debug, Clone, Copy)]
-pub struct Spread {
-    /// Centroid of the points.
-    pub centroid: Vector3<f64>,
-    /// RMS extents along the principal axes, largest first.
-    pub extents: Vector3<f64>,
-    /// Principal axes as columns, in the order of `extents`.
-    pub axes: Matrix3<f64>,
-}
-
-impl Spread {
-    /// Computes the principal spread of `points` (non-empty).
-    pub fn of(points: &[Vector3<f64>]) -> Spread {
-        let count = points.len() as f64;
-        let centroid = points.iter().sum::<Vector3<f64>>() / count;
-        let mut scatter = Matrix3::zeros();
-        for p in points {
-            let d = p - centroid;
-            scatter += d * d.transpose();
-        }
-        // Largest first, so the extents come out ordered.
-        let (variances, axes) = symmetric_eigen_3x3(&(scatter / count));
-        let extents = variances.map(|v| v.max(0.0).sqrt());
-        Spread {
-            centroid,
-            extents,
-            axes,
-        }
-    }
 }
 
 /// Checks the inputs every method shares: matching lengths, enough points,

@@ -67,16 +67,16 @@
 //! solve runs ~6 SQP starts of ~7 steps): the step works on the sparse
 //! null-space basis ([`SqpnpSystem::run_sqp`]), every projection onto SO(3)
 //! uses FOAM whatever the sign of the determinant
-//! ([`super::foam::nearest_rotation_any_det`]), and Ω's eigenpairs come from
+//! ([`crate::pose::nearest_rotation`]), and Ω's eigenpairs come from
 //! [`smallest_eigenpairs`]; together 13.6 → 8.2 µs median
 //! (`cargo run --release --example baseline_timing`).
 //!
 //! Equation numbers are not cited: this follows the reference code, read
 //! for understanding, and the paper's description of it.
 
-use super::foam::nearest_rotation_any_det;
 use super::{Candidates, PnpError};
-use crate::linalg::{smallest_eigenpairs, SmallestEigenpairs};
+use crate::linalg::{smallest_eigenpairs, solve_positive_definite, SmallestEigenpairs};
+use crate::pose::nearest_rotation;
 use crate::pose::Pose;
 use nalgebra::{Matrix3, Rotation3, SMatrix, SVector, SymmetricEigen, Vector2, Vector3};
 use smallvec::SmallVec;
@@ -121,37 +121,6 @@ fn mat_row_major(r: &Vector9) -> Matrix3<f64> {
 fn orthogonality_squared_error(r: &Vector9) -> f64 {
     let m = mat_row_major(r);
     (m * m.transpose() - Matrix3::identity()).norm_squared()
-}
-
-/// Solves `A x = b` for a symmetric positive definite 3×3 `A` (lower
-/// triangle read) by the square-root-free factorisation `A = L D Lᵀ`;
-/// `None` unless every pivot of D is positive (A not positive definite).
-#[inline]
-fn solve_ldlt3(a: &Matrix3<f64>, b: &Vector3<f64>) -> Option<Vector3<f64>> {
-    let d0 = a[(0, 0)];
-    if d0.is_nan() || d0 <= 0.0 {
-        return None;
-    }
-    let inv_d0 = d0.recip();
-    let l10 = a[(1, 0)] * inv_d0;
-    let l20 = a[(2, 0)] * inv_d0;
-    let d1 = a[(1, 1)] - l10 * a[(1, 0)];
-    if d1.is_nan() || d1 <= 0.0 {
-        return None;
-    }
-    let inv_d1 = d1.recip();
-    let l21 = (a[(2, 1)] - l20 * a[(1, 0)]) * inv_d1;
-    let d2 = a[(2, 2)] - l20 * a[(2, 0)] - l21 * l21 * d1;
-    if d2.is_nan() || d2 <= 0.0 {
-        return None;
-    }
-    let y0 = b[0];
-    let y1 = b[1] - l10 * y0;
-    let y2 = b[2] - l20 * y0 - l21 * y1;
-    let x2 = y2 / d2;
-    let x1 = y1 * inv_d1 - l21 * x2;
-    let x0 = y0 * inv_d0 - l10 * x1 - l20 * x2;
-    Some(Vector3::new(x0, x1, x2))
 }
 
 /// The data of one problem: Ω, the translation map P and the normalisation.
@@ -262,7 +231,7 @@ impl SqpnpSystem {
         if m.determinant() < 0.0 {
             m = -m;
         }
-        nearest_rotation_any_det(&m)
+        nearest_rotation(&m)
     }
 
     /// One SQP step δ at r, or `None` if R is singular or the
@@ -322,7 +291,7 @@ impl SqpnpSystem {
         omega_n.set_column(2, &(block(1) * s[0] - block(0) * s[1]));
         let reduced = null_space.transpose() * omega_n;
         let rhs = -(omega_n.transpose() * (r + particular));
-        let omega_step = solve_ldlt3(&reduced, &rhs)?;
+        let omega_step = solve_positive_definite(&reduced, &rhs)?;
         Some(particular + null_space * omega_step)
     }
 }
@@ -494,7 +463,7 @@ pub fn solve_with(
     };
     let run_both_signs = |e: &Vector9, found: &mut MinimumSet| {
         for sign in [1.0, -1.0] {
-            let start = nearest_rotation_any_det(&mat_row_major(&(e * sign)));
+            let start = nearest_rotation(&mat_row_major(&(e * sign)));
             let rotation = system.run_sqp(&start);
             let minimum = Minimum {
                 rotation,
@@ -510,7 +479,7 @@ pub fn solve_with(
         if orthogonality_squared_error(&e) < ORTHOGONALITY_SQUARED_ERROR_THRESHOLD {
             // Already a rotation up to the sign of its determinant.
             let m = mat_row_major(&e);
-            let mut rotation = nearest_rotation_any_det(&(m * m.determinant().signum()));
+            let mut rotation = nearest_rotation(&(m * m.determinant().signum()));
             if orthogonal_start == OrthogonalStart::Polish {
                 rotation = system.run_sqp(&rotation);
             }
@@ -641,17 +610,6 @@ mod tests {
                 .fold(f64::INFINITY, f64::min);
             assert!(best < 1e-7, "case {case}: {best}°");
         }
-    }
-
-    #[test]
-    fn ldlt_solves_positive_definite_systems_and_rejects_others() {
-        let a = Matrix3::new(4.0, 1.0, -2.0, 1.0, 3.0, 0.5, -2.0, 0.5, 5.0);
-        let b = Vector3::new(1.0, -2.0, 3.0);
-        let x = solve_ldlt3(&a, &b).unwrap();
-        assert!((a * x - b).norm() < 1e-14);
-        let indefinite = Matrix3::new(1.0, 2.0, 0.0, 2.0, 1.0, 0.0, 0.0, 0.0, 1.0);
-        assert!(solve_ldlt3(&indefinite, &b).is_none());
-        assert!(solve_ldlt3(&Matrix3::from_element(f64::NAN), &b).is_none());
     }
 
     #[test]

@@ -1,8 +1,8 @@
 //! Shared helpers for the integration tests: seeded problem families.
 
 use layout_opt::camera::Camera;
-use layout_opt::pnp::Spread;
 use layout_opt::pose::{rotation_error_deg, Pose};
+use layout_opt::spread::Spread;
 use layout_opt::synthetic::{
     self, biprism_points, random_points, random_pose, stream_rng, uniform_rotation, Problem,
 };

@@ -73,7 +73,7 @@
 //! = V⁻¹ diag(ℓ₁(q_k)/ℓ₂(q_k)) V`: the eigenvectors of `Aᵀ` are the `v_k`,
 //! found by inverse iteration for each real eigenvalue (the eigenvalues come
 //! from a balanced Hessenberg QR without Schur vectors,
-//! [`crate::pnp::three_cubics::eigenvalues`]; typically 4 of the 40 are
+//! [`crate::linalg::nonsymmetric`]; typically 4 of the 40 are
 //! real, so this costs about a third of a full real Schur form with its
 //! vectors, which the solver used before). `ℓ₂` is chosen per
 //! problem among a few fixed forms: the first whose `M_{ℓ₂}` is well
@@ -90,7 +90,7 @@
 //! for a bare system).
 
 use super::monomials::{self, Exponent, CUBIC, CUBIC_COUNT, LINEAR};
-use crate::pnp::three_cubics::eigenvalues;
+use crate::linalg::nonsymmetric as eigenvalues;
 use nalgebra::{DMatrix, SMatrix, SVector};
 use std::sync::LazyLock;
 

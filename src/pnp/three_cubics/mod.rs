@@ -28,7 +28,7 @@
 //!    those nine rows are needed, so `Cᵀ Z = E` is solved for nine right-hand
 //!    sides and the rows are `−Zᵀ D`. This gives the 27 × 27 action matrix
 //!    `A` with `A m_B(y) = y1 m_B(y)` at every root.
-//! 4. The eigenvalues of `A` ([`eigenvalues`]) are the `y1` of the 27 roots.
+//! 4. The eigenvalues of `A` ([`crate::linalg::nonsymmetric::eigenvalues`]) are the `y1` of the 27 roots.
 //!    `A` is a block companion matrix, so for a real eigenvalue `λ` the
 //!    eigenvector's first nine entries `w = (y2^b y3^c)` span the null space
 //!    of the 9 × 9 matrix `λ³ I − λ² A₂ − λ A₁ − A₀`; `y2` and `y3` are read
@@ -39,7 +39,6 @@
 //!
 //! Nothing is allocated: every matrix is fixed-size on the stack.
 
-pub mod eigenvalues;
 pub mod monomials;
 
 use monomials::{
@@ -91,7 +90,7 @@ pub enum CubicSystemError {
     },
     /// The eigenvalues of the action matrix could not be computed.
     #[error("eigenvalues of the action matrix: {0}")]
-    Eigenvalues(#[from] eigenvalues::EigenvalueError),
+    Eigenvalues(#[from] crate::linalg::nonsymmetric::EigenvalueError),
 }
 
 /// The fixed change of variables `x = Q y`: a rotation by 1.2 rad about the
@@ -502,7 +501,7 @@ pub fn real_roots(system: &[Cubic; 3]) -> Result<RealRoots, CubicSystemError> {
     let q = generic_rotation();
     let in_y = normalised(&change_variables(&scaled, &q));
     let action = action_matrix_in_solver_variables(&in_y)?;
-    let eigenvalues = eigenvalues::eigenvalues(&action)?;
+    let eigenvalues = crate::linalg::nonsymmetric::eigenvalues(&action)?;
 
     let mut out = RealRoots {
         roots: Roots::new(),

@@ -115,7 +115,7 @@ fn action_matrix_eigenvalues_and_eigenvectors_reproduce_the_roots() {
     let known = known_system(2, [&[-1.0, 0.3, 1.4], &[-0.6, 0.5, 1.2], &[-1.5, 0.1, 0.9]]);
     let action = action_matrix(&known.system).unwrap();
     let q = generic_rotation();
-    let mut eigenvalues: Vec<f64> = eigenvalues::eigenvalues(&action)
+    let mut eigenvalues: Vec<f64> = crate::linalg::nonsymmetric::eigenvalues(&action)
         .unwrap()
         .iter()
         .map(|e| {
@@ -280,7 +280,8 @@ fn errors_are_typed_and_say_what_failed() {
         CubicSystemError::NonFinite
     );
     assert_eq!(
-        CubicSystemError::from(eigenvalues::EigenvalueError::NoConvergence).to_string(),
+        CubicSystemError::from(crate::linalg::nonsymmetric::EigenvalueError::NoConvergence)
+            .to_string(),
         "eigenvalues of the action matrix: the QR iteration did not converge in 30 iterations"
     );
 }

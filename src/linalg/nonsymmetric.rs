@@ -11,7 +11,7 @@
 //! neither Schur vectors nor the off-window part of the Schur form are needed.
 //!
 //! Why not nalgebra's `complex_eigenvalues`: it does not balance (the action
-//! matrices of [`super`] have entries over many orders of magnitude), and its
+//! matrices of the three-cubics solver (DLS) and of OPnP have entries over many orders of magnitude), and its
 //! iteration has no bound.
 
 use nalgebra::SMatrix;

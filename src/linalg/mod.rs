@@ -1,5 +1,11 @@
-//! Small dense linear algebra for the hot path: the few smallest eigenpairs
-//! of a small symmetric matrix, fixed-size and allocation-free.
+//! Small dense linear algebra for the hot path, fixed-size and
+//! allocation-free: the few smallest eigenpairs of a small symmetric matrix
+//! ([`smallest_eigenpairs`]), the 3×3 symmetric eigenproblem, one-sided
+//! Jacobi orthogonalisation, a square-root-free Cholesky solve
+//! ([`solve_positive_definite`]), and the eigenvalues of a small
+//! non-symmetric matrix ([`nonsymmetric`]).
+//!
+//! **The smallest eigenpairs.**
 //!
 //! EPnP (Lepetit et al. 2009, eq. 9; the seed paper's eqs. 8–9) needs the
 //! eigenvectors of the 12×12 positive semi-definite `MᵀM` for its four
@@ -51,6 +57,8 @@
 //!
 //! Requirements: `a` symmetric (only its lower triangle is read). Any finite
 //! scale is accepted: the matrix is scaled to unit max-norm first.
+
+pub mod nonsymmetric;
 
 use nalgebra::{SMatrix, SVector};
 
@@ -1745,5 +1753,7 @@ mod tests {
         assert!(solve_positive_definite(&indefinite, &nalgebra::Vector2::new(1.0, 0.0)).is_none());
         let singular = nalgebra::Matrix2::new(1.0, 1.0, 1.0, 1.0);
         assert!(solve_positive_definite(&singular, &nalgebra::Vector2::new(1.0, 0.0)).is_none());
+        let not_finite = nalgebra::Matrix3::from_element(f64::NAN);
+        assert!(solve_positive_definite(&not_finite, &nalgebra::Vector3::zeros()).is_none());
     }
 }
