@@ -7,6 +7,22 @@
 //! Solvers never see pixels: [`Camera::pixel_to_normalised`] removes the
 //! intrinsics and the distortion (iteratively, as OpenCV's `undistortPoints`),
 //! and the solvers work on the undistorted normalised image plane `z = 1`.
+//!
+//! ```
+//! use layout_opt::camera::Camera;
+//! use nalgebra::{Vector2, Vector3};
+//!
+//! let camera = Camera::paper();
+//! // A point on the optical axis images at the principal point.
+//! let pixel = camera.project(&Vector3::new(0.0, 0.0, 500.0)).unwrap();
+//! assert!((pixel - Vector2::new(camera.cx(), camera.cy())).norm() < 1e-9);
+//! // Pixels go back to the normalised image plane z = 1.
+//! let off_axis = camera.project(&Vector3::new(50.0, -20.0, 500.0)).unwrap();
+//! let normalised = camera.pixel_to_normalised(&off_axis).unwrap();
+//! assert!((normalised - Vector2::new(0.1, -0.04)).norm() < 1e-12);
+//! // A point behind the camera has no image.
+//! assert!(camera.project(&Vector3::new(0.0, 0.0, -1.0)).is_none());
+//! ```
 
 use nalgebra::{Matrix2, Vector2, Vector3};
 use serde::{Deserialize, Serialize};

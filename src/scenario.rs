@@ -7,6 +7,26 @@
 //! `R = Rz(roll) · Ry(pan) · Rx(tilt)` applied to the base attitude, in which
 //! the marker axes are parallel to the camera axes (the paper's real-image
 //! protocol tilts the marker about X from −90° to 90°).
+//!
+//! ```
+//! use layout_opt::scenario::{Range, ScenarioGrid};
+//!
+//! let grid = ScenarioGrid::new(
+//!     "200..1000:200".parse()?, // depth, mm: 200, 400, …, 1000
+//!     "0,50".parse()?,          // X offset, mm
+//!     Range::single(0.0),       // Y offset
+//!     "-60..60:30".parse()?,    // tilt about X, degrees
+//!     Range::single(0.0),       // pan
+//!     Range::single(0.0),       // roll
+//!     Range::single(0.5),       // σ, px
+//! )?;
+//! assert_eq!(grid.len(), 5 * 2 * 5);
+//! let first = &grid.scenarios()[0];
+//! assert_eq!(first.pose().translation.z, 200.0);
+//! // Malformed ranges are errors.
+//! assert!("200 to 1000".parse::<Range>().is_err());
+//! # Ok::<(), layout_opt::scenario::ScenarioError>(())
+//! ```
 
 use crate::camera::Camera;
 use crate::pose::Pose;
