@@ -33,7 +33,7 @@ use std::sync::{Arc, Mutex};
 /// Iterations between checkpoints of an optimiser phase.
 pub const CHECKPOINT_EVERY: u64 = 20;
 /// Version of the checkpoint file format.
-const FORMAT_VERSION: u32 = 1;
+const FORMAT_VERSION: u32 = 2;
 
 /// Why checkpoints could not be prepared or read.
 #[derive(Debug, thiserror::Error)]
@@ -215,14 +215,10 @@ fn find_stale(
     Ok(Some((dir, found, differences.join(", "))))
 }
 
-/// Writes `bytes` to `path` atomically: a temporary file beside it, then a
-/// rename.
+/// Writes `bytes` to `path` with the crate's one atomic write
+/// ([`crate::files::write_atomic`]).
 fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), CheckpointError> {
-    let mut temporary = path.as_os_str().to_owned();
-    temporary.push(".tmp");
-    let temporary = PathBuf::from(temporary);
-    std::fs::write(&temporary, bytes).map_err(|e| io_error(&temporary, e))?;
-    std::fs::rename(&temporary, path).map_err(|e| io_error(path, e))
+    crate::files::write_atomic(path, bytes).map_err(|e| io_error(path, e))
 }
 
 /// Start-level state that lives outside argmin's solver and state: the
@@ -233,6 +229,9 @@ pub struct StartState {
     pub best_params: Option<Vec<f64>>,
     /// The generator of annealing's perturbations.
     pub anneal_rng: ChaCha8Rng,
+    /// Objective evaluations of the start so far, those of earlier runs
+    /// restored from its checkpoints included.
+    pub evaluations: u64,
 }
 
 #[derive(Serialize)]
@@ -242,6 +241,7 @@ struct FileOut<'a, S, I> {
     state: &'a I,
     best_params: &'a Option<Vec<f64>>,
     anneal_rng: &'a ChaCha8Rng,
+    evaluations: u64,
 }
 
 /// The executor's part of a checkpoint file (the start-level fields are
@@ -273,6 +273,7 @@ impl StartCheckpoint {
             version: u32,
             best_params: Option<Vec<f64>>,
             anneal_rng: ChaCha8Rng,
+            evaluations: u64,
         }
         let Some(bytes) = self.read()? else {
             return Ok(false);
@@ -286,6 +287,7 @@ impl StartCheckpoint {
             .expect("no panics while holding the lock");
         state.best_params = extras.best_params;
         state.anneal_rng = extras.anneal_rng;
+        state.evaluations = extras.evaluations;
         Ok(true)
     }
 
@@ -327,6 +329,7 @@ where
                 state,
                 best_params: &start_state.best_params,
                 anneal_rng: &start_state.anneal_rng,
+                evaluations: start_state.evaluations,
             },
             &mut bytes,
         )?;
