@@ -13,13 +13,15 @@
 //!   resumes silently. Without `--resume` a run starts afresh and replaces
 //!   its own checkpoints.
 //! * Each start's optimiser phase (main, polish) is an argmin executor with a
-//!   [`StartCheckpoint`]: every [`CHECKPOINT_EVERY`] iterations, and once
-//!   more when the phase ends, the solver and its state (simplex, swarm or
-//!   annealing state with its random generator), the start's best parameters
-//!   and its perturbation generator are written atomically (temporary file,
-//!   then rename) as CBOR, which keeps every f64 exactly, infinities
-//!   included. Because every stream is seeded and restored, a resumed run
-//!   reaches the same winner as an uninterrupted one.
+//!   [`StartCheckpoint`]: every [`CHECKPOINT_EVERY`] iterations, but no more
+//!   often than every [`CHECKPOINT_INTERVAL`], and once more when the phase
+//!   ends, the solver and its state (simplex, swarm or annealing state with
+//!   its random generator), the start's best parameters, its perturbation
+//!   generator and its evaluation count are written with the crate's atomic
+//!   write ([`crate::files::write_atomic`]) as CBOR, which keeps every f64
+//!   exactly, infinities included. Because every stream is seeded and
+//!   restored, a resumed run reaches the same winner as an uninterrupted
+//!   one, and counts the same evaluations.
 //! * A finished search removes its checkpoints; an interrupted one keeps
 //!   them.
 
@@ -32,6 +34,9 @@ use std::sync::{Arc, Mutex};
 
 /// Iterations between checkpoints of an optimiser phase.
 pub const CHECKPOINT_EVERY: u64 = 20;
+/// Least time between two checkpoints of one phase: each is flushed to disk
+/// (about 10 ms on a busy disk), and a stop loses at most this much work.
+pub const CHECKPOINT_INTERVAL: std::time::Duration = std::time::Duration::from_secs(1);
 /// Version of the checkpoint file format.
 const FORMAT_VERSION: u32 = 2;
 
@@ -257,12 +262,18 @@ struct FileIn<S, I> {
 pub struct StartCheckpoint {
     path: PathBuf,
     start_state: Arc<Mutex<StartState>>,
+    last_save: Mutex<Option<std::time::Instant>>,
 }
 
 impl StartCheckpoint {
-    /// A checkpoint at `path` that also saves `start_state`.
+    /// A checkpoint at `path` that also saves `start_state`. Its first save
+    /// is always written; later ones at most every [`CHECKPOINT_INTERVAL`].
     pub fn new(path: PathBuf, start_state: Arc<Mutex<StartState>>) -> Self {
-        Self { path, start_state }
+        Self {
+            path,
+            start_state,
+            last_save: Mutex::new(None),
+        }
     }
 
     /// Restores the start-level state from the file, if there is one, and
@@ -317,6 +328,16 @@ where
     I: Serialize + DeserializeOwned,
 {
     fn save(&self, solver: &S, state: &I) -> Result<(), argmin::core::Error> {
+        {
+            let mut last_save = self
+                .last_save
+                .lock()
+                .expect("no panics while holding the lock");
+            if last_save.is_some_and(|t| t.elapsed() < CHECKPOINT_INTERVAL) {
+                return Ok(());
+            }
+            *last_save = Some(std::time::Instant::now());
+        }
         let start_state = self
             .start_state
             .lock()

@@ -401,7 +401,7 @@ struct StartProgress {
 }
 
 /// Least time between two writes of the partial file during a search.
-pub const PARTIAL_EVERY: std::time::Duration = std::time::Duration::from_millis(250);
+pub const PARTIAL_EVERY: std::time::Duration = std::time::Duration::from_secs(1);
 
 impl Tracker {
     /// Iterations done, a finished start counting its whole budget (a
