@@ -40,7 +40,6 @@ use crate::spread::{Spread, DUPLICATE_TOLERANCE, PLANARITY_TOLERANCE};
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
-use std::io::Write;
 use std::path::{Path, PathBuf};
 
 /// The only length unit layout files use.
@@ -346,10 +345,12 @@ impl Layout {
     /// goes to a temporary file in the same directory, is flushed to disk,
     /// and is then renamed over `path`.
     pub fn save_atomic(&self, path: &Path) -> Result<(), LayoutError> {
-        write_atomic(path, self.to_json().as_bytes()).map_err(|source| LayoutError::Io {
-            action: "write",
-            path: path.to_path_buf(),
-            source,
+        crate::files::write_atomic(path, self.to_json().as_bytes()).map_err(|source| {
+            LayoutError::Io {
+                action: "write",
+                path: path.to_path_buf(),
+                source,
+            }
         })
     }
 
@@ -571,39 +572,6 @@ fn file_stem(path: &Path) -> String {
     path.file_stem()
         .map(|s| s.to_string_lossy().into_owned())
         .unwrap_or_else(|| "custom".to_string())
-}
-
-/// Writes `bytes` to `path` atomically: a temporary file in the same
-/// directory, flushed to disk, then renamed over `path`.
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
-    let dir = match path.parent() {
-        Some(dir) if !dir.as_os_str().is_empty() => dir.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
-    let file_name = path
-        .file_name()
-        .ok_or_else(|| std::io::Error::new(std::io::ErrorKind::InvalidInput, "no file name"))?;
-    let temp = dir.join(format!(
-        ".{}.{}.tmp",
-        file_name.to_string_lossy(),
-        std::process::id()
-    ));
-    let result = (|| {
-        let mut file = std::fs::File::create(&temp)?;
-        file.write_all(bytes)?;
-        file.sync_all()?;
-        drop(file);
-        std::fs::rename(&temp, path)?;
-        // Make the rename itself durable where directories can be synced.
-        if let Ok(dir) = std::fs::File::open(&dir) {
-            let _ = dir.sync_all();
-        }
-        Ok(())
-    })();
-    if result.is_err() {
-        let _ = std::fs::remove_file(&temp);
-    }
-    result
 }
 
 /// Serialises a `Vector3<f64>` as a plain `[x, y, z]` array.

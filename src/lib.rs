@@ -16,6 +16,7 @@ pub mod camera;
 pub mod conformance;
 pub mod error_model;
 pub mod family;
+pub mod files;
 pub mod layout;
 pub mod linalg;
 pub mod mesh;

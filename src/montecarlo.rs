@@ -30,7 +30,7 @@ use crate::synthetic::stream_rng;
 use nalgebra::{Vector2, Vector3};
 use rayon::prelude::*;
 use serde::Serialize;
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
 /// Rotation errors above this count as gross failures (degrees).
 pub const DEFAULT_GROSS_THRESHOLD_DEG: f64 = 10.0;
@@ -195,6 +195,9 @@ pub enum MonteCarloError {
     /// No trials or no solvers.
     #[error("a Monte-Carlo run needs at least one trial and one solver")]
     Empty,
+    /// The caller's stop flag ended the run before every scenario ran.
+    #[error("the Monte-Carlo run was interrupted")]
+    Interrupted,
 }
 
 /// Runs every scenario. `on_scenario_done` is called (from worker threads)
@@ -204,6 +207,25 @@ pub fn run(
     scenarios: &[Scenario],
     config: &MonteCarloConfig,
     on_scenario_done: &(dyn Fn(usize) + Sync),
+) -> Result<Vec<ScenarioOutcome>, MonteCarloError> {
+    run_until(
+        target,
+        scenarios,
+        config,
+        on_scenario_done,
+        &AtomicBool::new(false),
+    )
+}
+
+/// [`run`], ended early with [`MonteCarloError::Interrupted`] once `stop` is
+/// set: the flag is read before each trial, so a run stops within one
+/// trial's solves of it.
+pub fn run_until(
+    target: &Target,
+    scenarios: &[Scenario],
+    config: &MonteCarloConfig,
+    on_scenario_done: &(dyn Fn(usize) + Sync),
+    stop: &AtomicBool,
 ) -> Result<Vec<ScenarioOutcome>, MonteCarloError> {
     if target.point_sigma_px.len() != target.object.len() {
         return Err(MonteCarloError::MismatchedSigmas {
@@ -216,14 +238,22 @@ pub fn run(
     }
     let reference = reference_index(target.object);
     let done = AtomicUsize::new(0);
-    Ok(scenarios
+    scenarios
         .par_iter()
         .map(|scenario| {
-            let outcome = run_scenario(target, scenario, config, reference);
+            if stop.load(Ordering::Relaxed) {
+                return None;
+            }
+            let outcome = run_scenario(target, scenario, config, reference, stop);
+            if stop.load(Ordering::Relaxed) {
+                // The scenario may have stopped part-way: drop it.
+                return None;
+            }
             on_scenario_done(done.fetch_add(1, Ordering::Relaxed) + 1);
-            outcome
+            Some(outcome)
         })
-        .collect())
+        .collect::<Option<Vec<_>>>()
+        .ok_or(MonteCarloError::Interrupted)
 }
 
 /// Each feature's σ (px) in a scenario of noise `sigma_px` under `noise`,
@@ -249,6 +279,7 @@ fn run_scenario(
     scenario: &Scenario,
     config: &MonteCarloConfig,
     reference: usize,
+    stop: &AtomicBool,
 ) -> ScenarioOutcome {
     let camera = target.camera;
     let truth = scenario.pose();
@@ -334,6 +365,9 @@ fn run_scenario(
     let mut first_error: Vec<Option<String>> = vec![None; solver_count];
     let mut undistort_failures = 0usize;
     for trial in 0..trials {
+        if stop.load(Ordering::Relaxed) {
+            break;
+        }
         let mut rng = stream_rng(config.seed, scenario.index as u64, trial as u64);
         let mut usable = true;
         for ((pixel, sigma), slot) in clean.iter().zip(&sigmas).zip(normalised.iter_mut()) {
@@ -649,5 +683,43 @@ mod tests {
             run(&target, &[], &config, &|_| {}),
             Err(MonteCarloError::MismatchedSigmas { .. })
         ));
+    }
+
+    #[test]
+    fn a_stop_flag_ends_the_run() {
+        let camera = Camera::paper();
+        let object = crate::synthetic::biprism_points(50.0);
+        let target = Target {
+            camera: &camera,
+            object: &object,
+            sphere_diameter_mm: 10.0,
+            point_sigma_px: &[None; 7],
+        };
+        let config = MonteCarloConfig {
+            trials: 5,
+            seed: 1,
+            solvers: vec![Solver::ParallelWeighted],
+            noise: NoiseModel::default(),
+            gross_threshold_deg: 10.0,
+        };
+        let scenarios = ScenarioGrid::new(
+            Range::list(&[300.0, 600.0]),
+            Range::single(0.0),
+            Range::single(0.0),
+            Range::single(0.0),
+            Range::single(0.0),
+            Range::single(0.0),
+            Range::single(0.5),
+        )
+        .unwrap()
+        .scenarios();
+        let stop = AtomicBool::new(true);
+        assert_eq!(
+            run_until(&target, &scenarios, &config, &|_| {}, &stop),
+            Err(MonteCarloError::Interrupted)
+        );
+        stop.store(false, Ordering::Relaxed);
+        let outcomes = run_until(&target, &scenarios, &config, &|_| {}, &stop).unwrap();
+        assert_eq!(outcomes.len(), 2);
     }
 }

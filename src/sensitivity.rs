@@ -163,6 +163,29 @@ pub fn run(
     command: &str,
     on_scenario_done: &(dyn Fn(usize) + Sync),
 ) -> Result<Analysis, SensitivityError> {
+    let never = std::sync::atomic::AtomicBool::new(false);
+    run_until(
+        layout,
+        camera,
+        grid,
+        config,
+        command,
+        on_scenario_done,
+        &never,
+    )
+}
+
+/// [`run`], ended early with [`MonteCarloError::Interrupted`] once `stop` is
+/// set ([`montecarlo::run_until`]).
+pub fn run_until(
+    layout: &Layout,
+    camera: &Camera,
+    grid: &ScenarioGrid,
+    config: &MonteCarloConfig,
+    command: &str,
+    on_scenario_done: &(dyn Fn(usize) + Sync),
+    stop: &std::sync::atomic::AtomicBool,
+) -> Result<Analysis, SensitivityError> {
     layout.validate()?;
     let object = layout.positions();
     let sigmas = layout.point_sigmas();
@@ -173,7 +196,7 @@ pub fn run(
         point_sigma_px: &sigmas,
     };
     let scenarios = grid.scenarios();
-    let outcomes = montecarlo::run(&target, &scenarios, config, on_scenario_done)?;
+    let outcomes = montecarlo::run_until(&target, &scenarios, config, on_scenario_done, stop)?;
     let header = Header {
         command: command.to_string(),
         version: env!("CARGO_PKG_VERSION").to_string(),

@@ -21,14 +21,47 @@ pub fn bar(total: u64, message: &str, quiet: bool) -> ProgressBar {
     bar
 }
 
+/// What one step of a pipeline phase is, for its bar.
+fn unit(phase: &str) -> &'static str {
+    use layout_opt::search::pipeline::{PHASE_COMPARE, PHASE_SEARCH, PHASE_VALIDATE};
+    match phase {
+        PHASE_SEARCH => "iterations",
+        PHASE_COMPARE | PHASE_VALIDATE => "scenarios",
+        _ => "steps",
+    }
+}
+
+/// A named phase's bar: the phase, the bar, steps done of the phase's whole
+/// budget in its unit, time spent and the estimate of time left.
+fn phase_bar(phase: &str, total: u64, quiet: bool) -> ProgressBar {
+    let bar = self::bar(total, "", quiet);
+    if !bar.is_hidden() {
+        bar.set_style(
+            ProgressStyle::with_template(
+                "{prefix:>10} [{bar:40}] {pos}/{len} {msg} ({elapsed} spent, about {eta} left)",
+            )
+            .expect("the template is valid")
+            .progress_chars("=> "),
+        );
+        bar.set_prefix(phase.to_string());
+        bar.set_message(unit(phase));
+    }
+    bar
+}
+
 /// Set by Ctrl-C once [`catch_ctrl_c`] ran.
 static STOP: AtomicBool = AtomicBool::new(false);
 
-/// Turns Ctrl-C into [`Bars::interrupted`] instead of ending the process.
+/// Turns Ctrl-C into [`Bars::interrupted`] instead of ending the process;
+/// a second Ctrl-C ends it at once, with status 130.
 pub fn catch_ctrl_c() {
     // A second handler cannot be installed in the same process; that only
     // matters to tests that call run twice, and they never press Ctrl-C.
-    let _ = ctrlc::set_handler(|| STOP.store(true, Ordering::SeqCst));
+    let _ = ctrlc::set_handler(|| {
+        if STOP.swap(true, Ordering::SeqCst) {
+            std::process::exit(super::search::EXIT_INTERRUPTED);
+        }
+    });
 }
 
 /// The terminal's observer: one progress bar per phase, log lines on
@@ -62,7 +95,7 @@ impl Observer for Bars {
         if self.phase != phase || self.bar.is_none() {
             self.finish();
             self.phase = phase.to_string();
-            self.bar = Some(bar(total, phase, self.quiet));
+            self.bar = Some(phase_bar(phase, total, self.quiet));
         }
         if let Some(bar) = &self.bar {
             bar.set_position(done);

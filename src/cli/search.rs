@@ -133,9 +133,11 @@ pub struct SearchArgs {
     #[arg(long)]
     resume: bool,
     /// Where checkpoints are kept (one directory per name and configuration
-    /// hash; removed when the search finishes).
-    #[arg(long, value_name = "DIR", default_value = ".layout-opt/checkpoints")]
-    checkpoint_dir: PathBuf,
+    /// hash; removed when the search finishes). Default: hidden beside the
+    /// layout, <FILE's directory>/.<FILE's stem>.checkpoints/, so that it
+    /// follows --out.
+    #[arg(long, value_name = "DIR")]
+    checkpoint_dir: Option<PathBuf>,
     /// Also export the winner as printable meshes in these formats
     /// (stl, obj, gltf, glb; comma-separated), with `export`'s defaults.
     #[arg(long, value_delimiter = ',', value_name = "FORMATS")]
@@ -204,6 +206,7 @@ fn config(args: SearchArgs, global: &GlobalOptions) -> anyhow::Result<SearchConf
             .unwrap_or_else(|| PathBuf::from("build").join(&name)),
     });
     Ok(SearchConfig {
+        layout_path: layout_path.clone(),
         family,
         constraints: Constraints {
             envelope: args.envelope,
@@ -236,13 +239,17 @@ fn config(args: SearchArgs, global: &GlobalOptions) -> anyhow::Result<SearchConf
         validate_solvers: super::validate::parse_solvers(&args.validate_solvers)?,
         resume: args.resume,
         command: command_line(),
-        layout_path,
         report_dir,
-        checkpoint_dir: args.checkpoint_dir,
+        checkpoint_dir: args
+            .checkpoint_dir
+            .unwrap_or_else(|| pipeline::checkpoint_dir_beside(&layout_path)),
         export,
         name,
     })
 }
+
+/// Exit status of a run stopped by Ctrl-C (128 + SIGINT, as shells report).
+pub const EXIT_INTERRUPTED: i32 = 130;
 
 pub fn run(args: SearchArgs, global: &GlobalOptions) -> anyhow::Result<()> {
     let config = config(args, global)?;
@@ -254,11 +261,14 @@ pub fn run(args: SearchArgs, global: &GlobalOptions) -> anyhow::Result<()> {
     let layout_path = config.layout_path.display();
     let search_seconds = outcome.search_seconds;
     let Some(summary) = &outcome.summary else {
-        println!(
-            "interrupted after {search_seconds:.1} s; the best layout seen is in {layout_path}; continue with --resume (checkpoints in {})",
+        eprintln!(
+            "interrupted in the {} phase after {:.1} s; the best layout seen is in {}; {layout_path} and the report were left as they were; continue with --resume (checkpoints in {})",
+            outcome.interrupted_phase.as_deref().unwrap_or("search"),
+            outcome.total_seconds,
+            outcome.partial.display(),
             outcome.checkpoints.display()
         );
-        return Ok(());
+        std::process::exit(EXIT_INTERRUPTED);
     };
     let v = &summary.verdicts;
     println!(

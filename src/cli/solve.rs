@@ -82,7 +82,7 @@ pub fn run(args: SolveArgs, global: &GlobalOptions) -> anyhow::Result<()> {
     );
     match &args.output {
         Some(path) => {
-            std::fs::write(path, json + "\n")
+            layout_opt::files::write_atomic(path, (json + "\n").as_bytes())
                 .with_context(|| format!("cannot write {}", path.display()))?;
             println!("{summary}; wrote {}", path.display());
         }

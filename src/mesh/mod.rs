@@ -439,7 +439,7 @@ fn file_size(path: &Path) -> u64 {
 
 /// Writes a whole file atomically, mapping errors to [`ExportError::Io`].
 pub(crate) fn write_file(path: &Path, bytes: &[u8]) -> Result<(), ExportError> {
-    crate::layout::write_atomic(path, bytes).map_err(|source| ExportError::Io {
+    crate::files::write_atomic(path, bytes).map_err(|source| ExportError::Io {
         path: path.to_path_buf(),
         source,
     })

@@ -92,12 +92,10 @@ pub fn significant(value: Option<f64>, digits: usize) -> String {
     }
 }
 
-/// Writes a text file, creating its directory.
+/// Writes a text file atomically ([`crate::files::write_atomic`]),
+/// creating its directory.
 pub fn write_text(path: &Path, text: &str) -> Result<(), ReportError> {
-    if let Some(parent) = path.parent() {
-        std::fs::create_dir_all(parent).map_err(|e| ReportError::write(path, e))?;
-    }
-    std::fs::write(path, text).map_err(|e| ReportError::write(path, e))
+    crate::files::write_text_atomic(path, text).map_err(|e| ReportError::write(path, e))
 }
 
 #[cfg(test)]

@@ -82,8 +82,8 @@ pub fn line_plot(
             (lo.min(p.1), hi.max(p.1))
         });
     let (y_min, y_max) = (y_min / 1.5, y_max * 1.5);
-    let draw = || -> Result<(), Box<dyn std::error::Error>> {
-        let root = SVGBackend::new(path, (800, 500)).into_drawing_area();
+    let draw = |svg: &mut String| -> Result<(), Box<dyn std::error::Error>> {
+        let root = SVGBackend::with_string(svg, (800, 500)).into_drawing_area();
         root.fill(&WHITE)?;
         let mut chart = ChartBuilder::on(&root)
             .caption(title, ("sans-serif", 20))
@@ -129,7 +129,9 @@ pub fn line_plot(
         root.present()?;
         Ok(())
     };
-    draw().map_err(|e| ReportError::write(path, e))
+    let mut svg = String::new();
+    draw(&mut svg).map_err(|e| ReportError::write(path, e))?;
+    super::write_text(path, &svg)
 }
 
 /// Predicted against measured, log–log, with the line y = x.
@@ -148,8 +150,8 @@ pub fn predicted_vs_measured(
     }
     let lo = values.iter().copied().fold(f64::INFINITY, f64::min) / 1.5;
     let hi = values.iter().copied().fold(f64::NEG_INFINITY, f64::max) * 1.5;
-    let draw = || -> Result<(), Box<dyn std::error::Error>> {
-        let root = SVGBackend::new(path, (640, 600)).into_drawing_area();
+    let draw = |svg: &mut String| -> Result<(), Box<dyn std::error::Error>> {
+        let root = SVGBackend::with_string(svg, (640, 600)).into_drawing_area();
         root.fill(&WHITE)?;
         let mut chart = ChartBuilder::on(&root)
             .caption(title, ("sans-serif", 20))
@@ -187,7 +189,9 @@ pub fn predicted_vs_measured(
         root.present()?;
         Ok(())
     };
-    draw().map_err(|e| ReportError::write(path, e))
+    let mut svg = String::new();
+    draw(&mut svg).map_err(|e| ReportError::write(path, e))?;
+    super::write_text(path, &svg)
 }
 
 /// Three orthographic views of a marker (front: x–y, side: z–y, top: x–z),
@@ -210,9 +214,9 @@ pub fn orthographic_views(
         ("side (z right, y down)", 2, 1),
         ("top (x right, z down)", 0, 2),
     ];
-    let draw = || -> Result<(), Box<dyn std::error::Error>> {
+    let draw = |svg: &mut String| -> Result<(), Box<dyn std::error::Error>> {
         let panel = 360u32;
-        let root = SVGBackend::new(path, (3 * panel, panel + 40)).into_drawing_area();
+        let root = SVGBackend::with_string(svg, (3 * panel, panel + 40)).into_drawing_area();
         root.fill(&WHITE)?;
         let (header, body) = root.split_vertically(40);
         header.titled(title, ("sans-serif", 20))?;
@@ -258,5 +262,7 @@ pub fn orthographic_views(
         root.present()?;
         Ok(())
     };
-    draw().map_err(|e| ReportError::write(path, e))
+    let mut svg = String::new();
+    draw(&mut svg).map_err(|e| ReportError::write(path, e))?;
+    super::write_text(path, &svg)
 }

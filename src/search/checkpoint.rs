@@ -13,13 +13,15 @@
 //!   resumes silently. Without `--resume` a run starts afresh and replaces
 //!   its own checkpoints.
 //! * Each start's optimiser phase (main, polish) is an argmin executor with a
-//!   [`StartCheckpoint`]: every [`CHECKPOINT_EVERY`] iterations, and once
-//!   more when the phase ends, the solver and its state (simplex, swarm or
-//!   annealing state with its random generator), the start's best parameters
-//!   and its perturbation generator are written atomically (temporary file,
-//!   then rename) as CBOR, which keeps every f64 exactly, infinities
-//!   included. Because every stream is seeded and restored, a resumed run
-//!   reaches the same winner as an uninterrupted one.
+//!   [`StartCheckpoint`]: every [`CHECKPOINT_EVERY`] iterations, but no more
+//!   often than every [`CHECKPOINT_INTERVAL`], and once more when the phase
+//!   ends, the solver and its state (simplex, swarm or annealing state with
+//!   its random generator), the start's best parameters, its perturbation
+//!   generator and its evaluation count are written with the crate's atomic
+//!   write ([`crate::files::write_atomic`]) as CBOR, which keeps every f64
+//!   exactly, infinities included. Because every stream is seeded and
+//!   restored, a resumed run reaches the same winner as an uninterrupted
+//!   one, and counts the same evaluations.
 //! * A finished search removes its checkpoints; an interrupted one keeps
 //!   them.
 
@@ -32,8 +34,11 @@ use std::sync::{Arc, Mutex};
 
 /// Iterations between checkpoints of an optimiser phase.
 pub const CHECKPOINT_EVERY: u64 = 20;
+/// Least time between two checkpoints of one phase: each is flushed to disk
+/// (about 10 ms on a busy disk), and a stop loses at most this much work.
+pub const CHECKPOINT_INTERVAL: std::time::Duration = std::time::Duration::from_secs(1);
 /// Version of the checkpoint file format.
-const FORMAT_VERSION: u32 = 1;
+const FORMAT_VERSION: u32 = 2;
 
 /// Why checkpoints could not be prepared or read.
 #[derive(Debug, thiserror::Error)]
@@ -215,14 +220,10 @@ fn find_stale(
     Ok(Some((dir, found, differences.join(", "))))
 }
 
-/// Writes `bytes` to `path` atomically: a temporary file beside it, then a
-/// rename.
+/// Writes `bytes` to `path` with the crate's one atomic write
+/// ([`crate::files::write_atomic`]).
 fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), CheckpointError> {
-    let mut temporary = path.as_os_str().to_owned();
-    temporary.push(".tmp");
-    let temporary = PathBuf::from(temporary);
-    std::fs::write(&temporary, bytes).map_err(|e| io_error(&temporary, e))?;
-    std::fs::rename(&temporary, path).map_err(|e| io_error(path, e))
+    crate::files::write_atomic(path, bytes).map_err(|e| io_error(path, e))
 }
 
 /// Start-level state that lives outside argmin's solver and state: the
@@ -233,6 +234,9 @@ pub struct StartState {
     pub best_params: Option<Vec<f64>>,
     /// The generator of annealing's perturbations.
     pub anneal_rng: ChaCha8Rng,
+    /// Objective evaluations of the start so far, those of earlier runs
+    /// restored from its checkpoints included.
+    pub evaluations: u64,
 }
 
 #[derive(Serialize)]
@@ -242,6 +246,7 @@ struct FileOut<'a, S, I> {
     state: &'a I,
     best_params: &'a Option<Vec<f64>>,
     anneal_rng: &'a ChaCha8Rng,
+    evaluations: u64,
 }
 
 /// The executor's part of a checkpoint file (the start-level fields are
@@ -257,12 +262,18 @@ struct FileIn<S, I> {
 pub struct StartCheckpoint {
     path: PathBuf,
     start_state: Arc<Mutex<StartState>>,
+    last_save: Mutex<Option<std::time::Instant>>,
 }
 
 impl StartCheckpoint {
-    /// A checkpoint at `path` that also saves `start_state`.
+    /// A checkpoint at `path` that also saves `start_state`. Its first save
+    /// is always written; later ones at most every [`CHECKPOINT_INTERVAL`].
     pub fn new(path: PathBuf, start_state: Arc<Mutex<StartState>>) -> Self {
-        Self { path, start_state }
+        Self {
+            path,
+            start_state,
+            last_save: Mutex::new(None),
+        }
     }
 
     /// Restores the start-level state from the file, if there is one, and
@@ -273,6 +284,7 @@ impl StartCheckpoint {
             version: u32,
             best_params: Option<Vec<f64>>,
             anneal_rng: ChaCha8Rng,
+            evaluations: u64,
         }
         let Some(bytes) = self.read()? else {
             return Ok(false);
@@ -286,6 +298,7 @@ impl StartCheckpoint {
             .expect("no panics while holding the lock");
         state.best_params = extras.best_params;
         state.anneal_rng = extras.anneal_rng;
+        state.evaluations = extras.evaluations;
         Ok(true)
     }
 
@@ -315,6 +328,16 @@ where
     I: Serialize + DeserializeOwned,
 {
     fn save(&self, solver: &S, state: &I) -> Result<(), argmin::core::Error> {
+        {
+            let mut last_save = self
+                .last_save
+                .lock()
+                .expect("no panics while holding the lock");
+            if last_save.is_some_and(|t| t.elapsed() < CHECKPOINT_INTERVAL) {
+                return Ok(());
+            }
+            *last_save = Some(std::time::Instant::now());
+        }
         let start_state = self
             .start_state
             .lock()
@@ -327,6 +350,7 @@ where
                 state,
                 best_params: &start_state.best_params,
                 anneal_rng: &start_state.anneal_rng,
+                evaluations: start_state.evaluations,
             },
             &mut bytes,
         )?;

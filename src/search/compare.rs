@@ -15,6 +15,7 @@ use crate::pnp::Solver;
 use crate::scenario::Scenario;
 use nalgebra::Vector3;
 use serde::Serialize;
+use std::sync::atomic::AtomicBool;
 
 /// Monte-Carlo figures of one design on one seed.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -180,6 +181,15 @@ pub fn monte_carlo_outcomes(
     montecarlo::run(&target, scenarios, &config, &|_| {})
 }
 
+/// What a comparison reports while it runs, and how it is stopped.
+pub struct CompareProgress<'a> {
+    /// Called (from worker threads) after each scenario of each design and
+    /// seed.
+    pub on_scenario_done: &'a (dyn Fn() + Sync),
+    /// Ends the comparison early ([`MonteCarloError::Interrupted`]).
+    pub stop: &'a AtomicBool,
+}
+
 fn figures(seed: u64, mine: &[ScenarioOutcome], winner: &[ScenarioOutcome]) -> MonteCarloFigures {
     let visible = |o: &&ScenarioOutcome| o.visibility.is_visible();
     let common: Vec<bool> = mine
@@ -208,7 +218,10 @@ fn figures(seed: u64, mine: &[ScenarioOutcome], winner: &[ScenarioOutcome]) -> M
 }
 
 /// Scores every design by the objective and by Monte-Carlo on each seed.
-/// `designs[0]` is the winner the others are paired with.
+/// `designs[0]` is the winner the others are paired with. It runs
+/// `designs.len() × seeds.len() × scenarios` Monte-Carlo scenarios, each
+/// reported to `progress`, and stops early once `progress.stop` is set.
+#[allow(clippy::too_many_arguments)]
 pub fn compare(
     camera: &Camera,
     evaluator: &Evaluator,
@@ -217,6 +230,7 @@ pub fn compare(
     trials: usize,
     seeds: &[u64],
     noise: NoiseModel,
+    progress: &CompareProgress<'_>,
 ) -> Result<Vec<DesignRow>, MonteCarloError> {
     let outcomes: Vec<Vec<Vec<ScenarioOutcome>>> = designs
         .iter()
@@ -224,14 +238,27 @@ pub fn compare(
             seeds
                 .iter()
                 .map(|&seed| {
-                    monte_carlo_outcomes(
+                    let object = layout.positions();
+                    let sigmas = layout.point_sigmas();
+                    let target = Target {
                         camera,
-                        layout,
-                        evaluator.scenarios(),
-                        solver,
+                        object: &object,
+                        sphere_diameter_mm: layout.sphere_diameter_mm,
+                        point_sigma_px: &sigmas,
+                    };
+                    let config = MonteCarloConfig {
                         trials,
                         seed,
+                        solvers: vec![solver],
                         noise,
+                        gross_threshold_deg: DEFAULT_GROSS_THRESHOLD_DEG,
+                    };
+                    montecarlo::run_until(
+                        &target,
+                        evaluator.scenarios(),
+                        &config,
+                        &|_| (progress.on_scenario_done)(),
+                        progress.stop,
                     )
                 })
                 .collect::<Result<Vec<_>, _>>()

@@ -136,6 +136,29 @@ pub struct SearchSettings {
     pub seed: u64,
 }
 
+impl SearchSettings {
+    /// Checks the settings (before anything is written or run).
+    pub fn check(&self) -> Result<(), SearchError> {
+        if self.starts == 0 || self.iterations == 0 {
+            return Err(SearchError::Settings(
+                "starts and iterations must be at least 1".into(),
+            ));
+        }
+        if !(0.0..=1.0).contains(&self.start_jitter) {
+            return Err(SearchError::Settings(format!(
+                "the start jitter must be a fraction of each parameter's range in [0, 1], got {}",
+                self.start_jitter
+            )));
+        }
+        if self.optimiser == Optimiser::ParticleSwarm && self.particles < 2 {
+            return Err(SearchError::Settings(
+                "particle swarm needs at least 2 particles".into(),
+            ));
+        }
+        Ok(())
+    }
+}
+
 /// A scored parameter vector.
 #[derive(Debug, Clone, Serialize)]
 pub struct Candidate {
@@ -165,6 +188,10 @@ pub trait SearchObserver: Sync {
     fn improved(&self, candidate: &Candidate);
     /// A start finished an iteration; `evaluations` counts all starts.
     fn progress(&self, start: usize, iteration: u64, evaluations: usize, best_cost: f64);
+    /// A start ran to its end (not called for a start a stop ended).
+    fn finished(&self, start: usize) {
+        let _ = start;
+    }
 }
 
 /// The result of a search.
@@ -174,8 +201,12 @@ pub struct SearchOutcome {
     pub best: Candidate,
     /// Each start's best, in start order.
     pub starts: Vec<Candidate>,
-    /// Objective evaluations.
+    /// Objective evaluations of the whole search, those before a resume
+    /// included (restored from the checkpoints), so a resumed search counts
+    /// what an uninterrupted one would.
     pub evaluations: usize,
+    /// Objective evaluations this call made itself.
+    pub evaluations_this_run: usize,
     /// Whether the stop flag ended the search early.
     pub interrupted: bool,
 }
@@ -211,6 +242,9 @@ struct Shared<'a> {
     /// Set by the first evaluation that sees `stop`; iteration observers
     /// (which must own their data) end their executors on it.
     halted: Arc<AtomicBool>,
+    /// Every start's state, for the books at the end (a start a stop ended
+    /// returns none of its own).
+    start_states: Mutex<Vec<Arc<Mutex<StartState>>>>,
 }
 
 impl Shared<'_> {
@@ -282,6 +316,10 @@ impl CostFunction for LayoutProblem<'_> {
             start: self.start,
         };
         self.shared.evaluations.fetch_add(1, Ordering::Relaxed);
+        self.start_state
+            .lock()
+            .expect("no panics while holding the lock")
+            .evaluations += 1;
         {
             let mut best = self
                 .start_best
@@ -412,8 +450,16 @@ where
                 .clone();
             if let Some(params) = best {
                 // Scoring the restored best again rebuilds the start's own
-                // best and the shared best-so-far.
+                // best and the shared best-so-far; it is not one of the
+                // search's evaluations, so the restored count stands.
+                let lock = || {
+                    start_state
+                        .lock()
+                        .expect("no panics while holding the lock")
+                };
+                let restored = lock().evaluations;
                 problem.cost(&params)?;
+                lock().evaluations = restored;
             }
         }
     }
@@ -533,6 +579,7 @@ pub fn repair(
         observer: Arc::new(Silent),
         stop: &never,
         halted: Arc::new(AtomicBool::new(false)),
+        start_states: Mutex::new(Vec::new()),
     };
     let (lower, upper) = family.bounds();
     let problem = LayoutProblem {
@@ -547,6 +594,7 @@ pub fn repair(
         start_state: Arc::new(Mutex::new(StartState {
             best_params: None,
             anneal_rng: stream_rng(0, ANNEAL_STREAM, 0),
+            evaluations: 0,
         })),
         repairing: true,
     };
@@ -571,6 +619,16 @@ fn run_start<'a>(
 ) -> Result<Option<Candidate>, argmin::core::Error> {
     let (lower, upper) = (&bounds.0, &bounds.1);
     let initial = start_point(family, settings, bounds, start);
+    let start_state = Arc::new(Mutex::new(StartState {
+        best_params: None,
+        anneal_rng: stream_rng(settings.seed, ANNEAL_STREAM, start as u64),
+        evaluations: 0,
+    }));
+    shared
+        .start_states
+        .lock()
+        .expect("no panics while holding the lock")
+        .push(Arc::clone(&start_state));
     let problem = LayoutProblem {
         family,
         evaluator,
@@ -580,10 +638,7 @@ fn run_start<'a>(
         start,
         shared,
         start_best: Mutex::new(None),
-        start_state: Arc::new(Mutex::new(StartState {
-            best_params: None,
-            anneal_rng: stream_rng(settings.seed, ANNEAL_STREAM, start as u64),
-        })),
+        start_state,
         repairing: true,
     };
     // The repair is deterministic and cheap, so a resumed run repeats it
@@ -708,22 +763,7 @@ pub fn run(
     observer: Arc<dyn SearchObserver + Send>,
     checkpoints: Option<&Checkpoints>,
 ) -> Result<SearchOutcome, SearchError> {
-    if settings.starts == 0 || settings.iterations == 0 {
-        return Err(SearchError::Settings(
-            "starts and iterations must be at least 1".into(),
-        ));
-    }
-    if !(0.0..=1.0).contains(&settings.start_jitter) {
-        return Err(SearchError::Settings(format!(
-            "the start jitter must be a fraction of each parameter's range in [0, 1], got {}",
-            settings.start_jitter
-        )));
-    }
-    if settings.optimiser == Optimiser::ParticleSwarm && settings.particles < 2 {
-        return Err(SearchError::Settings(
-            "particle swarm needs at least 2 particles".into(),
-        ));
-    }
+    settings.check()?;
     let bounds = family.bounds();
     let point_sigma = family.layout("", &family.initial()).point_sigmas();
     let shared = Shared {
@@ -732,11 +772,16 @@ pub fn run(
         observer,
         stop,
         halted: Arc::new(AtomicBool::new(false)),
+        start_states: Mutex::new(Vec::new()),
     };
     let results: Vec<Result<Option<Candidate>, argmin::core::Error>> = (0..settings.starts)
         .into_par_iter()
         .map(|start| {
-            run_start(
+            // A start that would begin after a stop does not begin at all.
+            if stop.load(Ordering::Relaxed) {
+                return Err(Halted.into());
+            }
+            let result = run_start(
                 family,
                 evaluator,
                 settings,
@@ -745,7 +790,11 @@ pub fn run(
                 &bounds,
                 start,
                 checkpoints,
-            )
+            );
+            if result.is_ok() {
+                shared.observer.finished(start);
+            }
+            result
         })
         .collect();
     let interrupted = stop.load(Ordering::Relaxed);
@@ -778,10 +827,23 @@ pub fn run(
         })
     }
     .ok_or(SearchError::InterruptedEmpty)?;
+    let evaluations = shared
+        .start_states
+        .into_inner()
+        .expect("no panics while holding the lock")
+        .iter()
+        .map(|state| {
+            state
+                .lock()
+                .expect("no panics while holding the lock")
+                .evaluations
+        })
+        .sum::<u64>() as usize;
     Ok(SearchOutcome {
         best,
         starts,
-        evaluations: shared.evaluations.load(Ordering::Relaxed),
+        evaluations,
+        evaluations_this_run: shared.evaluations.load(Ordering::Relaxed),
         interrupted,
     })
 }
@@ -1019,10 +1081,14 @@ mod tests {
                 "{optimiser:?}: resuming changed the winner"
             );
             assert!(
-                resumed.evaluations < straight.evaluations,
+                resumed.evaluations_this_run < straight.evaluations,
                 "{optimiser:?}: the resumed run started over ({} vs {} evaluations)",
-                resumed.evaluations,
+                resumed.evaluations_this_run,
                 straight.evaluations
+            );
+            assert_eq!(
+                resumed.evaluations, straight.evaluations,
+                "{optimiser:?}: the resumed run lost the books of the first"
             );
             let _ = std::fs::remove_dir_all(&root);
         }

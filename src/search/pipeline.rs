@@ -18,12 +18,13 @@
 //! ```
 
 use super::checkpoint::{CheckpointError, Checkpoints, ResumeStatus};
-use super::compare::{compare, hand_designs};
+use super::compare::{compare, hand_designs, CompareProgress};
 use super::optimise::{self, Candidate, Optimiser, SearchObserver, SearchSettings};
 use super::report::{self as search_report, verdicts, SearchHeader, SearchSummary};
 use super::{Aggregate, Evaluator, ObjectiveSettings};
 use crate::camera::Camera;
 use crate::family::{Constraints, Envelope, Family, FamilyError, FamilyKind};
+use crate::files::{self, LockError};
 use crate::layout::{Layout, LayoutError};
 use crate::mesh::{ExportError, ExportOptions, Format};
 use crate::montecarlo::{MonteCarloConfig, MonteCarloError, DEFAULT_GROSS_THRESHOLD_DEG};
@@ -38,12 +39,15 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
-/// Progress phase of the optimisation (interruptible).
-pub const PHASE_SEARCH: &str = "searching";
-/// Progress phase of the comparison with the hand designs.
-pub const PHASE_COMPARE: &str = "comparing designs";
-/// Progress phase of the winner's sensitivity report.
-pub const PHASE_VALIDATE: &str = "validating the winner";
+/// Progress phase of the optimisation: iterations of every start.
+pub const PHASE_SEARCH: &str = "search";
+/// Progress phase of the comparison with the hand designs: Monte-Carlo
+/// scenarios of every design on both seeds.
+pub const PHASE_COMPARE: &str = "comparison";
+/// Progress phase of the winner's sensitivity report: its scenarios.
+pub const PHASE_VALIDATE: &str = "validation";
+/// Progress phase of the optional mesh export (one step).
+pub const PHASE_EXPORT: &str = "export";
 
 /// The default scenario grid: depths 200…1000 mm (5 values), X offsets
 /// 0…100 mm, tilt −60°…60° in 10° steps, σ 0.5 px.
@@ -98,12 +102,15 @@ pub struct SearchConfig {
     /// The command that asked for the run, recorded in the layout's
     /// provenance and the report headers.
     pub command: String,
-    /// Where the winning (and best-so-far) layout is written.
+    /// Where the winning layout is written when the run finishes (the best
+    /// so far goes to [`partial_path`] of it while the run lasts).
     pub layout_path: PathBuf,
     /// The report directory (with `winner-validation/` inside).
     pub report_dir: PathBuf,
     /// Where checkpoints are kept (one subdirectory per name and
-    /// configuration hash; removed when the search finishes).
+    /// configuration hash; removed when the search finishes). The command
+    /// line's default is [`checkpoint_dir_beside`] the layout, so that runs
+    /// with different outputs never share checkpoints.
     pub checkpoint_dir: PathBuf,
     /// Meshes of the winner, if wanted.
     pub export: Option<MeshExport>,
@@ -112,7 +119,7 @@ pub struct SearchConfig {
 impl SearchConfig {
     /// The command line's defaults for a biprism search named `name` on
     /// [`default_grid`] with seed 7, writing `<dir>/<name>.json`, the report
-    /// in `<dir>/<name>-report/` and checkpoints under `<dir>/checkpoints/`.
+    /// in `<dir>/<name>-report/` and checkpoints in `<dir>/.<name>.checkpoints/`.
     pub fn new(name: &str, dir: &Path) -> Self {
         let seed = 7;
         let layout_path = dir.join(format!("{name}.json"));
@@ -162,8 +169,8 @@ impl SearchConfig {
             resume: false,
             command: "layout-opt (library)".to_string(),
             report_dir: report_dir_beside(&layout_path),
+            checkpoint_dir: checkpoint_dir_beside(&layout_path),
             layout_path,
-            checkpoint_dir: dir.join("checkpoints"),
             export: None,
         }
     }
@@ -201,21 +208,51 @@ pub fn report_dir_beside(layout_path: &Path) -> PathBuf {
     layout_path.with_file_name(format!("{stem}-report"))
 }
 
+/// Where the best layout so far goes while a search for `layout_path` runs,
+/// and where an interrupted run leaves it: `<stem>.partial.json` beside it
+/// (`out/marker.json` → `out/marker.partial.json`).
+pub fn partial_path(layout_path: &Path) -> PathBuf {
+    let stem = layout_path
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "layout".into());
+    layout_path.with_file_name(format!("{stem}.partial.json"))
+}
+
+/// The default checkpoint directory of a search writing `layout_path`:
+/// hidden beside it, `<dir>/.<stem>.checkpoints/`, so that it follows
+/// `--out` and two searches with different outputs never share it.
+pub fn checkpoint_dir_beside(layout_path: &Path) -> PathBuf {
+    let stem = layout_path
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "layout".into());
+    layout_path.with_file_name(format!(".{stem}.checkpoints"))
+}
+
 /// What a search produced.
 #[derive(Debug, Clone)]
 pub struct SearchOutcome {
-    /// The winning layout (the best seen, when interrupted), as written to
-    /// [`SearchConfig::layout_path`].
+    /// The winning layout as written to [`SearchConfig::layout_path`], or,
+    /// when interrupted, the best seen as written to [`Self::partial`].
     pub winner: Layout,
     /// The winner's objective-plus-penalty cost.
     pub objective: f64,
     /// The family and its free parameters, in words.
     pub family: String,
-    /// Objective evaluations.
+    /// Objective evaluations of the whole search, those made before a
+    /// resume included.
     pub evaluations: usize,
-    /// Whether the observer stopped the search; then nothing after the
-    /// optimisation ran and the checkpoints are kept in [`Self::checkpoints`].
+    /// Whether the observer stopped the run; then the best layout seen is
+    /// in [`Self::partial`], the checkpoints are kept in
+    /// [`Self::checkpoints`], and neither the layout file nor the report was
+    /// written.
     pub interrupted: bool,
+    /// The phase the stop ended ([`PHASE_SEARCH`], [`PHASE_COMPARE`] or
+    /// [`PHASE_VALIDATE`]), when interrupted.
+    pub interrupted_phase: Option<String>,
+    /// The partial file ([`partial_path`]); removed when the run finishes.
+    pub partial: PathBuf,
     /// This configuration's checkpoint directory (removed unless interrupted).
     pub checkpoints: PathBuf,
     /// The comparison and verdicts written to the report (`None` when
@@ -259,6 +296,20 @@ pub enum SearchError {
     /// The winning layout could not be written.
     #[error(transparent)]
     Layout(#[from] LayoutError),
+    /// No layout can meet the constraints (found before the search).
+    #[error("the constraints cannot all be met: {0}")]
+    Unsatisfiable(String),
+    /// An output cannot be written (found before any work).
+    #[error("cannot write {}: {source}; nothing was run", path.display())]
+    Unwritable {
+        /// The output file or directory.
+        path: PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// Another run holds an output.
+    #[error(transparent)]
+    Lock(#[from] LockError),
     /// The best layout found breaks a constraint.
     #[error("the constraints cannot all be met (best layout, kept in {}): {}", layout.display(), violations.join("; "))]
     Infeasible {
@@ -324,34 +375,75 @@ pub fn family_description(family: &Family) -> String {
     }
 }
 
-/// Writes the best-so-far layout at every improvement and counts iterations.
+/// Writes the best-so-far layout to the partial file (at most every
+/// [`PARTIAL_EVERY`], so that fast improvements do not queue on the disk),
+/// and counts each start's iterations for the progress bar.
 struct Tracker {
     family: Family,
     name: String,
     path: PathBuf,
     provenance: serde_json::Value,
     write_error: Mutex<Option<String>>,
-    iterations: Mutex<Vec<u64>>,
+    last_write: Mutex<Option<Instant>>,
+    /// Per start: iterations of its finished phases, the current phase's
+    /// iteration, and whether the start ran to its end.
+    iterations: Mutex<Vec<StartProgress>>,
+    /// Iterations one start may run (main phase plus polish).
+    budget: u64,
 }
 
+/// One start's place in its budget.
+#[derive(Debug, Clone, Copy, Default)]
+struct StartProgress {
+    earlier_phases: u64,
+    current: u64,
+    finished: bool,
+}
+
+/// Least time between two writes of the partial file during a search.
+pub const PARTIAL_EVERY: std::time::Duration = std::time::Duration::from_secs(1);
+
 impl Tracker {
+    /// Iterations done, a finished start counting its whole budget (a
+    /// Nelder–Mead start that converges ends early), so the bar reaches its
+    /// total exactly when the search ends.
     fn done(&self) -> u64 {
         self.iterations
             .lock()
             .expect("no panics while holding the lock")
             .iter()
+            .map(|p| {
+                if p.finished {
+                    self.budget
+                } else {
+                    (p.earlier_phases + p.current).min(self.budget)
+                }
+            })
             .sum()
+    }
+
+    /// Writes `params` to the partial file with `status`.
+    fn write(&self, params: &[f64], cost: f64, status: &str) -> Result<(), LayoutError> {
+        let mut layout = self.family.layout(&self.name, params);
+        let mut provenance = self.provenance.clone();
+        provenance["status"] = status.into();
+        provenance["score"] = cost.into();
+        layout.provenance = Some(provenance);
+        layout.save_atomic(&self.path)
     }
 }
 
 impl SearchObserver for Tracker {
     fn improved(&self, candidate: &Candidate) {
-        let mut layout = self.family.layout(&self.name, &candidate.params);
-        let mut provenance = self.provenance.clone();
-        provenance["status"] = "best so far (search running or interrupted)".into();
-        provenance["score"] = candidate.evaluation.cost.into();
-        layout.provenance = Some(provenance);
-        if let Err(e) = layout.save_atomic(&self.path) {
+        let mut last_write = self
+            .last_write
+            .lock()
+            .expect("no panics while holding the lock");
+        if last_write.is_some_and(|t| t.elapsed() < PARTIAL_EVERY) {
+            return;
+        }
+        *last_write = Some(Instant::now());
+        if let Err(e) = self.write(&candidate.params, candidate.evaluation.cost, STATUS_RUNNING) {
             *self
                 .write_error
                 .lock()
@@ -365,47 +457,176 @@ impl SearchObserver for Tracker {
             .lock()
             .expect("no panics while holding the lock");
         if let Some(slot) = iterations.get_mut(start) {
-            *slot = (*slot).max(iteration);
+            // Each Nelder–Mead round and the polish count from 0 again.
+            if iteration < slot.current {
+                slot.earlier_phases += slot.current;
+            }
+            slot.current = iteration;
+        }
+    }
+
+    fn finished(&self, start: usize) {
+        if let Some(slot) = self
+            .iterations
+            .lock()
+            .expect("no panics while holding the lock")
+            .get_mut(start)
+        {
+            slot.finished = true;
         }
     }
 }
 
-fn create_dir(path: &Path) -> Result<(), SearchError> {
-    std::fs::create_dir_all(path).map_err(|source| SearchError::CreateDir {
+/// Provenance status of the partial file while the search runs.
+pub const STATUS_RUNNING: &str = "best so far (search running or interrupted)";
+/// Provenance status of a finished run's layout.
+pub const STATUS_FINISHED: &str = "finished";
+
+/// The directory a file lives in (`.` for a bare name).
+fn parent_dir(path: &Path) -> PathBuf {
+    match path.parent() {
+        Some(dir) if !dir.as_os_str().is_empty() => dir.to_path_buf(),
+        _ => PathBuf::from("."),
+    }
+}
+
+/// Checks before any work that every output can be written: the layout's
+/// directory, the report directory (or where it will be created) and the
+/// export directory.
+fn check_outputs(config: &SearchConfig) -> Result<(), SearchError> {
+    let unwritable = |path: &Path, source: std::io::Error| SearchError::Unwritable {
         path: path.to_path_buf(),
         source,
-    })
+    };
+    if config.layout_path.is_dir() {
+        return Err(unwritable(
+            &config.layout_path,
+            std::io::Error::other("it is a directory"),
+        ));
+    }
+    let dirs = std::iter::once(&config.report_dir).chain(config.export.as_ref().map(|e| &e.dir));
+    let mut probes = vec![parent_dir(&config.layout_path)];
+    for dir in dirs {
+        if dir.exists() && !dir.is_dir() {
+            return Err(unwritable(
+                dir,
+                std::io::Error::other("it is not a directory"),
+            ));
+        }
+        probes.push(if dir.is_dir() {
+            dir.clone()
+        } else {
+            parent_dir(dir)
+        });
+    }
+    let validation = config.report_dir.join("winner-validation");
+    if validation.is_dir() {
+        probes.push(validation);
+    }
+    for dir in probes {
+        files::check_writable_dir(&dir).map_err(|e| unwritable(&dir, e))?;
+    }
+    Ok(())
+}
+
+/// A reason the constraints cannot be met by any layout of `family`, found
+/// without searching: every pairwise centre distance lies between one
+/// sphere diameter plus the gap and the envelope's diagonal, and distinct
+/// distances need the identifiability difference between them.
+fn unsatisfiable(family: &Family, constraints: &Constraints) -> Option<String> {
+    let points = family.point_count();
+    if points < 2 {
+        return None;
+    }
+    let [x, y, z] = constraints.envelope.size_mm;
+    let diagonal = (x * x + y * y + z * z).sqrt();
+    let closest = constraints.sphere_diameter_mm + constraints.min_gap_mm;
+    if closest > diagonal {
+        return Some(format!(
+            "{points} spheres {closest} mm apart (diameter plus smallest gap) do not fit an envelope whose diagonal is {diagonal:.1} mm"
+        ));
+    }
+    let distances = points * (points - 1) / 2;
+    let spread_needed = (distances - 1) as f64 * constraints.min_distance_diff_mm;
+    if spread_needed > diagonal - closest {
+        return Some(format!(
+            "{points} points have {distances} pairwise distances, which must differ by {} mm from each other and lie between {closest} mm and the envelope's diagonal, {diagonal:.1} mm: that needs {spread_needed:.1} mm of range, and there are {:.1} mm",
+            constraints.min_distance_diff_mm,
+            diagonal - closest
+        ));
+    }
+    None
+}
+
+/// Removes what a killed run may have left of the outputs' temporaries and
+/// says how many there were. The caller holds the outputs' locks.
+fn remove_stale_temporaries(config: &SearchConfig, partial: &Path) -> usize {
+    let mut removed = 0;
+    for path in [&config.layout_path, &partial.to_path_buf()] {
+        removed += files::remove_stale_temporaries(path).unwrap_or(0);
+    }
+    let mut dirs = vec![
+        config.report_dir.clone(),
+        config.report_dir.join("winner-validation"),
+    ];
+    dirs.extend(config.export.as_ref().map(|e| e.dir.clone()));
+    for dir in dirs {
+        removed += files::remove_stale_temporaries_in(&dir).unwrap_or(0);
+    }
+    removed
 }
 
 /// Runs the whole search: optimises [`SearchConfig::family`] (resuming from
-/// checkpoints when asked), writes the winner to
-/// [`SearchConfig::layout_path`], compares it with its start and the hand
-/// designs on the same scenarios and draws, validates it, writes the report
-/// into [`SearchConfig::report_dir`] and exports its meshes when asked.
+/// checkpoints when asked), compares the winner with its start and the hand
+/// designs on the same scenarios and draws, validates it, and only then
+/// writes it to [`SearchConfig::layout_path`] with the report in
+/// [`SearchConfig::report_dir`] (and its meshes when asked).
 ///
+/// Before any work it checks the settings, the constraints (where that is
+/// possible without searching) and that every output can be written, and
+/// locks the outputs ([`files::OutputLock`]): a second run on the same
+/// outputs fails at once with [`SearchError::Lock`].
+///
+/// While the search runs, the best layout so far goes to
+/// [`partial_path`]`(layout_path)`, never to `layout_path` itself.
 /// `observer` hears each phase's progress and the checkpoint decision, and
-/// may stop the optimisation ([`Observer::interrupted`]); an interrupted run
-/// keeps the best layout seen and its checkpoints and returns at once.
+/// may stop the run ([`Observer::interrupted`]) in any phase; an interrupted
+/// run writes the best layout seen to the partial file, keeps its
+/// checkpoints, leaves the layout and report of any earlier finished run
+/// untouched, and returns at once with [`SearchOutcome::interrupted`] set.
 pub fn run(
     config: &SearchConfig,
     observer: &mut impl Observer,
 ) -> Result<SearchOutcome, SearchError> {
     config.check()?;
+    config.search.check()?;
     let constraints = config.constraints;
     let family = Family::new(
         config.family.clone(),
         constraints.envelope,
         constraints.sphere_diameter_mm,
     )?;
+    if let Some(reason) = unsatisfiable(&family, &constraints) {
+        return Err(SearchError::Unsatisfiable(reason));
+    }
     let description = family_description(&family);
     let name = &config.name;
     let seed = config.search.seed;
-    if let Some(parent) = config
-        .layout_path
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-    {
-        create_dir(parent)?;
+    let partial = partial_path(&config.layout_path);
+
+    check_outputs(config)?;
+    let mut locks = vec![files::OutputLock::acquire(&config.layout_path)?];
+    if config.report_dir != config.layout_path {
+        locks.push(files::OutputLock::acquire(&config.report_dir)?);
+    }
+    if let Some(export) = &config.export {
+        locks.push(files::OutputLock::acquire(&export.dir)?);
+    }
+    let stale = remove_stale_temporaries(config, &partial);
+    if stale > 0 {
+        observer.log(&format!(
+            "removed {stale} temporary file(s) a killed run left behind"
+        ));
     }
 
     let hand = hand_designs(&constraints.envelope, constraints.sphere_diameter_mm);
@@ -434,13 +655,23 @@ pub fn run(
         "objective": config.objective,
         "search": config.search,
     });
+    // Another run with the same checkpoints (an explicit shared checkpoint
+    // directory, same name and configuration) would clobber them.
+    let checkpoint_dir = config.checkpoint_dir.join(format!(
+        "{name}-{}",
+        super::checkpoint::config_hash(&search_config)
+    ));
+    locks.push(files::OutputLock::acquire(&checkpoint_dir)?);
     let (checkpoints, resume_status) =
         Checkpoints::prepare(&config.checkpoint_dir, name, &search_config, config.resume)?;
     match resume_status {
-        ResumeStatus::Resuming => observer.log(&format!(
-            "resuming from the checkpoints in {}",
-            checkpoints.dir().display()
-        )),
+        ResumeStatus::Resuming => {
+            let _ = files::remove_stale_temporaries_in(checkpoints.dir());
+            observer.log(&format!(
+                "resuming from the checkpoints in {}",
+                checkpoints.dir().display()
+            ))
+        }
         ResumeStatus::NothingToResume => observer.log(&format!(
             "no checkpoint of this configuration (hash {}); starting afresh",
             checkpoints.hash()
@@ -456,27 +687,28 @@ pub fn run(
     });
 
     let settings = &config.search;
-    let total_iterations = settings.starts as u64
-        * (settings.iterations
-            + if settings.optimiser == Optimiser::NelderMead {
-                0
-            } else {
-                settings.polish_iterations
-            });
+    let budget = settings.iterations
+        + if settings.optimiser == Optimiser::NelderMead {
+            0
+        } else {
+            settings.polish_iterations
+        };
     let tracker = Arc::new(Tracker {
         family: family.clone(),
         name: name.clone(),
-        path: config.layout_path.clone(),
+        path: partial.clone(),
         provenance: provenance.clone(),
         write_error: Mutex::new(None),
-        iterations: Mutex::new(vec![0; settings.starts]),
+        last_write: Mutex::new(None),
+        iterations: Mutex::new(vec![StartProgress::default(); settings.starts]),
+        budget,
     });
     let stop = AtomicBool::new(false);
     let started = Instant::now();
     let outcome = watch(
         observer,
         PHASE_SEARCH,
-        total_iterations,
+        settings.starts as u64 * budget,
         || tracker.done(),
         Some(&stop),
         || {
@@ -499,41 +731,65 @@ pub fn run(
     {
         return Err(SearchError::BestSoFar(error));
     }
-
-    let mut winner = family.layout(name, &outcome.best.params);
-    let mut final_provenance = provenance;
-    final_provenance["score"] = outcome.best.evaluation.cost.into();
-    final_provenance["status"] = if outcome.interrupted {
-        "interrupted: best layout seen".into()
-    } else {
-        "finished".into()
-    };
-    final_provenance["evaluations"] = outcome.evaluations.into();
-    winner.provenance = Some(final_provenance);
-    winner.save_atomic(&config.layout_path)?;
+    let best_cost = outcome.best.evaluation.cost;
+    let best_params = outcome.best.params.clone();
     let mut result = SearchOutcome {
-        winner: winner.clone(),
-        objective: outcome.best.evaluation.cost,
+        winner: family.layout(name, &outcome.best.params),
+        objective: best_cost,
         family: description.clone(),
         evaluations: outcome.evaluations,
-        interrupted: outcome.interrupted,
+        interrupted: false,
+        interrupted_phase: None,
+        partial: partial.clone(),
         checkpoints: checkpoints.dir().to_path_buf(),
         summary: None,
         exported: Vec::new(),
         search_seconds,
         total_seconds: search_seconds,
     };
+    // Ends the run in `phase`: the best layout goes to the partial file, the
+    // checkpoints stay, the finished outputs are not touched.
+    let interrupted = |mut result: SearchOutcome, phase: &str, status: &str| {
+        tracker
+            .write(&best_params, best_cost, status)
+            .map_err(|e| SearchError::BestSoFar(e.to_string()))?;
+        result.interrupted = true;
+        result.interrupted_phase = Some(phase.to_string());
+        result.winner = Layout::load(&partial)?;
+        result.total_seconds = started.elapsed().as_secs_f64();
+        Ok(result)
+    };
     if outcome.interrupted {
-        return Ok(result);
+        return interrupted(result, PHASE_SEARCH, "interrupted: best layout seen");
     }
-    checkpoints.remove()?;
-    let violations = outcome.best.evaluation.violations;
+    let violations = &outcome.best.evaluation.violations;
     if !violations.feasible() {
+        // An infeasible winner is never a finished result.
+        tracker
+            .write(
+                &outcome.best.params,
+                best_cost,
+                "infeasible: breaks the constraints",
+            )
+            .map_err(|e| SearchError::BestSoFar(e.to_string()))?;
+        checkpoints.remove()?;
         return Err(SearchError::Infeasible {
-            layout: config.layout_path.clone(),
+            layout: partial.clone(),
             violations: violations.describe(&constraints),
         });
     }
+
+    observer.log(&format!(
+        "search finished: objective {best_cost:.6} after {} evaluations in {search_seconds:.1} s",
+        outcome.evaluations
+    ));
+
+    let mut winner = family.layout(name, &outcome.best.params);
+    let mut final_provenance = provenance;
+    final_provenance["score"] = best_cost.into();
+    final_provenance["status"] = STATUS_FINISHED.into();
+    final_provenance["evaluations"] = outcome.evaluations.into();
+    winner.provenance = Some(final_provenance);
 
     // Compare on the same scenarios and draws, on the search seed and an
     // independent validation seed.
@@ -546,7 +802,6 @@ pub fn run(
     let paper_index = designs.len();
     designs.extend(hand.iter().map(|l| (l.name.clone(), l.clone())));
     let hand_range = paper_index..designs.len();
-    observer.progress(PHASE_COMPARE, 0, 1);
     // Hand designs that break a constraint (the paper's biprism and the cube
     // corners repeat pairwise distances) also appear made admissible, by the
     // search's own repair, so the winner meets them like for like.
@@ -571,16 +826,47 @@ pub fn run(
     }
     let admissible_range = hand_range.end..designs.len();
     let seeds = [seed, validation_seed];
-    let rows = compare(
-        &config.camera,
-        &evaluator,
-        &designs,
-        config.compare_solver,
-        config.compare_trials,
-        &seeds,
-        config.objective.noise,
-    )?;
-    observer.progress(PHASE_COMPARE, 1, 1);
+    let compared = AtomicU64::new(0);
+    let compare_total = (designs.len() * seeds.len() * evaluator.scenarios().len()) as u64;
+    let rows = watch(
+        observer,
+        PHASE_COMPARE,
+        compare_total,
+        || compared.load(Ordering::Relaxed),
+        Some(&stop),
+        || {
+            compare(
+                &config.camera,
+                &evaluator,
+                &designs,
+                config.compare_solver,
+                config.compare_trials,
+                &seeds,
+                config.objective.noise,
+                &CompareProgress {
+                    on_scenario_done: &|| {
+                        compared.fetch_add(1, Ordering::Relaxed);
+                    },
+                    stop: &stop,
+                },
+            )
+        },
+    );
+    let rows = match rows {
+        Err(MonteCarloError::Interrupted) => {
+            return interrupted(
+                result,
+                PHASE_COMPARE,
+                "interrupted in the comparison: the search's winner, report not written",
+            )
+        }
+        rows => rows?,
+    };
+    observer.log(&format!(
+        "comparison finished: {} designs on {} seeds",
+        designs.len(),
+        seeds.len()
+    ));
     let summary = SearchSummary {
         header: SearchHeader {
             command: config.command.clone(),
@@ -599,7 +885,6 @@ pub fn run(
         outcome,
         designs: rows,
     };
-    search_report::write(&config.report_dir, &summary)?;
 
     let validation_config = MonteCarloConfig {
         trials: config.compare_trials,
@@ -614,9 +899,9 @@ pub fn run(
         PHASE_VALIDATE,
         config.grid.scenarios().len() as u64,
         || scenarios_done.load(Ordering::Relaxed),
-        None,
+        Some(&stop),
         || {
-            sensitivity::run(
+            sensitivity::run_until(
                 &winner,
                 &config.camera,
                 &config.grid,
@@ -625,9 +910,23 @@ pub fn run(
                 &|_| {
                     scenarios_done.fetch_add(1, Ordering::Relaxed);
                 },
+                &stop,
             )
         },
-    )?;
+    );
+    let validation =
+        match validation {
+            Err(SensitivityError::MonteCarlo(MonteCarloError::Interrupted)) => return interrupted(
+                result,
+                PHASE_VALIDATE,
+                "interrupted in the winner's validation: the search's winner, report not written",
+            ),
+            validation => validation?,
+        };
+
+    // Every phase finished: only now are the finished outputs replaced.
+    winner.save_atomic(&config.layout_path)?;
+    search_report::write(&config.report_dir, &summary)?;
     sensitivity::write_report(
         &config.report_dir.join("winner-validation"),
         &winner,
@@ -639,12 +938,15 @@ pub fn run(
         "search_seconds": search_seconds,
         "total_seconds": total_seconds,
         "evaluations": summary.outcome.evaluations,
+        "evaluations_this_run": summary.outcome.evaluations_this_run,
+        "resumed": resume_status == ResumeStatus::Resuming,
         "threads": rayon::current_num_threads(),
     }))
     .map_err(|e| ReportError::write(&run_path, e))?;
     write_text(&run_path, &(run_json + "\n"))?;
 
     if let Some(export) = &config.export {
+        observer.progress(PHASE_EXPORT, 0, 1);
         let options = ExportOptions {
             formats: export.formats.clone(),
             marker: Default::default(),
@@ -656,10 +958,27 @@ pub fn run(
                 source,
             }
         })?;
+        observer.progress(PHASE_EXPORT, 1, 1);
         result.exported = report.files.into_iter().map(|f| f.path).collect();
     }
+    checkpoints.remove()?;
+    match std::fs::remove_file(&partial) {
+        Ok(()) => {}
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+        Err(e) => observer.log(&format!(
+            "could not remove the superseded {}: {e}",
+            partial.display()
+        )),
+    }
+    drop(locks);
+    if config.checkpoint_dir == checkpoint_dir_beside(&config.layout_path) {
+        // The default root is this output's own: leave no empty directory
+        // (one still in use by another configuration is not empty).
+        let _ = std::fs::remove_dir(&config.checkpoint_dir);
+    }
+    result.winner = winner;
     result.summary = Some(summary);
-    result.total_seconds = total_seconds;
+    result.total_seconds = started.elapsed().as_secs_f64();
     Ok(result)
 }
 
@@ -695,7 +1014,18 @@ mod tests {
         let mut observer = Collect::default();
         let outcome = run(&config, &mut observer).unwrap();
         assert!(!outcome.interrupted);
-        assert!(observer.lines.is_empty(), "{:?}", observer.lines);
+        assert_eq!(observer.lines.len(), 2, "{:?}", observer.lines);
+        assert!(observer.lines[0].starts_with("search finished"));
+        assert!(
+            !outcome.partial.exists(),
+            "a finished run leaves no partial file"
+        );
+        assert!(
+            !config.checkpoint_dir.exists(),
+            "nor its checkpoint directory"
+        );
+        let provenance = outcome.winner.provenance.as_ref().unwrap();
+        assert_eq!(provenance["status"], STATUS_FINISHED);
         assert_eq!(Layout::load(&config.layout_path).unwrap(), outcome.winner);
         assert!(config.report_dir.join("report.md").exists());
         assert!(config
@@ -708,16 +1038,33 @@ mod tests {
         assert_eq!(summary.designs[0].name, "t");
     }
 
-    /// Interrupts as soon as the search has made progress.
-    #[derive(Default)]
-    struct StopEarly {
+    /// Interrupts as soon as `phase` has made progress.
+    struct StopIn {
+        phase: &'static str,
         progressed: bool,
+        phases: Vec<String>,
     }
 
-    impl Observer for StopEarly {
+    impl StopIn {
+        fn new(phase: &'static str) -> Self {
+            Self {
+                phase,
+                progressed: false,
+                phases: Vec::new(),
+            }
+        }
+    }
+
+    impl Observer for StopIn {
         fn progress(&mut self, phase: &str, done: u64, _total: u64) {
-            assert_eq!(phase, PHASE_SEARCH, "no phase runs after a stop");
-            self.progressed |= done > 0;
+            assert!(
+                !self.progressed || phase == self.phase,
+                "no phase runs after a stop"
+            );
+            if self.phases.last().is_none_or(|p| p != phase) {
+                self.phases.push(phase.to_string());
+            }
+            self.progressed |= phase == self.phase && done > 0;
         }
         fn interrupted(&self) -> bool {
             self.progressed
@@ -729,11 +1076,134 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let mut config = small(dir.path());
         config.search.iterations = 100_000;
-        let outcome = run(&config, &mut StopEarly::default()).unwrap();
+        let mut observer = StopIn::new(PHASE_SEARCH);
+        let outcome = run(&config, &mut observer).unwrap();
         assert!(outcome.interrupted && outcome.summary.is_none());
+        assert_eq!(outcome.interrupted_phase.as_deref(), Some(PHASE_SEARCH));
         assert!(outcome.checkpoints.exists());
-        assert!(config.layout_path.exists());
+        assert!(
+            !config.layout_path.exists(),
+            "only a finished run writes --out"
+        );
+        assert_eq!(Layout::load(&outcome.partial).unwrap(), outcome.winner);
         assert!(!config.report_dir.exists());
+        assert!(!files::lock_path(&config.layout_path).exists());
+    }
+
+    #[test]
+    fn every_phase_can_be_interrupted_and_the_finished_result_stays() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut config = small(dir.path());
+        // Long enough phases that a stop lands inside each.
+        config.compare_trials = 400;
+        config.validate_solvers = vec![Solver::ParallelWeighted, Solver::Ml];
+        let finished = run(&config, &mut Silent).unwrap();
+        let layout_bytes = std::fs::read(&config.layout_path).unwrap();
+        let report_bytes = std::fs::read(config.report_dir.join("summary.json")).unwrap();
+        for phase in [PHASE_COMPARE, PHASE_VALIDATE] {
+            let mut observer = StopIn::new(phase);
+            let outcome = run(&config, &mut observer).unwrap();
+            assert!(outcome.interrupted, "{phase}");
+            assert_eq!(outcome.interrupted_phase.as_deref(), Some(phase));
+            assert_eq!(observer.phases.last().map(String::as_str), Some(phase));
+            // The search had finished: the partial file holds its winner.
+            let partial = Layout::load(&outcome.partial).unwrap();
+            assert_eq!(partial.points, finished.winner.points);
+            let status = partial.provenance.unwrap()["status"].clone();
+            assert!(status.as_str().unwrap().contains(phase), "{status}");
+            assert_eq!(std::fs::read(&config.layout_path).unwrap(), layout_bytes);
+            assert_eq!(
+                std::fs::read(config.report_dir.join("summary.json")).unwrap(),
+                report_bytes
+            );
+            assert!(outcome.checkpoints.exists());
+        }
+        // A resumed run finishes, counts every evaluation and cleans up.
+        let mut resumed_config = config.clone();
+        resumed_config.resume = true;
+        let resumed = run(&resumed_config, &mut Silent).unwrap();
+        assert_eq!(resumed.evaluations, finished.evaluations);
+        assert_eq!(resumed.winner.points, finished.winner.points);
+        assert!(!resumed.partial.exists() && !resumed.checkpoints.exists());
+    }
+
+    #[test]
+    fn a_resumed_search_keeps_the_books() {
+        let longer = |dir: &Path| {
+            let mut config = small(dir);
+            config.search.iterations = 2000;
+            config
+        };
+        let dir = tempfile::tempdir().unwrap();
+        let straight = run(&longer(dir.path()), &mut Silent).unwrap();
+        let other = tempfile::tempdir().unwrap();
+        let config = longer(other.path());
+        let first = run(&config, &mut StopIn::new(PHASE_SEARCH)).unwrap();
+        assert!(first.interrupted);
+        // A temporary left by a killed writer is removed.
+        let stale = config.layout_path.with_file_name(".t.json.999999.0.tmp");
+        std::fs::write(&stale, "half a layout").unwrap();
+        let mut resume = config.clone();
+        resume.resume = true;
+        let mut observer = Collect::default();
+        let resumed = run(&resume, &mut observer).unwrap();
+        assert!(!stale.exists());
+        assert!(observer.lines.iter().any(|l| l.contains("resuming")));
+        assert_eq!(resumed.evaluations, straight.evaluations);
+        let run_json: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(config.report_dir.join("run.json")).unwrap(),
+        )
+        .unwrap();
+        assert_eq!(run_json["evaluations"], straight.evaluations);
+        assert_eq!(run_json["resumed"], true);
+        assert!(run_json["evaluations_this_run"].as_u64().unwrap() < straight.evaluations as u64);
+    }
+
+    #[test]
+    fn outputs_are_checked_and_locked_before_any_work() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut config = small(dir.path());
+        // Another run holds the layout.
+        let lock = files::OutputLock::acquire(&config.layout_path).unwrap();
+        let error = run(&config, &mut Silent).unwrap_err();
+        assert!(matches!(error, SearchError::Lock(_)), "{error}");
+        assert!(
+            error.to_string().contains("in use by another run"),
+            "{error}"
+        );
+        assert!(!config.checkpoint_dir.exists());
+        drop(lock);
+        // The layout's directory is a file.
+        let file = dir.path().join("plain-file");
+        std::fs::write(&file, "x").unwrap();
+        config.layout_path = file.join("t.json");
+        config.checkpoint_dir = checkpoint_dir_beside(&config.layout_path);
+        let error = run(&config, &mut Silent).unwrap_err();
+        assert!(matches!(error, SearchError::Unwritable { .. }), "{error}");
+        // The report directory is a file.
+        let mut config = small(dir.path());
+        config.report_dir = file.clone();
+        let error = run(&config, &mut Silent).unwrap_err();
+        assert!(matches!(error, SearchError::Unwritable { .. }), "{error}");
+        assert!(!config.checkpoint_dir.exists());
+    }
+
+    #[test]
+    fn impossible_constraints_are_refused_before_the_search() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut config = small(dir.path());
+        config.family = FamilyKind::Custom {
+            count: 30,
+            start: None,
+        };
+        let error = run(&config, &mut Silent).unwrap_err();
+        assert!(matches!(error, SearchError::Unsatisfiable(_)), "{error}");
+        assert!(
+            error.to_string().contains("435 pairwise distances"),
+            "{error}"
+        );
+        assert!(!config.checkpoint_dir.exists());
+        assert!(!config.layout_path.exists());
     }
 
     #[test]
@@ -751,6 +1221,8 @@ mod tests {
             run(&config, &mut Silent),
             Err(SearchError::Optimise(_))
         ));
+        // Nothing was created for a refused configuration.
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
     }
 
     #[test]

@@ -26,4 +26,6 @@ mod reproduce;
 #[cfg(feature = "cli")]
 mod search;
 #[cfg(feature = "cli")]
+mod search_runs;
+#[cfg(feature = "cli")]
 mod validate;

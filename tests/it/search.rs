@@ -212,13 +212,22 @@ fn bad_arguments_are_clear_errors() {
             "start jitter must be a fraction",
         ),
     ] {
+        // In a directory of its own: a refused run must leave nothing in
+        // its working directory (no checkpoint directory).
+        let cwd = tempfile::tempdir().unwrap();
         layout_opt()
+            .current_dir(cwd.path())
             .arg("search")
             .args(args)
             .args(["--quiet", "--out", "/nonexistent-dir-for-test/x.json"])
             .assert()
             .failure()
             .stderr(predicate::str::contains(message));
+        assert_eq!(
+            std::fs::read_dir(cwd.path()).unwrap().count(),
+            0,
+            "{args:?}"
+        );
     }
     // Constraints that cannot all be met: seven spheres of 30 mm with 20 mm
     // gaps do not fit a 60 mm box.
