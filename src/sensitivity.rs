@@ -519,12 +519,23 @@ fn write_curve(dir: &Path, curve: &Curve) -> Result<(), SensitivityError> {
         points: xy(&curve.transfer_rotation_deg),
         dashed: true,
     });
-    plots::line_plot(
+    let availability = plots::Availability {
+        points: curve
+            .values
+            .iter()
+            .copied()
+            .zip(curve.availability.iter().copied())
+            .collect(),
+        axis: curve.axis.clone(),
+        unit: curve.unit.clone(),
+    };
+    plots::line_plot_with_availability(
         &dir.join(format!("error_vs_{}.svg", curve.axis)),
         &format!("RMS rotation error vs {} (visible scenarios)", curve.axis),
         &format!("{} ({})", curve.axis, curve.unit),
         "RMS rotation error (deg)",
         &series,
+        Some(&availability),
     )?;
     Ok(())
 }

@@ -1,4 +1,4 @@
-//! Report writers: SVG plots (plotters), markdown tables and CSV files.
+//! Report writers: SVG plots, markdown tables and CSV files.
 //! Reports go to `reports/<name>/` as `report.md` + `summary.json` + CSV +
 //! SVG (docs/formats.md, "Report files"); the commands that build them own
 //! their content, this module only draws and formats.

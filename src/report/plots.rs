@@ -1,53 +1,772 @@
-//! SVG plots drawn with plotters' SVG backend (no system fonts needed: text
-//! is written as SVG `<text>`).
+//! SVG plots, written as plain SVG text so that every label's place and size
+//! is ours to choose (no system fonts needed: text is SVG `<text>`).
+//!
+//! Conventions every plot follows, and which the report tests check:
+//! - every solver has one fixed style ([`series_style`]): a colour from a
+//!   colour-blind-safe palette plus a marker and a dash pattern, so that no two
+//!   series look alike even in grey; model lines are black or grey and dashed;
+//! - tick labels are "nice" (1-2-5 steps) and printed with the digits their
+//!   step needs; log axes label decades and, when the span is small, the
+//!   values in between;
+//! - legends sit outside the plot area (to the right; the picture grows);
+//! - text never leaves the view box and no two labels overlap, judged with a
+//!   box [`TEXT_WIDTH_EM`] × font size per character wide and from
+//!   [`TEXT_ASCENT_EM`] above to [`TEXT_DESCENT_EM`] below the baseline.
 
 use super::ReportError;
 use nalgebra::Vector3;
-use plotters::prelude::*;
+use std::fmt::Write as _;
 use std::path::Path;
+
+/// Estimated width of one character, in units of the font size (the layout
+/// uses a little more, [`LAYOUT_WIDTH_EM`], to leave room for wide glyphs).
+pub const TEXT_WIDTH_EM: f64 = 0.6;
+/// Height above the baseline that a line of text takes, in font sizes.
+pub const TEXT_ASCENT_EM: f64 = 0.8;
+/// Depth below the baseline that a line of text takes, in font sizes.
+pub const TEXT_DESCENT_EM: f64 = 0.2;
+/// Character width the layout reserves, in font sizes.
+const LAYOUT_WIDTH_EM: f64 = 0.64;
+
+const TITLE_SIZE: f64 = 16.0;
+const NOTE_SIZE: f64 = 12.0;
+const LABEL_SIZE: f64 = 12.0;
+const TICK_SIZE: f64 = 11.0;
+const LEGEND_SIZE: f64 = 12.0;
+const POINT_LABEL_SIZE: f64 = 11.0;
 
 /// One line of a line plot.
 #[derive(Debug, Clone)]
 pub struct Series {
-    /// Legend entry.
+    /// Legend entry; a solver's name picks its fixed style.
     pub name: String,
     /// Points, in x order.
     pub points: Vec<(f64, f64)>,
-    /// Draw dashed (used for model predictions).
+    /// A model prediction rather than a measurement (drawn dashed, in black
+    /// or grey, without markers).
     pub dashed: bool,
 }
 
-const PALETTE: [RGBColor; 10] = [
-    RGBColor(31, 119, 180),
-    RGBColor(255, 127, 14),
-    RGBColor(44, 160, 44),
-    RGBColor(214, 39, 40),
-    RGBColor(148, 103, 189),
-    RGBColor(140, 86, 75),
-    RGBColor(227, 119, 194),
-    RGBColor(127, 127, 127),
-    RGBColor(188, 189, 34),
-    RGBColor(23, 190, 207),
-];
-
-fn colour(index: usize) -> RGBColor {
-    PALETTE[index % PALETTE.len()]
+/// The shape drawn at each point of a series.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Marker {
+    /// No marker (model lines).
+    None,
+    /// A filled circle.
+    Circle,
+    /// A filled square.
+    Square,
+    /// A filled triangle pointing up.
+    TriangleUp,
+    /// A filled triangle pointing down.
+    TriangleDown,
+    /// A filled diamond.
+    Diamond,
+    /// A plus sign.
+    Plus,
+    /// A diagonal cross.
+    Cross,
 }
 
-fn dashes(points: &[(f64, f64)], chart_dash_fraction: f64) -> Vec<Vec<(f64, f64)>> {
-    // Split each segment into short dashes (in data space, linear in x).
-    let mut out = Vec::new();
-    for pair in points.windows(2) {
-        let (a, b) = (pair[0], pair[1]);
-        let pieces = 8;
-        for k in 0..pieces {
-            let t0 = k as f64 / pieces as f64;
-            let t1 = t0 + chart_dash_fraction / pieces as f64;
-            let lerp = |t: f64| (a.0 + (b.0 - a.0) * t, a.1 * (b.1 / a.1).powf(t));
-            out.push(vec![lerp(t0), lerp(t1)]);
+/// How one series is drawn.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Style {
+    /// Stroke and fill colour, `#rrggbb`.
+    pub colour: &'static str,
+    /// SVG `stroke-dasharray`; `None` is a solid line.
+    pub dash: Option<&'static str>,
+    /// Marker at each point.
+    pub marker: Marker,
+    /// Line width, px.
+    pub width: f64,
+}
+
+const SOLID: Option<&str> = None;
+const DASHED: Option<&str> = Some("7 3");
+const DOTTED: Option<&str> = Some("2 3");
+const DASH_DOT: Option<&str> = Some("8 3 2 3");
+
+const fn solver_style(colour: &'static str, dash: Option<&'static str>, marker: Marker) -> Style {
+    Style {
+        colour,
+        dash,
+        marker,
+        width: 1.8,
+    }
+}
+
+/// Every solver's style: thirteen colours from Paul Tol's muted and the
+/// Okabe–Ito palettes (both chosen to stay apart under colour-vision
+/// deficiency), each with its own marker–dash pair so that even series of
+/// similar hue differ in shape.
+const SOLVER_STYLES: [(&str, Style); 13] = [
+    (
+        "parallel-weighted",
+        solver_style("#332288", SOLID, Marker::Circle),
+    ),
+    ("parallel", solver_style("#88CCEE", SOLID, Marker::Square)),
+    (
+        "parallel-gn",
+        solver_style("#44AA99", SOLID, Marker::TriangleUp),
+    ),
+    ("epnp", solver_style("#E69F00", SOLID, Marker::Diamond)),
+    ("epnp-gn", solver_style("#117733", DASHED, Marker::Square)),
+    ("iepnp", solver_style("#999933", DASHED, Marker::Circle)),
+    ("dlt", solver_style("#DDAA33", SOLID, Marker::TriangleDown)),
+    ("dls", solver_style("#CC6677", DASHED, Marker::Diamond)),
+    ("lhm", solver_style("#882255", SOLID, Marker::Plus)),
+    ("rpnp", solver_style("#AA4499", DOTTED, Marker::TriangleUp)),
+    ("sqpnp", solver_style("#0072B2", DOTTED, Marker::Square)),
+    ("opnp", solver_style("#D55E00", SOLID, Marker::Cross)),
+    (
+        "ml",
+        solver_style("#8C510A", DASH_DOT, Marker::TriangleDown),
+    ),
+];
+
+/// Styles of the model lines, by the start of their names.
+const MODEL_STYLES: [(&str, Style); 3] = [
+    (
+        "first-order",
+        Style {
+            colour: "#000000",
+            dash: Some("10 5"),
+            marker: Marker::None,
+            width: 2.2,
+        },
+    ),
+    (
+        "transfer",
+        Style {
+            colour: "#777777",
+            dash: Some("3 3"),
+            marker: Marker::None,
+            width: 2.2,
+        },
+    ),
+    (
+        "",
+        Style {
+            colour: "#555555",
+            dash: Some("12 3 3 3"),
+            marker: Marker::None,
+            width: 2.0,
+        },
+    ),
+];
+
+/// Styles for series that are neither a solver nor a model, in turn.
+const OTHER_STYLES: [Style; 4] = [
+    solver_style("#000000", SOLID, Marker::Circle),
+    solver_style("#777777", SOLID, Marker::Square),
+    solver_style("#000000", DOTTED, Marker::TriangleUp),
+    solver_style("#777777", DOTTED, Marker::Diamond),
+];
+
+/// The fixed style of a series: a solver's own style, a model line's style
+/// (`model` true) or, for anything else, `None`.
+pub fn series_style(name: &str, model: bool) -> Option<Style> {
+    if let Some((_, style)) = SOLVER_STYLES.iter().find(|(n, _)| *n == name) {
+        return Some(*style);
+    }
+    if model {
+        return MODEL_STYLES
+            .iter()
+            .find(|(prefix, _)| name.starts_with(prefix))
+            .map(|(_, style)| *style);
+    }
+    None
+}
+
+/// Styles for `series`, the fixed ones where known, and never the same style
+/// twice in one plot.
+fn styles_for<'a>(series: impl Iterator<Item = (&'a str, bool)>) -> Vec<Style> {
+    let mut used: Vec<Style> = Vec::new();
+    let mut others = OTHER_STYLES.iter().cycle();
+    let mut extra_dash = 0usize;
+    for (name, model) in series {
+        let mut style = series_style(name, model).unwrap_or_else(|| *others.next().expect("cycle"));
+        let dashes = ["1 2", "5 2 1 2", "14 4", "4 4 1 4 1 4"];
+        while used.contains(&style) {
+            style.dash = Some(dashes[extra_dash % dashes.len()]);
+            extra_dash += 1;
+            if extra_dash > 4 * dashes.len() {
+                break;
+            }
+        }
+        used.push(style);
+    }
+    used
+}
+
+// ------------------------------------------------------------------ ticks
+
+/// One tick of an axis: its value, label and how much the label matters
+/// (lower first when labels would collide).
+#[derive(Debug, Clone, PartialEq)]
+struct Tick {
+    value: f64,
+    label: String,
+    priority: u8,
+}
+
+/// Decimal places that a step of `step` needs.
+fn decimals_for(step: f64) -> usize {
+    let exponent = step.abs().log10();
+    // Tolerate the rounding of steps such as 0.1 (log10 = −0.99999…).
+    (-(exponent + 1e-9).floor()).max(0.0) as usize
+}
+
+/// `value` with `decimals` places, never "-0".
+fn format_fixed(value: f64, decimals: usize) -> String {
+    let text = format!("{value:.decimals$}");
+    if text
+        .trim_start_matches('-')
+        .chars()
+        .all(|c| c == '0' || c == '.')
+    {
+        text.trim_start_matches('-').to_string()
+    } else {
+        text
+    }
+}
+
+/// A "nice" step (1, 2 or 5 × 10^k) near `span / target`.
+fn nice_step(span: f64, target: f64) -> f64 {
+    let raw = span / target;
+    let magnitude = 10f64.powf(raw.log10().floor());
+    let fraction = raw / magnitude;
+    let nice = if fraction < 1.5 {
+        1.0
+    } else if fraction < 3.5 {
+        2.0
+    } else if fraction < 7.5 {
+        5.0
+    } else {
+        10.0
+    };
+    nice * magnitude
+}
+
+/// Linear ticks over [lo, hi], about `target` of them.
+fn linear_ticks(lo: f64, hi: f64, target: f64) -> Vec<Tick> {
+    let span = hi - lo;
+    if !(span > 0.0 && span.is_finite()) {
+        return vec![Tick {
+            value: lo,
+            label: format_fixed(lo, decimals_for(lo.abs().max(1.0))),
+            priority: 0,
+        }];
+    }
+    let step = nice_step(span, target);
+    let decimals = decimals_for(step);
+    let first = (lo / step - 1e-9).ceil() as i64;
+    let last = (hi / step + 1e-9).floor() as i64;
+    (first..=last)
+        .map(|k| {
+            let value = k as f64 * step;
+            Tick {
+                value,
+                label: format_fixed(value, decimals),
+                // Every other tick first, so that thinning keeps a regular step.
+                priority: (k.rem_euclid(2)) as u8,
+            }
+        })
+        .collect()
+}
+
+/// The label of m × 10^k on a log axis.
+fn log_label(mantissa: u32, exponent: i32) -> String {
+    if !(-4..=4).contains(&exponent) {
+        return format!("{mantissa}e{exponent}");
+    }
+    let value = mantissa as f64 * 10f64.powi(exponent);
+    format_fixed(value, (-exponent).max(0) as usize)
+}
+
+/// Ticks of a log axis over [lo, hi] (both positive): decades, then 1-2-5,
+/// then every integer multiple of the decade, whichever first gives at least
+/// four ticks; a span too short for that gets linear 1-2-5 ticks.
+fn log_ticks(lo: f64, hi: f64) -> Vec<Tick> {
+    const SETS: [&[u32]; 3] = [&[1], &[1, 2, 5], &[1, 2, 3, 4, 5, 6, 7, 8, 9]];
+    let first = lo.log10().floor() as i32;
+    let last = hi.log10().ceil() as i32;
+    for set in SETS {
+        let mut ticks = Vec::new();
+        for exponent in first..=last {
+            for &mantissa in set {
+                let value = mantissa as f64 * 10f64.powi(exponent);
+                if value >= lo * (1.0 - 1e-9) && value <= hi * (1.0 + 1e-9) {
+                    ticks.push(Tick {
+                        value,
+                        label: log_label(mantissa, exponent),
+                        priority: match mantissa {
+                            1 => 0,
+                            5 => 1,
+                            2 => 2,
+                            _ => 3,
+                        },
+                    });
+                }
+            }
+        }
+        if ticks.len() >= 4 {
+            return ticks;
         }
     }
-    out
+    linear_ticks(lo, hi, 4.0)
+}
+
+/// Unlabelled grid values of a log axis: every integer multiple of a decade.
+fn log_minor(lo: f64, hi: f64) -> Vec<f64> {
+    let first = lo.log10().floor() as i32;
+    let last = hi.log10().ceil() as i32;
+    (first..=last)
+        .flat_map(|e| (1..10).map(move |m| m as f64 * 10f64.powi(e)))
+        .filter(|&v| v >= lo && v <= hi)
+        .collect()
+}
+
+// ------------------------------------------------------------------ SVG text
+
+/// A text's horizontal anchor.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Anchor {
+    Start,
+    Middle,
+    End,
+}
+
+impl Anchor {
+    fn svg(self) -> &'static str {
+        match self {
+            Anchor::Start => "start",
+            Anchor::Middle => "middle",
+            Anchor::End => "end",
+        }
+    }
+}
+
+/// An axis-aligned box: left, top, right, bottom.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Rect {
+    left: f64,
+    top: f64,
+    right: f64,
+    bottom: f64,
+}
+
+impl Rect {
+    fn overlaps(&self, other: &Rect, gap: f64) -> bool {
+        self.left < other.right + gap
+            && other.left < self.right + gap
+            && self.top < other.bottom + gap
+            && other.top < self.bottom + gap
+    }
+
+    fn inside(&self, outer: &Rect) -> bool {
+        self.left >= outer.left
+            && self.right <= outer.right
+            && self.top >= outer.top
+            && self.bottom <= outer.bottom
+    }
+}
+
+fn text_width(text: &str, size: f64) -> f64 {
+    LAYOUT_WIDTH_EM * size * text.chars().count() as f64
+}
+
+/// The box the layout reserves for `text` with its baseline at `y`.
+fn text_box(text: &str, x: f64, y: f64, size: f64, anchor: Anchor) -> Rect {
+    let width = text_width(text, size);
+    let left = match anchor {
+        Anchor::Start => x,
+        Anchor::Middle => x - 0.5 * width,
+        Anchor::End => x - width,
+    };
+    Rect {
+        left,
+        top: y - (TEXT_ASCENT_EM + 0.05) * size,
+        right: left + width,
+        bottom: y + (TEXT_DESCENT_EM + 0.05) * size,
+    }
+}
+
+fn escape(text: &str) -> String {
+    text.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+        .replace('"', "&quot;")
+}
+
+/// An SVG document under construction.
+struct Svg {
+    body: String,
+}
+
+impl Svg {
+    fn new() -> Self {
+        Svg {
+            body: String::new(),
+        }
+    }
+
+    fn text(&mut self, class: &str, text: &str, x: f64, y: f64, size: f64, anchor: Anchor) {
+        let _ = writeln!(
+            self.body,
+            r#"<text class="{class}" x="{x:.1}" y="{y:.1}" font-size="{size}" text-anchor="{}">{}</text>"#,
+            anchor.svg(),
+            escape(text)
+        );
+    }
+
+    /// Text rotated by −90° about its anchor (reads bottom to top).
+    fn vertical_text(&mut self, class: &str, text: &str, x: f64, y: f64, size: f64) {
+        let _ = writeln!(
+            self.body,
+            r#"<text class="{class}" x="{x:.1}" y="{y:.1}" font-size="{size}" text-anchor="middle" transform="rotate(-90 {x:.1} {y:.1})">{}</text>"#,
+            escape(text)
+        );
+    }
+
+    fn line(&mut self, a: (f64, f64), b: (f64, f64), colour: &str, width: f64) {
+        let _ = writeln!(
+            self.body,
+            r#"<line x1="{:.1}" y1="{:.1}" x2="{:.1}" y2="{:.1}" stroke="{colour}" stroke-width="{width}"/>"#,
+            a.0, a.1, b.0, b.1
+        );
+    }
+
+    fn rect(&mut self, r: Rect, fill: &str, stroke: Option<&str>) {
+        let stroke = stroke.map_or(String::new(), |s| format!(r#" stroke="{s}""#));
+        let _ = writeln!(
+            self.body,
+            r#"<rect x="{:.1}" y="{:.1}" width="{:.1}" height="{:.1}" fill="{fill}"{stroke}/>"#,
+            r.left,
+            r.top,
+            r.right - r.left,
+            r.bottom - r.top
+        );
+    }
+
+    fn polyline(&mut self, points: &[(f64, f64)], style: &Style) {
+        if points.len() < 2 {
+            return;
+        }
+        let mut coordinates = String::new();
+        for (x, y) in points {
+            let _ = write!(coordinates, "{x:.1},{y:.1} ");
+        }
+        let dash = style
+            .dash
+            .map_or(String::new(), |d| format!(r#" stroke-dasharray="{d}""#));
+        let _ = writeln!(
+            self.body,
+            r#"<polyline points="{}" fill="none" stroke="{}" stroke-width="{}" stroke-linejoin="round"{dash}/>"#,
+            coordinates.trim_end(),
+            style.colour,
+            style.width
+        );
+    }
+
+    fn marker(&mut self, marker: Marker, (x, y): (f64, f64), size: f64, colour: &str) {
+        let s = size;
+        let polygon = |body: &mut String, points: &[(f64, f64)]| {
+            let mut text = String::new();
+            for (px, py) in points {
+                let _ = write!(text, "{:.1},{:.1} ", x + px, y + py);
+            }
+            let _ = writeln!(
+                body,
+                r#"<polygon points="{}" fill="{colour}"/>"#,
+                text.trim_end()
+            );
+        };
+        match marker {
+            Marker::None => {}
+            Marker::Circle => {
+                let _ = writeln!(
+                    self.body,
+                    r#"<circle cx="{x:.1}" cy="{y:.1}" r="{:.1}" fill="{colour}"/>"#,
+                    0.9 * s
+                );
+            }
+            Marker::Square => polygon(
+                &mut self.body,
+                &[
+                    (-0.8 * s, -0.8 * s),
+                    (0.8 * s, -0.8 * s),
+                    (0.8 * s, 0.8 * s),
+                    (-0.8 * s, 0.8 * s),
+                ],
+            ),
+            Marker::TriangleUp => polygon(
+                &mut self.body,
+                &[(0.0, -s * 1.1), (s, 0.8 * s), (-s, 0.8 * s)],
+            ),
+            Marker::TriangleDown => polygon(
+                &mut self.body,
+                &[(0.0, s * 1.1), (s, -0.8 * s), (-s, -0.8 * s)],
+            ),
+            Marker::Diamond => polygon(
+                &mut self.body,
+                &[(0.0, -1.2 * s), (s, 0.0), (0.0, 1.2 * s), (-s, 0.0)],
+            ),
+            Marker::Plus => {
+                self.line((x - 1.2 * s, y), (x + 1.2 * s, y), colour, 1.6);
+                self.line((x, y - 1.2 * s), (x, y + 1.2 * s), colour, 1.6);
+            }
+            Marker::Cross => {
+                self.line((x - s, y - s), (x + s, y + s), colour, 1.6);
+                self.line((x - s, y + s), (x + s, y - s), colour, 1.6);
+            }
+        }
+    }
+
+    fn write(self, path: &Path, width: f64, height: f64) -> Result<(), ReportError> {
+        let (width, height) = (width.ceil(), height.ceil());
+        let text = format!(
+            "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{width}\" height=\"{height}\" viewBox=\"0 0 {width} {height}\" font-family=\"sans-serif\">\n<rect x=\"0\" y=\"0\" width=\"{width}\" height=\"{height}\" fill=\"#FFFFFF\"/>\n{}</svg>\n",
+            self.body
+        );
+        super::write_text(path, &text)
+    }
+}
+
+// ------------------------------------------------------------------ axes
+
+/// A linear or logarithmic map from data to pixels.
+#[derive(Debug, Clone, Copy)]
+struct Scale {
+    lo: f64,
+    hi: f64,
+    log: bool,
+    pixel_lo: f64,
+    pixel_hi: f64,
+}
+
+impl Scale {
+    fn map(&self, value: f64) -> f64 {
+        let t = if self.log {
+            (value.log10() - self.lo.log10()) / (self.hi.log10() - self.lo.log10())
+        } else {
+            (value - self.lo) / (self.hi - self.lo)
+        };
+        self.pixel_lo + t * (self.pixel_hi - self.pixel_lo)
+    }
+
+    fn ticks(&self, target: f64) -> Vec<Tick> {
+        if self.log {
+            log_ticks(self.lo, self.hi)
+        } else {
+            linear_ticks(self.lo.min(self.hi), self.lo.max(self.hi), target)
+        }
+    }
+}
+
+/// Chooses which tick labels to print: by priority, skipping any that would
+/// overlap one already kept. Returns the kept ticks with their boxes.
+fn thin_labels(ticks: &[Tick], place: impl Fn(&Tick) -> Rect, gap: f64) -> Vec<(Tick, Rect)> {
+    let mut order: Vec<&Tick> = ticks.iter().collect();
+    order.sort_by_key(|t| t.priority);
+    let mut kept: Vec<(Tick, Rect)> = Vec::new();
+    for tick in order {
+        let rect = place(tick);
+        if kept.iter().all(|(_, r)| !r.overlaps(&rect, gap)) {
+            kept.push((tick.clone(), rect));
+        }
+    }
+    kept
+}
+
+/// The data range of positive values on a log axis, padded a little.
+fn log_range(values: impl Iterator<Item = f64>) -> Option<(f64, f64)> {
+    let (lo, hi) = values
+        .filter(|v| v.is_finite() && *v > 0.0)
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
+            (lo.min(v), hi.max(v))
+        });
+    if !lo.is_finite() {
+        return None;
+    }
+    let pad = (0.05 * (hi / lo).log10()).max(0.04);
+    Some((lo / 10f64.powf(pad), hi * 10f64.powf(pad)))
+}
+
+/// Draws the frame, grid, ticks and tick labels of a plot area.
+/// `x_labels` false draws x ticks without labels (a panel below shows them).
+fn draw_axes(svg: &mut Svg, x: &Scale, y: &Scale, area: Rect, x_labels: bool) {
+    // Grid.
+    if y.log {
+        for value in log_minor(y.lo, y.hi) {
+            let py = y.map(value);
+            svg.line((area.left, py), (area.right, py), "#EEEEEE", 1.0);
+        }
+    }
+    let x_ticks = x.ticks(6.0);
+    let y_ticks = y.ticks(5.0);
+    for tick in &x_ticks {
+        let px = x.map(tick.value);
+        svg.line((px, area.top), (px, area.bottom), "#DDDDDD", 1.0);
+        svg.line((px, area.bottom), (px, area.bottom + 4.0), "#000000", 1.0);
+    }
+    for tick in &y_ticks {
+        let py = y.map(tick.value);
+        svg.line((area.left, py), (area.right, py), "#DDDDDD", 1.0);
+        svg.line((area.left - 4.0, py), (area.left, py), "#000000", 1.0);
+    }
+    svg.rect(area, "none", Some("#000000"));
+    if x_labels {
+        let baseline = area.bottom + 6.0 + TEXT_ASCENT_EM * TICK_SIZE + 2.0;
+        let kept = thin_labels(
+            &x_ticks,
+            |t| {
+                text_box(
+                    &t.label,
+                    x.map(t.value),
+                    baseline,
+                    TICK_SIZE,
+                    Anchor::Middle,
+                )
+            },
+            4.0,
+        );
+        for (tick, _) in kept {
+            svg.text(
+                "tick-x",
+                &tick.label,
+                x.map(tick.value),
+                baseline,
+                TICK_SIZE,
+                Anchor::Middle,
+            );
+        }
+    }
+    let right = area.left - 7.0;
+    let centre = 0.5 * (TEXT_ASCENT_EM - TEXT_DESCENT_EM) * TICK_SIZE;
+    let kept = thin_labels(
+        &y_ticks,
+        |t| {
+            text_box(
+                &t.label,
+                right,
+                y.map(t.value) + centre,
+                TICK_SIZE,
+                Anchor::End,
+            )
+        },
+        1.0,
+    );
+    for (tick, _) in kept {
+        svg.text(
+            "tick-y",
+            &tick.label,
+            right,
+            y.map(tick.value) + centre,
+            TICK_SIZE,
+            Anchor::End,
+        );
+    }
+}
+
+/// The widest tick label of a scale, px.
+fn widest_label(scale: &Scale, target: f64) -> f64 {
+    scale
+        .ticks(target)
+        .iter()
+        .map(|t| text_width(&t.label, TICK_SIZE))
+        .fold(0.0, f64::max)
+}
+
+/// A legend entry: name and style.
+struct Entry<'a> {
+    name: &'a str,
+    style: Style,
+    line: bool,
+}
+
+const LEGEND_ROW: f64 = 18.0;
+const LEGEND_SWATCH: f64 = 30.0;
+
+fn legend_width(entries: &[Entry]) -> f64 {
+    entries
+        .iter()
+        .map(|e| text_width(e.name, LEGEND_SIZE))
+        .fold(0.0, f64::max)
+        + LEGEND_SWATCH
+        + 24.0
+}
+
+/// Draws the legend with its top-left corner at (`left`, `top`); returns its
+/// bottom.
+fn draw_legend(svg: &mut Svg, entries: &[Entry], left: f64, top: f64) -> f64 {
+    let height = LEGEND_ROW * entries.len() as f64 + 8.0;
+    let frame = Rect {
+        left,
+        top,
+        right: left + legend_width(entries) - 6.0,
+        bottom: top + height,
+    };
+    svg.rect(frame, "#FFFFFF", Some("#999999"));
+    for (row, entry) in entries.iter().enumerate() {
+        let y = top + 4.0 + LEGEND_ROW * (row as f64 + 0.5);
+        let (a, b) = (left + 6.0, left + 6.0 + LEGEND_SWATCH);
+        if entry.line {
+            svg.polyline(&[(a, y), (b, y)], &entry.style);
+        }
+        svg.marker(
+            entry.style.marker,
+            (0.5 * (a + b), y),
+            3.5,
+            entry.style.colour,
+        );
+        let baseline = y + 0.5 * (TEXT_ASCENT_EM - TEXT_DESCENT_EM) * LEGEND_SIZE;
+        svg.text(
+            "legend",
+            entry.name,
+            b + 6.0,
+            baseline,
+            LEGEND_SIZE,
+            Anchor::Start,
+        );
+    }
+    frame.bottom
+}
+
+/// Title and notes centred over the picture; returns the bottom of the text.
+fn draw_heading(svg: &mut Svg, title: &str, notes: &[String], width: f64) -> f64 {
+    let mut y = 10.0 + TEXT_ASCENT_EM * TITLE_SIZE;
+    svg.text("title", title, 0.5 * width, y, TITLE_SIZE, Anchor::Middle);
+    y += TEXT_DESCENT_EM * TITLE_SIZE;
+    for note in notes {
+        y += 4.0 + TEXT_ASCENT_EM * NOTE_SIZE;
+        svg.text("note", note, 0.5 * width, y, NOTE_SIZE, Anchor::Middle);
+        y += TEXT_DESCENT_EM * NOTE_SIZE;
+    }
+    y
+}
+
+fn heading_width(title: &str, notes: &[String]) -> f64 {
+    notes
+        .iter()
+        .map(|n| text_width(n, NOTE_SIZE))
+        .fold(text_width(title, TITLE_SIZE), f64::max)
+        + 20.0
+}
+
+// ------------------------------------------------------------------ plots
+
+/// The share of scenarios with every sphere visible at each x of a line
+/// plot, drawn as a panel under it.
+#[derive(Debug, Clone)]
+pub struct Availability {
+    /// (x, share in [0, 1]) at every value of the axis, visible or not.
+    pub points: Vec<(f64, f64)>,
+    /// What x is, for the note on values with nothing visible
+    /// ("depth 200 mm").
+    pub axis: String,
+    /// The unit of x.
+    pub unit: String,
 }
 
 /// A line plot with a logarithmic y axis (errors span decades).
@@ -58,80 +777,283 @@ pub fn line_plot(
     y_label: &str,
     series: &[Series],
 ) -> Result<(), ReportError> {
-    let finite = |v: f64| v.is_finite() && v > 0.0;
-    let all: Vec<(f64, f64)> = series
+    line_plot_with_availability(path, title, x_label, y_label, series, None)
+}
+
+const PLOT_WIDTH: f64 = 600.0;
+const PLOT_HEIGHT: f64 = 360.0;
+const PANEL_HEIGHT: f64 = 70.0;
+
+/// A line plot with a logarithmic y axis and, when given, a panel under it
+/// with the availability along x; x values where nothing is visible are
+/// shaded and named in a note under the title.
+pub fn line_plot_with_availability(
+    path: &Path,
+    title: &str,
+    x_label: &str,
+    y_label: &str,
+    series: &[Series],
+    availability: Option<&Availability>,
+) -> Result<(), ReportError> {
+    let drawn: Vec<(&Series, Vec<(f64, f64)>)> = series
         .iter()
-        .flat_map(|s| s.points.iter().copied())
-        .filter(|&(x, y)| x.is_finite() && finite(y))
-        .collect();
-    if all.is_empty() {
-        return Ok(());
-    }
-    let (mut x_min, mut x_max) = all
-        .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| {
-            (lo.min(p.0), hi.max(p.0))
-        });
-    if x_min == x_max {
-        x_min -= 1.0;
-        x_max += 1.0;
-    }
-    let (y_min, y_max) = all
-        .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| {
-            (lo.min(p.1), hi.max(p.1))
-        });
-    let (y_min, y_max) = (y_min / 1.5, y_max * 1.5);
-    let draw = |svg: &mut String| -> Result<(), Box<dyn std::error::Error>> {
-        let root = SVGBackend::with_string(svg, (800, 500)).into_drawing_area();
-        root.fill(&WHITE)?;
-        let mut chart = ChartBuilder::on(&root)
-            .caption(title, ("sans-serif", 20))
-            .margin(12)
-            .x_label_area_size(40)
-            .y_label_area_size(70)
-            .build_cartesian_2d(x_min..x_max, (y_min..y_max).log_scale())?;
-        chart
-            .configure_mesh()
-            .x_desc(x_label)
-            .y_desc(y_label)
-            .draw()?;
-        for (index, s) in series.iter().enumerate() {
-            let points: Vec<(f64, f64)> = s
+        .map(|s| {
+            let points = s
                 .points
                 .iter()
                 .copied()
-                .filter(|&(_, y)| finite(y))
+                .filter(|&(x, y)| x.is_finite() && y.is_finite() && y > 0.0)
                 .collect();
-            let style = ShapeStyle::from(&colour(index)).stroke_width(2);
-            if s.dashed {
-                for dash in dashes(&points, 0.6) {
-                    chart.draw_series(LineSeries::new(dash, style))?;
-                }
-                chart
-                    .draw_series(std::iter::empty::<PathElement<(f64, f64)>>())?
-                    .label(&s.name)
-                    .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 8, y)], style));
-            } else {
-                chart
-                    .draw_series(LineSeries::new(points.clone(), style))?
-                    .label(&s.name)
-                    .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], style));
-                chart.draw_series(points.iter().map(|&p| Circle::new(p, 2, style.filled())))?;
-            }
-        }
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::UpperLeft)
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK)
-            .draw()?;
-        root.present()?;
-        Ok(())
+            (s, points)
+        })
+        .collect();
+    let Some((y_lo, y_hi)) = log_range(drawn.iter().flat_map(|(_, p)| p.iter().map(|q| q.1)))
+    else {
+        return Ok(());
     };
-    let mut svg = String::new();
-    draw(&mut svg).map_err(|e| ReportError::write(path, e))?;
-    super::write_text(path, &svg)
+    let xs = drawn
+        .iter()
+        .flat_map(|(_, p)| p.iter().map(|q| q.0))
+        .chain(
+            availability
+                .iter()
+                .flat_map(|a| a.points.iter().map(|p| p.0)),
+        )
+        .filter(|x| x.is_finite());
+    let (mut x_lo, mut x_hi) = xs.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), x| {
+        (lo.min(x), hi.max(x))
+    });
+    if x_lo == x_hi {
+        x_lo -= 1.0;
+        x_hi += 1.0;
+    }
+    let empty: Vec<f64> = availability
+        .map(|a| {
+            a.points
+                .iter()
+                .filter(|p| p.1 <= 0.0)
+                .map(|p| p.0)
+                .collect()
+        })
+        .unwrap_or_default();
+    let mut notes = Vec::new();
+    if let (Some(a), false) = (availability, empty.is_empty()) {
+        let values: Vec<String> = empty.iter().map(|v| format!("{v}")).collect();
+        notes.push(format!(
+            "nothing visible at {} {} {} (shaded): no error to plot there",
+            a.axis,
+            values.join(", "),
+            a.unit
+        ));
+    }
+    let styles = styles_for(series.iter().map(|s| (s.name.as_str(), s.dashed)));
+    let entries: Vec<Entry> = series
+        .iter()
+        .zip(&styles)
+        .zip(&drawn)
+        .filter(|(_, (_, p))| !p.is_empty())
+        .map(|((s, style), _)| Entry {
+            name: &s.name,
+            style: *style,
+            line: true,
+        })
+        .collect();
+
+    let mut y_scale = Scale {
+        lo: y_lo,
+        hi: y_hi,
+        log: true,
+        pixel_lo: 0.0,
+        pixel_hi: 0.0,
+    };
+    let left = 16.0 + LABEL_SIZE + widest_label(&y_scale, 5.0) + 12.0;
+    let legend_w = legend_width(&entries);
+    let width = (left + PLOT_WIDTH + 16.0 + legend_w + 8.0).max(heading_width(title, &notes));
+    let mut svg = Svg::new();
+    let heading_bottom = draw_heading(&mut svg, title, &notes, width);
+    let area = Rect {
+        left,
+        top: heading_bottom + 14.0,
+        right: left + PLOT_WIDTH,
+        bottom: heading_bottom + 14.0 + PLOT_HEIGHT,
+    };
+    y_scale.pixel_lo = area.bottom;
+    y_scale.pixel_hi = area.top;
+    let x_scale = Scale {
+        lo: x_lo,
+        hi: x_hi,
+        log: false,
+        pixel_lo: area.left,
+        pixel_hi: area.right,
+    };
+    // Shade the x values where nothing is visible: half-way to each neighbour.
+    let all_x: Vec<f64> = availability
+        .map(|a| a.points.iter().map(|p| p.0).collect())
+        .unwrap_or_default();
+    let band = |x: f64| -> (f64, f64) {
+        let below = all_x
+            .iter()
+            .copied()
+            .filter(|&v| v < x)
+            .fold(f64::NAN, f64::max);
+        let above = all_x
+            .iter()
+            .copied()
+            .filter(|&v| v > x)
+            .fold(f64::NAN, f64::min);
+        let a = if below.is_nan() { x } else { 0.5 * (x + below) };
+        let b = if above.is_nan() { x } else { 0.5 * (x + above) };
+        (
+            x_scale.map(a).max(area.left),
+            x_scale.map(b).min(area.right),
+        )
+    };
+    for &x in &empty {
+        let (a, b) = band(x);
+        svg.rect(
+            Rect {
+                left: a.min(b - 4.0),
+                top: area.top,
+                right: b.max(a + 4.0),
+                bottom: area.bottom,
+            },
+            "#F2E6E6",
+            None,
+        );
+    }
+    draw_axes(&mut svg, &x_scale, &y_scale, area, availability.is_none());
+    for ((_, points), style) in drawn.iter().zip(&styles) {
+        let pixels: Vec<(f64, f64)> = points
+            .iter()
+            .map(|&(x, y)| (x_scale.map(x), y_scale.map(y)))
+            .collect();
+        svg.polyline(&pixels, style);
+        for &p in &pixels {
+            svg.marker(style.marker, p, 3.0, style.colour);
+        }
+    }
+    svg.vertical_text(
+        "axis-label",
+        y_label,
+        10.0 + TEXT_ASCENT_EM * LABEL_SIZE,
+        0.5 * (area.top + area.bottom),
+        LABEL_SIZE,
+    );
+    let mut bottom = area.bottom;
+    if let Some(a) = availability {
+        let caption_y = area.bottom + 8.0 + TEXT_ASCENT_EM * TICK_SIZE;
+        svg.text(
+            "note",
+            "share of scenarios with every sphere visible",
+            area.left,
+            caption_y,
+            TICK_SIZE,
+            Anchor::Start,
+        );
+        let panel = Rect {
+            left: area.left,
+            top: caption_y + TEXT_DESCENT_EM * TICK_SIZE + 6.0,
+            right: area.right,
+            bottom: caption_y + TEXT_DESCENT_EM * TICK_SIZE + 6.0 + PANEL_HEIGHT,
+        };
+        let share = Scale {
+            lo: 0.0,
+            hi: 1.0,
+            log: false,
+            pixel_lo: panel.bottom,
+            pixel_hi: panel.top,
+        };
+        for &x in &empty {
+            let (a, b) = band(x);
+            svg.rect(
+                Rect {
+                    left: a.min(b - 4.0),
+                    top: panel.top,
+                    right: b.max(a + 4.0),
+                    bottom: panel.bottom,
+                },
+                "#F2E6E6",
+                None,
+            );
+        }
+        svg.line(
+            (panel.left, share.map(0.5)),
+            (panel.right, share.map(0.5)),
+            "#DDDDDD",
+            1.0,
+        );
+        let bar = (PLOT_WIDTH / (2.0 * a.points.len().max(1) as f64)).min(16.0);
+        for &(x, s) in &a.points {
+            let px = x_scale.map(x);
+            let top = share.map(s.clamp(0.0, 1.0));
+            svg.rect(
+                Rect {
+                    left: (px - 0.5 * bar).max(panel.left),
+                    top,
+                    right: (px + 0.5 * bar).min(panel.right),
+                    bottom: panel.bottom,
+                },
+                "#88CCEE",
+                Some("#336699"),
+            );
+        }
+        svg.rect(panel, "none", Some("#000000"));
+        let centre = 0.5 * (TEXT_ASCENT_EM - TEXT_DESCENT_EM) * TICK_SIZE;
+        for (value, label) in [(0.0, "0%"), (1.0, "100%")] {
+            let py = share.map(value);
+            svg.line((panel.left - 4.0, py), (panel.left, py), "#000000", 1.0);
+            svg.text(
+                "tick-y",
+                label,
+                panel.left - 7.0,
+                py + centre,
+                TICK_SIZE,
+                Anchor::End,
+            );
+        }
+        let x_ticks = x_scale.ticks(6.0);
+        let baseline = panel.bottom + 6.0 + TEXT_ASCENT_EM * TICK_SIZE + 2.0;
+        for tick in &x_ticks {
+            let px = x_scale.map(tick.value);
+            svg.line((px, panel.bottom), (px, panel.bottom + 4.0), "#000000", 1.0);
+        }
+        let kept = thin_labels(
+            &x_ticks,
+            |t| {
+                text_box(
+                    &t.label,
+                    x_scale.map(t.value),
+                    baseline,
+                    TICK_SIZE,
+                    Anchor::Middle,
+                )
+            },
+            4.0,
+        );
+        for (tick, _) in kept {
+            svg.text(
+                "tick-x",
+                &tick.label,
+                x_scale.map(tick.value),
+                baseline,
+                TICK_SIZE,
+                Anchor::Middle,
+            );
+        }
+        bottom = panel.bottom;
+    }
+    let x_label_y = bottom + 6.0 + TICK_SIZE + 8.0 + TEXT_ASCENT_EM * LABEL_SIZE;
+    svg.text(
+        "axis-label",
+        x_label,
+        0.5 * (area.left + area.right),
+        x_label_y,
+        LABEL_SIZE,
+        Anchor::Middle,
+    );
+    let legend_bottom = draw_legend(&mut svg, &entries, area.right + 16.0, area.top);
+    let height = (x_label_y + TEXT_DESCENT_EM * LABEL_SIZE + 10.0).max(legend_bottom + 10.0);
+    svg.write(path, width, height)
 }
 
 /// Predicted against measured, log–log, with the line y = x.
@@ -140,58 +1062,188 @@ pub fn predicted_vs_measured(
     title: &str,
     series: &[(String, Vec<(f64, f64)>)],
 ) -> Result<(), ReportError> {
-    let values: Vec<f64> = series
-        .iter()
-        .flat_map(|(_, p)| p.iter().flat_map(|&(a, b)| [a, b]))
-        .filter(|v| v.is_finite() && *v > 0.0)
-        .collect();
-    if values.is_empty() {
+    let good = |&&(a, b): &&(f64, f64)| a > 0.0 && b > 0.0 && a.is_finite() && b.is_finite();
+    let Some((lo, hi)) = log_range(
+        series
+            .iter()
+            .flat_map(|(_, p)| p.iter().filter(good).flat_map(|&(a, b)| [a, b])),
+    ) else {
         return Ok(());
-    }
-    let lo = values.iter().copied().fold(f64::INFINITY, f64::min) / 1.5;
-    let hi = values.iter().copied().fold(f64::NEG_INFINITY, f64::max) * 1.5;
-    let draw = |svg: &mut String| -> Result<(), Box<dyn std::error::Error>> {
-        let root = SVGBackend::with_string(svg, (640, 600)).into_drawing_area();
-        root.fill(&WHITE)?;
-        let mut chart = ChartBuilder::on(&root)
-            .caption(title, ("sans-serif", 20))
-            .margin(12)
-            .x_label_area_size(40)
-            .y_label_area_size(70)
-            .build_cartesian_2d((lo..hi).log_scale(), (lo..hi).log_scale())?;
-        chart
-            .configure_mesh()
-            .x_desc("predicted RMS rotation error (°)")
-            .y_desc("measured RMS rotation error (°)")
-            .draw()?;
-        chart
-            .draw_series(LineSeries::new(vec![(lo, lo), (hi, hi)], BLACK.mix(0.5)))?
-            .label("measured = predicted")
-            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK.mix(0.5)));
-        for (index, (name, points)) in series.iter().enumerate() {
-            let style = ShapeStyle::from(&colour(index)).filled();
-            chart
-                .draw_series(
-                    points
-                        .iter()
-                        .filter(|&&(a, b)| a > 0.0 && b > 0.0 && a.is_finite() && b.is_finite())
-                        .map(|&p| Circle::new(p, 3, style)),
-                )?
-                .label(name)
-                .legend(move |(x, y)| Circle::new((x + 10, y), 3, style));
-        }
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::UpperLeft)
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK)
-            .draw()?;
-        root.present()?;
-        Ok(())
     };
-    let mut svg = String::new();
-    draw(&mut svg).map_err(|e| ReportError::write(path, e))?;
-    super::write_text(path, &svg)
+    let reference = Style {
+        colour: "#999999",
+        dash: None,
+        marker: Marker::None,
+        width: 1.2,
+    };
+    let styles = styles_for(series.iter().map(|(n, _)| (n.as_str(), false)));
+    let mut entries = vec![Entry {
+        name: "measured = predicted",
+        style: reference,
+        line: true,
+    }];
+    entries.extend(series.iter().zip(&styles).map(|((name, _), style)| Entry {
+        name,
+        style: *style,
+        line: false,
+    }));
+    let side = 420.0;
+    let mut y_scale = Scale {
+        lo,
+        hi,
+        log: true,
+        pixel_lo: 0.0,
+        pixel_hi: 0.0,
+    };
+    let left = 16.0 + LABEL_SIZE + widest_label(&y_scale, 5.0) + 12.0;
+    let width = (left + side + 16.0 + legend_width(&entries) + 8.0).max(heading_width(title, &[]));
+    let mut svg = Svg::new();
+    let top = draw_heading(&mut svg, title, &[], width) + 14.0;
+    let area = Rect {
+        left,
+        top,
+        right: left + side,
+        bottom: top + side,
+    };
+    y_scale.pixel_lo = area.bottom;
+    y_scale.pixel_hi = area.top;
+    let x_scale = Scale {
+        lo,
+        hi,
+        log: true,
+        pixel_lo: area.left,
+        pixel_hi: area.right,
+    };
+    draw_axes(&mut svg, &x_scale, &y_scale, area, true);
+    svg.polyline(
+        &[
+            (x_scale.map(lo), y_scale.map(lo)),
+            (x_scale.map(hi), y_scale.map(hi)),
+        ],
+        &reference,
+    );
+    for ((_, points), style) in series.iter().zip(&styles) {
+        for &(a, b) in points.iter().filter(good) {
+            svg.marker(
+                style.marker,
+                (x_scale.map(a), y_scale.map(b)),
+                3.0,
+                style.colour,
+            );
+        }
+    }
+    svg.vertical_text(
+        "axis-label",
+        "measured RMS rotation error (°)",
+        10.0 + TEXT_ASCENT_EM * LABEL_SIZE,
+        0.5 * (area.top + area.bottom),
+        LABEL_SIZE,
+    );
+    let x_label_y = area.bottom + 6.0 + TICK_SIZE + 8.0 + TEXT_ASCENT_EM * LABEL_SIZE;
+    svg.text(
+        "axis-label",
+        "predicted RMS rotation error (°)",
+        0.5 * (area.left + area.right),
+        x_label_y,
+        LABEL_SIZE,
+        Anchor::Middle,
+    );
+    let legend_bottom = draw_legend(&mut svg, &entries, area.right + 16.0, area.top);
+    let height = (x_label_y + TEXT_DESCENT_EM * LABEL_SIZE + 10.0).max(legend_bottom + 10.0);
+    svg.write(path, width, height)
+}
+
+/// A leader line: from a circle's edge to its label.
+type Leader = ((f64, f64), (f64, f64));
+
+/// Places a label beside each circle (centre, radius, text), clear of the
+/// other labels and, where possible, of every circle, inside `bounds`:
+/// beside its own circle first, then further out with a leader line.
+/// Returns, per label, its box and the end of its leader line, if any.
+fn place_labels(
+    circles: &[((f64, f64), f64, String)],
+    bounds: Rect,
+    avoid: &[Rect],
+) -> Vec<(Rect, Option<Leader>)> {
+    const D: f64 = std::f64::consts::FRAC_1_SQRT_2;
+    const DIRECTIONS: [(f64, f64); 8] = [
+        (D, -D),
+        (1.0, 0.0),
+        (D, D),
+        (-D, -D),
+        (-1.0, 0.0),
+        (-D, D),
+        (0.0, -1.0),
+        (0.0, 1.0),
+    ];
+    const RINGS: [f64; 6] = [3.0, 12.0, 22.0, 34.0, 48.0, 64.0];
+    let circle_hits = |rect: &Rect| -> bool {
+        circles.iter().any(|&((cx, cy), r, _)| {
+            let nx = cx.clamp(rect.left, rect.right);
+            let ny = cy.clamp(rect.top, rect.bottom);
+            (nx - cx).powi(2) + (ny - cy).powi(2) < r * r
+        })
+    };
+    let mut placed: Vec<Rect> = Vec::new();
+    let mut out = Vec::new();
+    for &((cx, cy), r, ref text) in circles {
+        let width = text_width(text, POINT_LABEL_SIZE);
+        let height = (TEXT_ASCENT_EM + TEXT_DESCENT_EM + 0.1) * POINT_LABEL_SIZE;
+        let candidate = |ring: f64, (dx, dy): (f64, f64)| -> (Rect, (f64, f64), (f64, f64)) {
+            let edge = (cx + dx * r, cy + dy * r);
+            let near = (cx + dx * (r + ring), cy + dy * (r + ring));
+            // The box's corner or side nearest the circle sits at `near`.
+            let left = near.0
+                + if dx > 0.1 {
+                    0.0
+                } else if dx < -0.1 {
+                    -width
+                } else {
+                    -0.5 * width
+                };
+            let top = near.1
+                + if dy > 0.1 {
+                    0.0
+                } else if dy < -0.1 {
+                    -height
+                } else {
+                    -0.5 * height
+                };
+            (
+                Rect {
+                    left,
+                    top,
+                    right: left + width,
+                    bottom: top + height,
+                },
+                edge,
+                near,
+            )
+        };
+        let free = |rect: &Rect, strict: bool| {
+            rect.inside(&bounds)
+                && placed.iter().all(|p| !p.overlaps(rect, 1.0))
+                && avoid.iter().all(|p| !p.overlaps(rect, 1.0))
+                && !(strict && circle_hits(rect))
+        };
+        let mut choice = None;
+        'search: for strict in [true, false] {
+            for ring in RINGS {
+                for direction in DIRECTIONS {
+                    let (rect, edge, near) = candidate(ring, direction);
+                    if free(&rect, strict) {
+                        choice = Some((rect, (ring > RINGS[0]).then_some((edge, near))));
+                        break 'search;
+                    }
+                }
+            }
+        }
+        // Nowhere free: beside the circle, overlapping (never seen in practice).
+        let (rect, leader) = choice.unwrap_or_else(|| (candidate(RINGS[0], DIRECTIONS[0]).0, None));
+        placed.push(rect);
+        out.push((rect, leader));
+    }
+    out
 }
 
 /// Three orthographic views of a marker (front: x–y, side: z–y, top: x–z),
@@ -208,61 +1260,209 @@ pub fn orthographic_views(
         .flat_map(|(_, p)| p.iter().map(|v| v.abs()))
         .fold(0.0f64, f64::max)
         + radius
-        + 5.0;
+        + 8.0;
     let views: [(&str, usize, usize); 3] = [
         ("front (x right, y down)", 0, 1),
         ("side (z right, y down)", 2, 1),
         ("top (x right, z down)", 0, 2),
     ];
-    let draw = |svg: &mut String| -> Result<(), Box<dyn std::error::Error>> {
-        let panel = 360u32;
-        let root = SVGBackend::with_string(svg, (3 * panel, panel + 40)).into_drawing_area();
-        root.fill(&WHITE)?;
-        let (header, body) = root.split_vertically(40);
-        header.titled(title, ("sans-serif", 20))?;
-        for (area, (name, a, b)) in body.split_evenly((1, 3)).iter().zip(views) {
-            let mut chart = ChartBuilder::on(area)
-                .caption(name, ("sans-serif", 14))
-                .margin(10)
-                .x_label_area_size(25)
-                .y_label_area_size(35)
-                .build_cartesian_2d(-extent..extent, extent..-extent)?;
-            chart.configure_mesh().x_desc("mm").draw()?;
-            // Scale: pixels per mm along x of this panel.
-            let plotting = chart.plotting_area();
-            let left = plotting.map_coordinate(&(-extent, 0.0)).0;
-            let right = plotting.map_coordinate(&(extent, 0.0)).0;
-            let pixels_per_mm = (right - left) as f64 / (2.0 * extent);
-            // Far spheres first, so nearer ones are drawn on top (the depth
-            // axis is the one not shown, looking along +depth).
-            let depth_axis = 3 - a - b;
-            let mut order: Vec<usize> = (0..points.len()).collect();
-            order.sort_by(|&i, &j| points[j].1[depth_axis].total_cmp(&points[i].1[depth_axis]));
-            for index in order {
-                let (label, p) = &points[index];
-                let centre = (p[a], p[b]);
-                let size = (radius * pixels_per_mm).round().max(1.0) as i32;
-                chart.draw_series(std::iter::once(Circle::new(
-                    centre,
-                    size,
-                    RGBColor(200, 200, 210).filled(),
-                )))?;
-                chart.draw_series(std::iter::once(Circle::new(
-                    centre,
-                    size,
-                    BLACK.stroke_width(1),
-                )))?;
-                chart.draw_series(std::iter::once(Text::new(
-                    label.clone(),
-                    (p[a] + radius, p[b] - radius),
-                    ("sans-serif", 12),
-                )))?;
+    let side = 300.0;
+    let probe = Scale {
+        lo: -extent,
+        hi: extent,
+        log: false,
+        pixel_lo: 0.0,
+        pixel_hi: 1.0,
+    };
+    let left_margin = 10.0 + widest_label(&probe, 5.0) + 10.0;
+    let panel_width = left_margin + side + 16.0;
+    let width = (3.0 * panel_width + 10.0).max(heading_width(title, &[]));
+    let mut svg = Svg::new();
+    let heading_bottom = draw_heading(&mut svg, title, &[], width);
+    let mut bottom: f64 = 0.0;
+    for (k, (name, a, b)) in views.into_iter().enumerate() {
+        let panel_left = 10.0 + k as f64 * panel_width;
+        let caption_y = heading_bottom + 10.0 + TEXT_ASCENT_EM * LABEL_SIZE;
+        let area = Rect {
+            left: panel_left + left_margin,
+            top: caption_y + 10.0,
+            right: panel_left + left_margin + side,
+            bottom: caption_y + 10.0 + side,
+        };
+        svg.text(
+            "caption",
+            name,
+            0.5 * (area.left + area.right),
+            caption_y,
+            LABEL_SIZE,
+            Anchor::Middle,
+        );
+        let x_scale = Scale {
+            lo: -extent,
+            hi: extent,
+            log: false,
+            pixel_lo: area.left,
+            pixel_hi: area.right,
+        };
+        // y down: −extent at the top.
+        let y_scale = Scale {
+            lo: -extent,
+            hi: extent,
+            log: false,
+            pixel_lo: area.top,
+            pixel_hi: area.bottom,
+        };
+        draw_axes(&mut svg, &x_scale, &y_scale, area, true);
+        let pixels_per_mm = side / (2.0 * extent);
+        let r = (radius * pixels_per_mm).max(1.0);
+        // Far spheres first, so nearer ones are drawn on top (looking along
+        // +depth, the axis not shown).
+        let depth_axis = 3 - a - b;
+        let mut order: Vec<usize> = (0..points.len()).collect();
+        order.sort_by(|&i, &j| points[j].1[depth_axis].total_cmp(&points[i].1[depth_axis]));
+        for &index in &order {
+            let p = &points[index].1;
+            let _ = writeln!(
+                svg.body,
+                r##"<circle cx="{:.1}" cy="{:.1}" r="{r:.1}" fill="#C8C8D2" stroke="#000000" stroke-width="1"/>"##,
+                x_scale.map(p[a]),
+                y_scale.map(p[b])
+            );
+        }
+        // Labels nearest the viewer first, so they get the closest places.
+        let circles: Vec<((f64, f64), f64, String)> = order
+            .iter()
+            .rev()
+            .map(|&i| {
+                let p = &points[i].1;
+                (
+                    (x_scale.map(p[a]), y_scale.map(p[b])),
+                    r,
+                    points[i].0.clone(),
+                )
+            })
+            .collect();
+        let placed = place_labels(&circles, area, &[]);
+        for (_, leader) in &placed {
+            if let Some((from, to)) = leader {
+                svg.line(*from, *to, "#555555", 0.8);
             }
         }
-        root.present()?;
-        Ok(())
-    };
-    let mut svg = String::new();
-    draw(&mut svg).map_err(|e| ReportError::write(path, e))?;
-    super::write_text(path, &svg)
+        for ((_, _, text), (rect, _)) in circles.iter().zip(&placed) {
+            svg.text(
+                "point-label",
+                text,
+                rect.left,
+                rect.top + (TEXT_ASCENT_EM + 0.05) * POINT_LABEL_SIZE,
+                POINT_LABEL_SIZE,
+                Anchor::Start,
+            );
+        }
+        let x_label_y = area.bottom + 6.0 + TICK_SIZE + 8.0 + TEXT_ASCENT_EM * LABEL_SIZE;
+        svg.text(
+            "axis-label",
+            "mm",
+            0.5 * (area.left + area.right),
+            x_label_y,
+            LABEL_SIZE,
+            Anchor::Middle,
+        );
+        bottom = bottom.max(x_label_y + TEXT_DESCENT_EM * LABEL_SIZE + 10.0);
+    }
+    svg.write(path, width, bottom)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn labels(ticks: &[Tick]) -> Vec<&str> {
+        ticks.iter().map(|t| t.label.as_str()).collect()
+    }
+
+    #[test]
+    fn linear_ticks_are_nice_and_free_of_float_noise() {
+        assert_eq!(
+            labels(&linear_ticks(0.0, 1.0, 5.0)),
+            ["0.0", "0.2", "0.4", "0.6", "0.8", "1.0"]
+        );
+        assert_eq!(
+            labels(&linear_ticks(0.1, 0.75, 6.0)),
+            ["0.1", "0.2", "0.3", "0.4", "0.5", "0.6", "0.7"]
+        );
+        assert_eq!(
+            labels(&linear_ticks(400.0, 1000.0, 6.0)),
+            ["400", "500", "600", "700", "800", "900", "1000"]
+        );
+        assert_eq!(
+            labels(&linear_ticks(-63.0, 63.0, 5.0)),
+            ["-60", "-40", "-20", "0", "20", "40", "60"]
+        );
+    }
+
+    #[test]
+    fn log_ticks_label_below_one_and_fill_short_spans() {
+        // Five decades: decades only.
+        assert_eq!(
+            labels(&log_ticks(0.002, 300.0)),
+            ["0.01", "0.1", "1", "10", "100"]
+        );
+        // Under a decade: every multiple.
+        assert_eq!(
+            labels(&log_ticks(0.08, 0.55)),
+            ["0.08", "0.09", "0.1", "0.2", "0.3", "0.4", "0.5"]
+        );
+        // Two decades: 1-2-5.
+        assert_eq!(
+            labels(&log_ticks(0.3, 40.0)),
+            ["0.5", "1", "2", "5", "10", "20"]
+        );
+        // A short span falls back to linear steps.
+        assert_eq!(
+            labels(&log_ticks(0.21, 0.28,)),
+            ["0.22", "0.24", "0.26", "0.28"]
+        );
+    }
+
+    #[test]
+    fn every_solver_has_its_own_colour_and_shape() {
+        for (i, (_, a)) in SOLVER_STYLES.iter().enumerate() {
+            for (_, b) in &SOLVER_STYLES[i + 1..] {
+                assert_ne!(a.colour, b.colour);
+            }
+            assert!(MODEL_STYLES.iter().all(|(_, m)| m.colour != a.colour));
+        }
+        let names: Vec<&str> = crate::pnp::Solver::ALL.iter().map(|s| s.name()).collect();
+        for name in &names {
+            assert!(series_style(name, false).is_some(), "{name} has no style");
+        }
+        let styles = styles_for(
+            ["x", "y", "z", "w", "v", "epnp"]
+                .iter()
+                .map(|n| (*n, false)),
+        );
+        for (i, a) in styles.iter().enumerate() {
+            assert!(styles[i + 1..].iter().all(|b| b != a));
+        }
+    }
+
+    #[test]
+    fn labels_of_spheres_on_one_line_of_sight_do_not_overlap() {
+        let circles: Vec<((f64, f64), f64, String)> = (0..4)
+            .map(|k| ((100.0 + 2.0 * k as f64, 100.0), 8.0, format!("P{k}")))
+            .collect();
+        let bounds = Rect {
+            left: 0.0,
+            top: 0.0,
+            right: 300.0,
+            bottom: 300.0,
+        };
+        let placed = place_labels(&circles, bounds, &[]);
+        for (i, (a, _)) in placed.iter().enumerate() {
+            assert!(a.inside(&bounds));
+            for (b, _) in &placed[i + 1..] {
+                assert!(!a.overlaps(b, 0.0), "{a:?} overlaps {b:?}");
+            }
+        }
+    }
 }

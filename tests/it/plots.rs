@@ -1,0 +1,326 @@
+//! Every SVG the reports write, checked as a reader would see it: the
+//! sensitivity report (with a depth where nothing is visible), a one-trial
+//! reproduction of every experiment and a tiny search with its winner's
+//! validation, all through the library pipelines into a temporary directory.
+//! Each `<text>` is checked for float noise in tick labels, for staying
+//! inside the view box and for overlapping no other text.
+//!
+//! A text's box is 0.6 × font size per character wide and reaches from
+//! 0.8 × font size above its baseline to 0.2 × below; `text-anchor` places
+//! it and `rotate(-90 x y)` turns it about its anchor.
+
+use layout_opt::camera::Camera;
+use layout_opt::layout::Layout;
+use layout_opt::montecarlo::{MonteCarloConfig, DEFAULT_GROSS_THRESHOLD_DEG};
+use layout_opt::observer::Silent;
+use layout_opt::pnp::Solver;
+use layout_opt::reproduce::pipeline::ReproduceConfig;
+use layout_opt::reproduce::{Config, Experiment};
+use layout_opt::scenario::{Range, ScenarioGrid};
+use layout_opt::search::pipeline::SearchConfig;
+use layout_opt::sensitivity::pipeline::SensitivityConfig;
+use std::path::{Path, PathBuf};
+
+const WIDTH_EM: f64 = 0.6;
+const ASCENT_EM: f64 = 0.8;
+const DESCENT_EM: f64 = 0.2;
+
+/// One `<text>` element of an SVG.
+#[derive(Debug, Clone)]
+struct Text {
+    class: String,
+    content: String,
+    left: f64,
+    top: f64,
+    right: f64,
+    bottom: f64,
+}
+
+fn attribute(tag: &str, name: &str) -> Option<String> {
+    let key = format!(" {name}=\"");
+    let start = tag.find(&key)? + key.len();
+    let end = start + tag[start..].find('"')?;
+    Some(tag[start..end].to_string())
+}
+
+fn number(tag: &str, name: &str) -> f64 {
+    attribute(tag, name)
+        .unwrap_or_else(|| panic!("no {name} in {tag}"))
+        .parse()
+        .unwrap_or_else(|_| panic!("{name} is not a number in {tag}"))
+}
+
+fn unescape(text: &str) -> String {
+    text.replace("&lt;", "<")
+        .replace("&gt;", ">")
+        .replace("&quot;", "\"")
+        .replace("&amp;", "&")
+}
+
+/// The view box and every text of an SVG we wrote.
+fn texts(svg: &str) -> ((f64, f64, f64, f64), Vec<Text>) {
+    let open = svg.find("<svg").expect("an <svg> element");
+    let head = &svg[open..open + svg[open..].find('>').unwrap()];
+    let view: Vec<f64> = attribute(head, "viewBox")
+        .expect("a viewBox")
+        .split_whitespace()
+        .map(|v| v.parse().unwrap())
+        .collect();
+    let mut out = Vec::new();
+    let mut rest = svg;
+    while let Some(start) = rest.find("<text") {
+        rest = &rest[start..];
+        let tag_end = rest.find('>').unwrap();
+        let tag = &rest[..tag_end];
+        let close = rest.find("</text>").expect("a closed <text>");
+        let content = unescape(&rest[tag_end + 1..close]);
+        assert!(!content.contains('<'), "nested markup in {tag}");
+        let size = number(tag, "font-size");
+        let (x, y) = (number(tag, "x"), number(tag, "y"));
+        let width = WIDTH_EM * size * content.chars().count() as f64;
+        let anchor = attribute(tag, "text-anchor").unwrap_or_else(|| "start".into());
+        let shift = match anchor.as_str() {
+            "start" => 0.0,
+            "middle" => -0.5 * width,
+            "end" => -width,
+            other => panic!("unknown anchor {other}"),
+        };
+        let (left, top, right, bottom) = match attribute(tag, "transform") {
+            None => (
+                x + shift,
+                y - ASCENT_EM * size,
+                x + shift + width,
+                y + DESCENT_EM * size,
+            ),
+            Some(t) if t.starts_with("rotate(-90 ") => (
+                x - ASCENT_EM * size,
+                y - shift - width,
+                x + DESCENT_EM * size,
+                y - shift,
+            ),
+            Some(t) => panic!("unexpected transform {t}"),
+        };
+        out.push(Text {
+            class: attribute(tag, "class").unwrap_or_default(),
+            content,
+            left,
+            top,
+            right,
+            bottom,
+        });
+        rest = &rest[close..];
+    }
+    ((view[0], view[1], view[2], view[3]), out)
+}
+
+/// Decimal places of `label` and the fewest its value needs, if it is a
+/// plain number.
+fn decimals(label: &str) -> Option<(usize, usize)> {
+    let plain = label.trim_end_matches('%');
+    if plain.contains('e') {
+        return None;
+    }
+    let value: f64 = plain.parse().ok()?;
+    let used = plain.split_once('.').map_or(0, |(_, d)| d.len());
+    // The fewest places that keep the value (to 12 significant digits).
+    let needed = (0..=used)
+        .find(|&places| {
+            let rounded: f64 = format!("{value:.places$}").parse().unwrap();
+            (rounded - value).abs() <= 1e-12 * value.abs().max(1e-300)
+        })
+        .unwrap_or(used);
+    Some((used, needed))
+}
+
+fn significant_digits(label: &str) -> usize {
+    let mantissa = label.split('e').next().unwrap();
+    mantissa
+        .chars()
+        .filter(char::is_ascii_digit)
+        .collect::<String>()
+        .trim_start_matches('0')
+        .trim_end_matches('0')
+        .len()
+}
+
+/// Every problem found in one SVG.
+fn problems(path: &Path) -> Vec<String> {
+    let svg = std::fs::read_to_string(path).unwrap();
+    let name = path.display();
+    let ((vx, vy, vw, vh), texts) = texts(&svg);
+    let mut found = Vec::new();
+    for t in &texts {
+        if t.left < vx - 0.5
+            || t.top < vy - 0.5
+            || t.right > vx + vw + 0.5
+            || t.bottom > vy + vh + 0.5
+        {
+            found.push(format!("{name}: '{}' leaves the view box", t.content));
+        }
+    }
+    for (i, a) in texts.iter().enumerate() {
+        for b in &texts[i + 1..] {
+            let overlap = a.left < b.right - 0.5
+                && b.left < a.right - 0.5
+                && a.top < b.bottom - 0.5
+                && b.top < a.bottom - 0.5;
+            if overlap {
+                found.push(format!("{name}: '{}' overlaps '{}'", a.content, b.content));
+            }
+        }
+    }
+    for class in ["tick-x", "tick-y"] {
+        let labels: Vec<&Text> = texts.iter().filter(|t| t.class == class).collect();
+        let needed = labels
+            .iter()
+            .filter_map(|t| decimals(&t.content))
+            .map(|d| d.1)
+            .max()
+            .unwrap_or(0);
+        for t in labels {
+            if significant_digits(&t.content) > 4 {
+                found.push(format!(
+                    "{name}: tick label '{}' has float noise",
+                    t.content
+                ));
+            }
+            match decimals(&t.content) {
+                Some((used, _)) if used > needed => found.push(format!(
+                    "{name}: tick label '{}' has more decimals than its axis needs ({needed})",
+                    t.content
+                )),
+                None if !t.content.contains('e') => found.push(format!(
+                    "{name}: tick label '{}' is not a number",
+                    t.content
+                )),
+                _ => {}
+            }
+        }
+    }
+    found
+}
+
+fn svgs(dir: &Path, out: &mut Vec<PathBuf>) {
+    for entry in std::fs::read_dir(dir).unwrap() {
+        let path = entry.unwrap().path();
+        if path.is_dir() {
+            svgs(&path, out);
+        } else if path.extension().is_some_and(|e| e == "svg") {
+            out.push(path);
+        }
+    }
+}
+
+fn write_reports(dir: &Path) {
+    // Sensitivity: every solver (every style at once); at 200 mm the paper's
+    // biprism leaves the image, so the depth plot has an empty value.
+    let sensitivity = SensitivityConfig {
+        layout: Layout::paper_biprism(),
+        camera: Camera::paper(),
+        grid: ScenarioGrid::new(
+            "200,400,700".parse().unwrap(),
+            "0,50,100".parse().unwrap(),
+            Range::single(0.0),
+            "-40,0,40".parse().unwrap(),
+            Range::single(0.0),
+            Range::single(0.0),
+            Range::single(0.5),
+        )
+        .unwrap(),
+        monte_carlo: MonteCarloConfig {
+            trials: 4,
+            seed: 3,
+            solvers: Solver::ALL.to_vec(),
+            noise: Default::default(),
+            gross_threshold_deg: DEFAULT_GROSS_THRESHOLD_DEG,
+        },
+        command: "plots test".into(),
+        grid_note: None,
+        out_dir: dir.join("sensitivity"),
+    };
+    layout_opt::sensitivity::pipeline::run(&sensitivity, &mut Silent).unwrap();
+
+    let reproduce = ReproduceConfig {
+        experiments: Config {
+            experiments: Experiment::ALL.to_vec(),
+            seed: 3,
+            trials: Some(1),
+            quick: true,
+        },
+        command: "plots test".into(),
+        out_dir: dir.join("paper"),
+    };
+    layout_opt::reproduce::pipeline::run(&reproduce, &mut Silent).unwrap();
+
+    let mut search = SearchConfig::new("tiny", &dir.join("search"));
+    search.grid = ScenarioGrid::new(
+        "200,500,800".parse().unwrap(),
+        "0,60".parse().unwrap(),
+        Range::single(0.0),
+        "-40..40:20".parse().unwrap(),
+        Range::single(0.0),
+        Range::single(0.0),
+        Range::single(0.5),
+    )
+    .unwrap();
+    search.search.starts = 2;
+    search.search.iterations = 40;
+    search.compare_trials = 3;
+    search.validate_solvers = vec![Solver::ParallelWeighted, Solver::Ml];
+    search.command = "plots test".into();
+    layout_opt::search::pipeline::run(&search, &mut Silent).unwrap();
+}
+
+#[test]
+fn every_report_svg_has_clean_legible_text() {
+    let dir = tempfile::tempdir().unwrap();
+    write_reports(dir.path());
+    let mut files = Vec::new();
+    svgs(dir.path(), &mut files);
+    files.sort();
+    // The reproduction's figures, the plots of two sensitivity reports and
+    // the search's marker views.
+    assert!(files.len() >= 40, "only {} SVGs written", files.len());
+    let found: Vec<String> = files.iter().flat_map(|f| problems(f)).collect();
+    assert!(
+        found.is_empty(),
+        "{} problems:\n{}",
+        found.len(),
+        found.join("\n")
+    );
+
+    // The depth plot labels its log axis below 1 and says where nothing is
+    // visible; the availability panel is there.
+    let depth = std::fs::read_to_string(dir.path().join("sensitivity/error_vs_depth.svg"))
+        .unwrap_or_else(|e| panic!("error_vs_depth.svg: {e}; written: {files:?}"));
+    let (_, depth_texts) = texts(&depth);
+    assert!(depth_texts
+        .iter()
+        .any(|t| t.class == "tick-y" && t.content.parse::<f64>().is_ok_and(|v| v < 1.0)));
+    assert!(depth_texts
+        .iter()
+        .any(|t| t.content.starts_with("nothing visible at depth 200")));
+    assert!(depth_texts
+        .iter()
+        .any(|t| t.content == "share of scenarios with every sphere visible"));
+}
+
+#[test]
+fn the_checker_catches_noise_overlap_and_clipping() {
+    let svg = r#"<svg viewBox="0 0 100 50">
+<text class="tick-x" x="40" y="20" font-size="10" text-anchor="end">0.30000000000000004</text>
+<text class="tick-y" x="40" y="24" font-size="10" text-anchor="end">1000.0</text>
+<text class="tick-y" x="40" y="40" font-size="10" text-anchor="end">100.0</text>
+</svg>"#;
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("bad.svg");
+    std::fs::write(&path, svg).unwrap();
+    let found = problems(&path).join("\n");
+    assert!(
+        found.contains("'0.30000000000000004' leaves the view box"),
+        "{found}"
+    );
+    assert!(found.contains("overlaps"), "{found}");
+    assert!(found.contains("float noise"), "{found}");
+    assert!(found.contains("'1000.0' has more decimals"), "{found}");
+}
