@@ -29,4 +29,5 @@ pub mod reproduce;
 pub mod scenario;
 pub mod search;
 pub mod sensitivity;
+pub mod sphere_image;
 pub mod synthetic;

@@ -152,15 +152,12 @@ pub fn hand_designs(envelope: &Envelope, sphere_diameter_mm: f64) -> Vec<Layout>
     ]
 }
 
-/// Per-scenario Monte-Carlo outcomes of `layout` with `solver`.
+/// Per-scenario Monte-Carlo outcomes of `layout` under `config`.
 pub fn monte_carlo_outcomes(
     camera: &Camera,
     layout: &Layout,
     scenarios: &[Scenario],
-    solver: Solver,
-    trials: usize,
-    seed: u64,
-    noise: NoiseModel,
+    config: &MonteCarloConfig,
 ) -> Result<Vec<ScenarioOutcome>, MonteCarloError> {
     let object = layout.positions();
     let sigmas = layout.point_sigmas();
@@ -170,14 +167,7 @@ pub fn monte_carlo_outcomes(
         sphere_diameter_mm: layout.sphere_diameter_mm,
         point_sigma_px: &sigmas,
     };
-    let config = MonteCarloConfig {
-        trials,
-        seed,
-        solvers: vec![solver],
-        noise,
-        gross_threshold_deg: DEFAULT_GROSS_THRESHOLD_DEG,
-    };
-    montecarlo::run(&target, scenarios, &config, &|_| {})
+    montecarlo::run(&target, scenarios, config, &|_| {})
 }
 
 fn figures(seed: u64, mine: &[ScenarioOutcome], winner: &[ScenarioOutcome]) -> MonteCarloFigures {
@@ -224,15 +214,15 @@ pub fn compare(
             seeds
                 .iter()
                 .map(|&seed| {
-                    monte_carlo_outcomes(
-                        camera,
-                        layout,
-                        evaluator.scenarios(),
-                        solver,
+                    let config = MonteCarloConfig {
                         trials,
                         seed,
+                        solvers: vec![solver],
                         noise,
-                    )
+                        gross_threshold_deg: DEFAULT_GROSS_THRESHOLD_DEG,
+                        observation: evaluator.settings().observation,
+                    };
+                    monte_carlo_outcomes(camera, layout, evaluator.scenarios(), &config)
                 })
                 .collect::<Result<Vec<_>, _>>()
         })

@@ -15,6 +15,7 @@ mod conformance_generator;
 mod export;
 mod noise_free;
 mod noisy;
+mod sphere_image;
 mod sqpnp_crosscheck;
 
 #[cfg(feature = "cli")]
