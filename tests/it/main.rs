@@ -27,4 +27,6 @@ mod reproduce;
 #[cfg(feature = "cli")]
 mod search;
 #[cfg(feature = "cli")]
+mod sphere_cli;
+#[cfg(feature = "cli")]
 mod validate;

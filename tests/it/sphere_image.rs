@@ -229,3 +229,47 @@ fn first_order_bias_predicts_the_systematic_error_of_ml() {
         }
     }
 }
+
+/// The sphere-model ML is exact on noise-free ellipse centres in every
+/// in-front scenario of the default validate grid (the paper's protocol),
+/// where the point-model ML is biased; prints the figures.
+#[test]
+fn sphere_model_ml_is_exact_over_the_default_grid() {
+    use layout_opt::pnp::{ml, ml_sphere};
+    use layout_opt::pose::rotation_error_deg;
+    use layout_opt::scenario::ScenarioGrid;
+    use layout_opt::sphere_image::ellipse_centre_normalised;
+    let object = layout_opt::synthetic::biprism_points(50.0);
+    let radius = 5.0;
+    let mut worst_sphere: f64 = 0.0;
+    let mut worst_sphere_mm: f64 = 0.0;
+    let mut naive = Vec::new();
+    for scenario in ScenarioGrid::paper_protocol(2.0).scenarios() {
+        if scenario.sigma_px != 0.5 {
+            continue;
+        }
+        let truth = scenario.pose();
+        let Ok(image) = object
+            .iter()
+            .map(|p| ellipse_centre_normalised(&truth.transform(p), radius))
+            .collect::<Result<Vec<_>, _>>()
+        else {
+            continue;
+        };
+        let pose = ml_sphere::solve(&object, &image, radius).unwrap();
+        worst_sphere = worst_sphere.max(rotation_error_deg(&truth.rotation, &pose.rotation));
+        worst_sphere_mm = worst_sphere_mm.max((pose.translation - truth.translation).norm());
+        let point = ml::solve(&object, &image).unwrap()[0];
+        naive.push(rotation_error_deg(&truth.rotation, &point.rotation));
+    }
+    naive.sort_by(f64::total_cmp);
+    let median = naive[naive.len() / 2];
+    let max = naive[naive.len() - 1];
+    eprintln!(
+        "{} poses: sphere-model ML worst {worst_sphere:.2e}° / {worst_sphere_mm:.2e} mm; point-model ML on ellipse centres median {median:.2e}°, max {max:.2e}°",
+        naive.len()
+    );
+    assert!(worst_sphere < 1e-6, "{worst_sphere}°");
+    assert!(worst_sphere_mm < 1e-6, "{worst_sphere_mm} mm");
+    assert!(median > 1e-4, "point model median bias {median}°");
+}
