@@ -37,6 +37,7 @@ fn bench(c: &mut Criterion) {
         solvers: vec![Solver::ParallelWeighted],
         noise: NoiseModel::default(),
         gross_threshold_deg: DEFAULT_GROSS_THRESHOLD_DEG,
+        observation: layout_opt::sphere_image::Observation::Centre,
     };
     let mut group = c.benchmark_group("mc");
     group

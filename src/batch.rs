@@ -14,10 +14,19 @@
 //! "reprojection_rms_px", "seconds", "start"?} | {"id", "error"}]}`, where
 //! `seconds` times the solver call alone and `start` names the solver whose
 //! pose a refining method (`ml`) started from.
+//!
+//! Spheres: with a sphere diameter (`solve --sphere-diameter D`, or
+//! `"sphere_diameter"` on a problem, which takes precedence) the image points
+//! are the centres of the spheres' silhouette ellipses, and `ml` fits the
+//! exact sphere-image model ([`crate::pnp::ml_sphere`]); the reprojection
+//! RMS is then measured against the model's ellipse centres. The other
+//! solvers fit projected centres only, so a problem with a diameter and
+//! another solver gets an `error` entry rather than a silently biased pose.
 
 use crate::camera::{Camera, CameraSpec};
-use crate::pnp::Solver;
+use crate::pnp::{ml_sphere, Solver};
 use crate::pose::{reprojection_rms_px, Pose};
+use crate::sphere_image::ellipse_centre_normalised;
 use nalgebra::{Vector2, Vector3};
 use serde::{Deserialize, Serialize};
 use std::time::Instant;
@@ -50,6 +59,9 @@ pub struct ProblemInput {
     pub object_points: Vec<[f64; 3]>,
     /// Raw pixel coordinates.
     pub image_points: Vec<[f64; 2]>,
+    /// Sphere diameter, mm: the image points are ellipse centres.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sphere_diameter: Option<f64>,
 }
 
 /// A parsed batch: a camera and problems, each of which may already have
@@ -127,14 +139,32 @@ impl Batch {
     }
 
     /// Solves every problem with `solver`, in order.
-    pub fn solve(&self, solver: Solver, mut on_progress: impl FnMut(usize)) -> BatchOutput {
+    pub fn solve(&self, solver: Solver, on_progress: impl FnMut(usize)) -> BatchOutput {
+        self.solve_with_spheres(solver, None, on_progress)
+    }
+
+    /// [`Batch::solve`] with a default sphere diameter (mm) for the problems
+    /// that do not give their own `sphere_diameter`: their image points are
+    /// ellipse centres (module docs).
+    pub fn solve_with_spheres(
+        &self,
+        solver: Solver,
+        sphere_diameter_mm: Option<f64>,
+        mut on_progress: impl FnMut(usize),
+    ) -> BatchOutput {
         let results = self
             .problems
             .iter()
             .enumerate()
             .map(|(index, (id, problem))| {
                 let result = match problem {
-                    Ok(problem) => solve_one(&self.camera, solver, id, problem),
+                    Ok(problem) => solve_one(
+                        &self.camera,
+                        solver,
+                        id,
+                        problem,
+                        problem.sphere_diameter.or(sphere_diameter_mm),
+                    ),
                     Err(error) => ProblemResult::Failed {
                         id: id.clone(),
                         error: error.clone(),
@@ -151,7 +181,13 @@ impl Batch {
     }
 }
 
-fn solve_one(camera: &Camera, solver: Solver, id: &str, problem: &ProblemInput) -> ProblemResult {
+fn solve_one(
+    camera: &Camera,
+    solver: Solver,
+    id: &str,
+    problem: &ProblemInput,
+    sphere_diameter_mm: Option<f64>,
+) -> ProblemResult {
     let failed = |error: String| ProblemResult::Failed {
         id: id.to_string(),
         error,
@@ -176,6 +212,38 @@ fn solve_one(camera: &Camera, solver: Solver, id: &str, problem: &ProblemInput) 
             Err(e) => return failed(format!("image point {index}: {e}")),
         }
     }
+    if let Some(diameter_mm) = sphere_diameter_mm {
+        if !(diameter_mm > 0.0 && diameter_mm.is_finite()) {
+            return failed(format!(
+                "sphere_diameter must be a positive number of mm, got {diameter_mm}"
+            ));
+        }
+        if solver != Solver::Ml {
+            return failed(format!(
+                "a sphere diameter needs the ml solver, which fits the sphere-image model; {} fits projected centres and would be biased",
+                solver.name()
+            ));
+        }
+        let radius_mm = 0.5 * diameter_mm;
+        let start = Instant::now();
+        let outcome = ml_sphere::solve(&object, &normalised, radius_mm);
+        let seconds = start.elapsed().as_secs_f64();
+        return match outcome {
+            Ok(pose) => {
+                let mut result = solved(id, camera, solver, &pose, &object, &pixels, seconds);
+                if let ProblemResult::Solved {
+                    reprojection_rms_px,
+                    ..
+                } = &mut result
+                {
+                    *reprojection_rms_px =
+                        ellipse_centre_rms_px(camera, &pose, &object, &pixels, radius_mm);
+                }
+                result
+            }
+            Err(e) => failed(e.to_string()),
+        };
+    }
     let start = Instant::now();
     let outcome = solver.solve_best(&object, &normalised);
     let seconds = start.elapsed().as_secs_f64();
@@ -183,6 +251,26 @@ fn solve_one(camera: &Camera, solver: Solver, id: &str, problem: &ProblemInput) 
         Ok(pose) => solved(id, camera, solver, &pose, &object, &pixels, seconds),
         Err(e) => failed(e.to_string()),
     }
+}
+
+/// RMS distance, px, between `pixels` and the ellipse centres of spheres of
+/// radius `radius_mm` at `pose` (distortion included); infinite when a
+/// sphere is not wholly in front of the camera.
+fn ellipse_centre_rms_px(
+    camera: &Camera,
+    pose: &Pose,
+    object: &[Vector3<f64>],
+    pixels: &[Vector2<f64>],
+    radius_mm: f64,
+) -> f64 {
+    let mut sum = 0.0;
+    for (p, pixel) in object.iter().zip(pixels) {
+        match ellipse_centre_normalised(&pose.transform(p), radius_mm) {
+            Ok(m) => sum += (camera.normalised_to_pixel(&m) - pixel).norm_squared(),
+            Err(_) => return f64::INFINITY,
+        }
+    }
+    (sum / object.len().max(1) as f64).sqrt()
 }
 
 fn solved(
@@ -296,6 +384,99 @@ mod tests {
             errors[3],
             "#3: object points are coplanar; EPnP+GN needs noncoplanar points"
         );
+    }
+
+    /// Noise-free ellipse centres of 10 mm spheres (the demo poses, paper
+    /// camera with distortion): `ml` with the diameter is exact, without it
+    /// measurably biased; other solvers refuse the diameter.
+    #[test]
+    fn sphere_diameter_fits_ellipse_centres_exactly() {
+        use crate::pose::{rotation_error_deg, Pose};
+        use nalgebra::Rotation3;
+        let camera = Camera::paper_with_distortion();
+        let object = crate::synthetic::biprism_points(50.0);
+        let truths: Vec<Pose> = [200.0, 300.0, 500.0]
+            .iter()
+            .enumerate()
+            .map(|(i, &depth)| {
+                Pose::new(
+                    Rotation3::from_euler_angles(0.4 - 0.3 * i as f64, 0.3, 0.1),
+                    Vector3::new(90.0, -60.0, depth),
+                )
+            })
+            .collect();
+        let problems: Vec<serde_json::Value> = truths
+            .iter()
+            .enumerate()
+            .map(|(i, truth)| {
+                let pixels: Vec<[f64; 2]> = object
+                    .iter()
+                    .map(|p| {
+                        let m = ellipse_centre_normalised(&truth.transform(p), 5.0).unwrap();
+                        let px = camera.normalised_to_pixel(&m);
+                        [px.x, px.y]
+                    })
+                    .collect();
+                let mut problem = serde_json::json!({
+                    "id": format!("p{i}"),
+                    "object_points": object.iter().map(|p| [p.x, p.y, p.z]).collect::<Vec<_>>(),
+                    "image_points": pixels,
+                });
+                if i == 2 {
+                    problem["sphere_diameter"] = serde_json::json!(10.0);
+                }
+                problem
+            })
+            .collect();
+        let text = serde_json::json!({
+            "camera": {"fx": camera.fx(), "fy": camera.fy(), "cx": camera.cx(), "cy": camera.cy(),
+                       "distortion": camera.distortion()},
+            "problems": problems,
+        })
+        .to_string();
+        let batch = Batch::from_json(&text).unwrap();
+        let rotation_errors = |output: &BatchOutput| -> Vec<f64> {
+            output
+                .results
+                .iter()
+                .zip(&truths)
+                .map(|(result, truth)| match result {
+                    ProblemResult::Solved { rotation, .. } => {
+                        let r = nalgebra::Matrix3::from_fn(|i, j| rotation[i][j]);
+                        rotation_error_deg(&truth.rotation, &Rotation3::from_matrix_unchecked(r))
+                    }
+                    ProblemResult::Failed { error, .. } => panic!("{error}"),
+                })
+                .collect()
+        };
+        let exact = batch.solve_with_spheres(Solver::Ml, Some(10.0), |_| {});
+        for (error, result) in rotation_errors(&exact).iter().zip(&exact.results) {
+            assert!(*error < 1e-6, "{error}° {result:?}");
+            if let ProblemResult::Solved {
+                reprojection_rms_px,
+                ..
+            } = result
+            {
+                assert!(*reprojection_rms_px < 1e-6, "{reprojection_rms_px}");
+            }
+        }
+        // Problems 0 and 1 have no diameter of their own: the point model is biased.
+        let naive = batch.solve(Solver::Ml, |_| {});
+        let naive_errors = rotation_errors(&BatchOutput {
+            solver: naive.solver.clone(),
+            results: naive.results[..2].to_vec(),
+        });
+        assert!(naive_errors.iter().all(|e| *e > 1e-3), "{naive_errors:?}");
+        let refused = batch.solve_with_spheres(Solver::Sqpnp, Some(10.0), |_| {});
+        assert!(
+            matches!(&refused.results[0], ProblemResult::Failed { error, .. } if error.contains("needs the ml solver"))
+        );
+        let bad = batch.solve_with_spheres(Solver::Ml, Some(-1.0), |_| {});
+        assert!(
+            matches!(&bad.results[0], ProblemResult::Failed { error, .. } if error.contains("positive"))
+        );
+        // The problem's own diameter wins over the default.
+        assert!(matches!(&bad.results[2], ProblemResult::Solved { .. }));
     }
 
     #[test]

@@ -30,5 +30,6 @@ pub mod reproduce;
 pub mod scenario;
 pub mod search;
 pub mod sensitivity;
+pub mod sphere_image;
 pub mod spread;
 pub mod synthetic;

@@ -16,9 +16,18 @@
 //!   front of the camera, and carry their [`Visibility`] so reports can count
 //!   them; scenarios with a feature behind the camera cannot be imaged and run
 //!   no trials.
+//! * **Observations.** Each feature's noise-free image point is what
+//!   [`MonteCarloConfig::observation`] names: the projection of the sphere's
+//!   centre, or the centre of its silhouette ellipse ([`crate::sphere_image`],
+//!   what a blob detector measures). Noise is added on top. The difference
+//!   from the projected centre is the image bias: the first-order model
+//!   carries its pose bias ([`FirstOrderBias`]) and every solver is also run
+//!   once on the noise-free observations ([`SolverOutcome::systematic`]). A
+//!   scenario with a sphere not wholly in front of the camera (no ellipse)
+//!   counts that sphere as behind the camera and runs no trials.
 
 use crate::camera::Camera;
-use crate::error_model::first_order::pose_covariance;
+use crate::error_model::first_order::pose_covariance_and_bias;
 use crate::error_model::transfer::{self, QuHou, TransferPrediction};
 use crate::noise::NoiseModel;
 use crate::pnp::{parallel::reference_index, Solver};
@@ -26,6 +35,7 @@ use crate::pose::{
     paper_rotation_error_deg, rotation_error_deg, translation_error_mm, translation_error_percent,
 };
 use crate::scenario::{sphere_images, visibility, Scenario, SphereImage, Visibility};
+use crate::sphere_image::Observation;
 use crate::synthetic::stream_rng;
 use nalgebra::{Vector2, Vector3};
 use rayon::prelude::*;
@@ -61,6 +71,8 @@ pub struct MonteCarloConfig {
     pub noise: NoiseModel,
     /// Rotation error above which a trial is a gross failure, degrees.
     pub gross_threshold_deg: f64,
+    /// What a feature's noise-free image point is.
+    pub observation: Observation,
 }
 
 /// Median of sorted, non-empty values.
@@ -146,6 +158,60 @@ pub struct SolverOutcome {
     pub solver_errors: usize,
     /// The first error message, if any.
     pub first_error: Option<String>,
+    /// The pose error on the noise-free observations: the systematic part
+    /// (None when the solver failed on them).
+    pub systematic: Option<PoseErrorVector>,
+}
+
+/// A signed pose error per camera axis.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+pub struct PoseErrorVector {
+    /// Rotation error about camera x, y, z (pitch, yaw, roll): the rotation
+    /// vector of `R_est R_trueᵀ`, degrees.
+    pub rotation_deg: [f64; 3],
+    /// Translation error `t_est − t_true` along camera x, y, z, mm.
+    pub translation_mm: [f64; 3],
+}
+
+impl PoseErrorVector {
+    /// The error of `estimate` against `truth`.
+    pub fn between(truth: &crate::pose::Pose, estimate: &crate::pose::Pose) -> Self {
+        let omega = (estimate.rotation * truth.rotation.inverse()).scaled_axis();
+        let dt = estimate.translation - truth.translation;
+        PoseErrorVector {
+            rotation_deg: [
+                omega.x.to_degrees(),
+                omega.y.to_degrees(),
+                omega.z.to_degrees(),
+            ],
+            translation_mm: [dt.x, dt.y, dt.z],
+        }
+    }
+
+    /// Geodesic rotation error, degrees.
+    pub fn rotation_norm_deg(&self) -> f64 {
+        let [x, y, z] = self.rotation_deg;
+        (x * x + y * y + z * z).sqrt()
+    }
+
+    /// Translation error, mm.
+    pub fn translation_norm_mm(&self) -> f64 {
+        let [x, y, z] = self.translation_mm;
+        (x * x + y * y + z * z).sqrt()
+    }
+}
+
+/// The image bias of a scenario's observations (observed − projected
+/// centre) and the first-order pose bias it causes in a point-model fit
+/// ([`crate::error_model::first_order::pose_covariance_and_bias`]).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct FirstOrderBias {
+    /// Largest image displacement over the features, px.
+    pub max_displacement_px: f64,
+    /// RMS image displacement over the features, px.
+    pub rms_displacement_px: f64,
+    /// The predicted pose bias per axis.
+    pub pose: PoseErrorVector,
 }
 
 /// First-order (Cramér–Rao) prediction for a scenario.
@@ -159,6 +225,32 @@ pub struct FirstOrderPrediction {
     pub rms_translation_mm: f64,
     /// RMS translation error, % of |t|.
     pub rms_translation_percent: f64,
+    /// The first-order rotation bias of the observations' image bias,
+    /// degrees (zero for centre observations; see [`FirstOrderBias`]).
+    pub bias_rotation_deg: f64,
+    /// The first-order translation bias, mm.
+    pub bias_translation_mm: f64,
+}
+
+impl FirstOrderPrediction {
+    /// The predicted RMS rotation error, bias included:
+    /// `√(rms² + bias²)`, the random and systematic parts together.
+    pub fn total_rms_rotation_deg(&self) -> f64 {
+        if self.bias_rotation_deg == 0.0 {
+            self.rms_rotation_deg
+        } else {
+            self.rms_rotation_deg.hypot(self.bias_rotation_deg)
+        }
+    }
+
+    /// The predicted RMS translation error, bias included, mm.
+    pub fn total_rms_translation_mm(&self) -> f64 {
+        if self.bias_translation_mm == 0.0 {
+            self.rms_translation_mm
+        } else {
+            self.rms_translation_mm.hypot(self.bias_translation_mm)
+        }
+    }
 }
 
 /// Everything measured and predicted for one scenario.
@@ -171,6 +263,9 @@ pub struct ScenarioOutcome {
     /// The first-order prediction (None when the pose is not observable or a
     /// feature is behind the camera).
     pub first_order: Option<FirstOrderPrediction>,
+    /// The image bias of the observations and its first-order pose bias
+    /// (None where the first-order model is).
+    pub bias: Option<FirstOrderBias>,
     /// The paper's transfer-model prediction.
     pub transfer: Option<TransferPrediction>,
     /// Qu & Hou's planar prediction of RMS rotation error, degrees.
@@ -284,11 +379,26 @@ fn run_scenario(
     let camera = target.camera;
     let truth = scenario.pose();
     let images = sphere_images(camera, &truth, target.object, target.sphere_diameter_mm);
-    let visibility = visibility(&images, camera);
+    let mut visibility = visibility(&images, camera);
+    let radius_mm = 0.5 * target.sphere_diameter_mm;
+    // Noise-free observations, raw pixels.
+    let mut clean: Vec<Vector2<f64>> = Vec::with_capacity(target.object.len());
+    if visibility.all_in_front() {
+        for (index, p) in target.object.iter().enumerate() {
+            match config
+                .observation
+                .normalised(&truth.transform(p), radius_mm)
+            {
+                Ok(m) => clean.push(camera.normalised_to_pixel(&m)),
+                Err(_) => visibility.behind.push(index),
+            }
+        }
+    }
     let mut outcome = ScenarioOutcome {
         scenario: *scenario,
         visibility,
         first_order: None,
+        bias: None,
         transfer: None,
         qu_hou_rotation_deg: None,
         solvers: Vec::new(),
@@ -302,18 +412,43 @@ fn run_scenario(
         &images,
         target.point_sigma_px,
     );
+    let image_bias: Vec<Vector2<f64>> = clean
+        .iter()
+        .zip(&images)
+        .map(|(observed, image)| {
+            let image = image.expect("every feature is in front");
+            observed - Vector2::new(image.centre_px[0], image.centre_px[1])
+        })
+        .collect();
+    if let Ok((covariance, pose_bias)) =
+        pose_covariance_and_bias(camera, &truth, target.object, &sigmas, &image_bias)
+    {
+        let displacements = image_bias.iter().map(|b| b.norm());
+        let rotation = pose_bias.rotation_per_axis_deg();
+        let translation = pose_bias.translation_mm;
+        outcome.bias = Some(FirstOrderBias {
+            max_displacement_px: displacements.clone().fold(0.0, f64::max),
+            rms_displacement_px: (displacements.map(|d| d * d).sum::<f64>()
+                / image_bias.len() as f64)
+                .sqrt(),
+            pose: PoseErrorVector {
+                rotation_deg: [rotation.x, rotation.y, rotation.z],
+                translation_mm: [translation.x, translation.y, translation.z],
+            },
+        });
+        outcome.first_order = covariance.map(|c| {
+            let per_axis = c.rms_rotation_per_axis_deg();
+            FirstOrderPrediction {
+                rms_rotation_deg: c.rms_rotation_deg(),
+                rms_rotation_per_axis_deg: [per_axis.x, per_axis.y, per_axis.z],
+                rms_translation_mm: c.rms_translation_mm(),
+                rms_translation_percent: c.rms_translation_percent(),
+                bias_rotation_deg: pose_bias.rotation_deg(),
+                bias_translation_mm: pose_bias.translation_norm_mm(),
+            }
+        });
+    }
     if sigmas.iter().all(|&s| s > 0.0) {
-        outcome.first_order = pose_covariance(camera, &truth, target.object, &sigmas)
-            .ok()
-            .map(|c| {
-                let per_axis = c.rms_rotation_per_axis_deg();
-                FirstOrderPrediction {
-                    rms_rotation_deg: c.rms_rotation_deg(),
-                    rms_rotation_per_axis_deg: [per_axis.x, per_axis.y, per_axis.z],
-                    rms_translation_mm: c.rms_translation_mm(),
-                    rms_translation_percent: c.rms_translation_percent(),
-                }
-            });
         outcome.transfer = Some(transfer::predict(
             camera,
             &truth,
@@ -341,13 +476,6 @@ fn run_scenario(
         outcome.qu_hou_rotation_deg = Some(model.rms_rotation_deg(mean_sigma));
     }
 
-    let clean: Vec<Vector2<f64>> = images
-        .iter()
-        .map(|image| {
-            let image = image.expect("every feature is in front");
-            Vector2::new(image.centre_px[0], image.centre_px[1])
-        })
-        .collect();
     let trials = config.trials;
     let solver_count = config.solvers.len();
     let mut normalised = vec![Vector2::zeros(); clean.len()];
@@ -364,6 +492,20 @@ fn run_scenario(
     let mut solver_errors = vec![0usize; solver_count];
     let mut first_error: Vec<Option<String>> = vec![None; solver_count];
     let mut undistort_failures = 0usize;
+    // The systematic part: every solver once on the noise-free observations.
+    let mut systematic: Vec<Option<PoseErrorVector>> = vec![None; solver_count];
+    let clean_normalised: Result<Vec<Vector2<f64>>, _> = clean
+        .iter()
+        .map(|pixel| camera.pixel_to_normalised(pixel))
+        .collect();
+    if let Ok(clean_normalised) = clean_normalised {
+        for (slot, solver) in systematic.iter_mut().zip(&config.solvers) {
+            *slot = solver
+                .solve_best(target.object, &clean_normalised)
+                .ok()
+                .map(|pose| PoseErrorVector::between(&truth, &pose));
+        }
+    }
     for trial in 0..trials {
         if stop.load(Ordering::Relaxed) {
             break;
@@ -428,6 +570,7 @@ fn run_scenario(
                 gross_failures,
                 solver_errors: solver_errors[index] + undistort_failures,
                 first_error,
+                systematic: systematic[index],
             }
         })
         .collect();
@@ -590,8 +733,8 @@ pub fn pool<'a>(
         sum_tp2 += nf * result.translation_percent.rms.powi(2);
         first_order.add(
             result,
-            outcome.first_order.map(|f| f.rms_rotation_deg),
-            outcome.first_order.map(|f| f.rms_translation_mm),
+            outcome.first_order.map(|f| f.total_rms_rotation_deg()),
+            outcome.first_order.map(|f| f.total_rms_translation_mm()),
         );
         transfer.add(
             result,
@@ -653,6 +796,7 @@ mod tests {
             solvers: vec![Solver::Ml, Solver::ParallelWeighted],
             noise: NoiseModel::default(),
             gross_threshold_deg: DEFAULT_GROSS_THRESHOLD_DEG,
+            observation: Observation::Centre,
         };
         let outcomes = run(&target, &grid.scenarios(), &config, &|_| {}).unwrap();
         let ml = pool(&outcomes, 0).unwrap();
@@ -678,6 +822,7 @@ mod tests {
             solvers: vec![Solver::Ml],
             noise: NoiseModel::default(),
             gross_threshold_deg: 10.0,
+            observation: Observation::default(),
         };
         assert!(matches!(
             run(&target, &[], &config, &|_| {}),

@@ -14,7 +14,8 @@
 use crate::camera::Camera;
 use crate::layout::{Layout, LayoutError};
 use crate::montecarlo::{
-    self, median, MonteCarloConfig, MonteCarloError, Pooled, ScenarioOutcome, Target,
+    self, median, MonteCarloConfig, MonteCarloError, Pooled, PoseErrorVector, ScenarioOutcome,
+    Target,
 };
 use crate::pnp::parallel::reference_index;
 use crate::report::{plots, significant, write_text, ReportError, Table};
@@ -64,6 +65,8 @@ pub struct Header {
     pub layout: String,
     /// Sphere diameter, mm.
     pub sphere_diameter_mm: f64,
+    /// What a sphere's image point is (`centre` or `ellipse-centre`).
+    pub observation: String,
     /// The feature used as paraperspective reference (and as the transfer
     /// model's segment origin).
     pub reference_point: String,
@@ -143,6 +146,74 @@ pub struct Summary {
     pub solvers: Vec<SolverRow>,
     /// Curves along every axis with more than one value.
     pub curves: Vec<Curve>,
+    /// The systematic part of the error beside the random part, per axis.
+    pub systematic: Systematic,
+}
+
+/// RMS over scenarios of a signed per-axis error, with the RMS and largest
+/// of its norm.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+pub struct AxisErrors {
+    /// Scenarios pooled.
+    pub scenarios: usize,
+    /// RMS rotation about camera x, y, z, degrees.
+    pub rms_rotation_per_axis_deg: [f64; 3],
+    /// RMS geodesic rotation, degrees.
+    pub rms_rotation_deg: f64,
+    /// Largest geodesic rotation, degrees.
+    pub max_rotation_deg: f64,
+    /// RMS translation along camera x, y, z, mm (None for the random part,
+    /// whose first-order model reports the total only).
+    pub rms_translation_per_axis_mm: Option<[f64; 3]>,
+    /// RMS translation, mm.
+    pub rms_translation_mm: f64,
+    /// Largest translation, mm.
+    pub max_translation_mm: f64,
+}
+
+impl AxisErrors {
+    fn of(errors: &[PoseErrorVector]) -> Self {
+        if errors.is_empty() {
+            return AxisErrors::default();
+        }
+        let n = errors.len() as f64;
+        let rms = |f: &dyn Fn(&PoseErrorVector) -> f64| {
+            (errors.iter().map(|e| f(e).powi(2)).sum::<f64>() / n).sqrt()
+        };
+        let max = |f: &dyn Fn(&PoseErrorVector) -> f64| errors.iter().map(f).fold(0.0, f64::max);
+        AxisErrors {
+            scenarios: errors.len(),
+            rms_rotation_per_axis_deg: std::array::from_fn(|k| rms(&|e| e.rotation_deg[k])),
+            rms_rotation_deg: rms(&|e| e.rotation_norm_deg()),
+            max_rotation_deg: max(&|e| e.rotation_norm_deg()),
+            rms_translation_per_axis_mm: Some(std::array::from_fn(|k| {
+                rms(&|e| e.translation_mm[k])
+            })),
+            rms_translation_mm: rms(&|e| e.translation_norm_mm()),
+            max_translation_mm: max(&|e| e.translation_norm_mm()),
+        }
+    }
+}
+
+/// The bias with zero noise beside the random part, over the visible
+/// scenarios.
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct Systematic {
+    /// Scenarios with an image bias computed.
+    pub scenarios: usize,
+    /// Largest image displacement (observation − projected centre) of any
+    /// sphere in any scenario, px.
+    pub max_displacement_px: f64,
+    /// Median over scenarios of the largest displacement in each, px.
+    pub median_displacement_px: f64,
+    /// The first-order random part: RMS over scenarios of the per-axis
+    /// Cramér–Rao standard deviations.
+    pub first_order_random: AxisErrors,
+    /// The first-order bias, `(JᵀWJ)⁻¹JᵀW b`, over the same scenarios.
+    pub first_order_bias: AxisErrors,
+    /// Per solver (in the order of the run): the pose error on the
+    /// noise-free observations.
+    pub solvers: Vec<(String, AxisErrors)>,
 }
 
 /// A finished validation: the summary and every scenario's outcome.
@@ -212,6 +283,7 @@ pub fn run_until(
         camera: *camera,
         layout: layout.name.clone(),
         sphere_diameter_mm: layout.sphere_diameter_mm,
+        observation: config.observation.name().to_string(),
         reference_point: layout.points[reference_index(&object)].name.clone(),
         grid: grid.clone(),
     };
@@ -220,8 +292,72 @@ pub fn run_until(
         visibility: visibility_counts(layout, &outcomes),
         solvers: solver_rows(&outcomes, config.solvers.len()),
         curves: curves(grid, &outcomes, config),
+        systematic: systematic(&outcomes, config),
     };
     Ok(Analysis { summary, outcomes })
+}
+
+fn systematic(outcomes: &[ScenarioOutcome], config: &MonteCarloConfig) -> Systematic {
+    let visible_outcomes: Vec<&ScenarioOutcome> = outcomes.iter().filter(|o| visible(o)).collect();
+    let biased: Vec<&ScenarioOutcome> = visible_outcomes
+        .iter()
+        .copied()
+        .filter(|o| o.bias.is_some())
+        .collect();
+    let mut displacements: Vec<f64> = biased
+        .iter()
+        .filter_map(|o| o.bias.map(|b| b.max_displacement_px))
+        .collect();
+    let max_displacement_px = displacements.iter().copied().fold(0.0, f64::max);
+    let median_displacement_px = median(&mut displacements).unwrap_or(0.0);
+    let bias: Vec<PoseErrorVector> = biased
+        .iter()
+        .filter_map(|o| o.bias.map(|b| b.pose))
+        .collect();
+    let random: Vec<[f64; 4]> = visible_outcomes
+        .iter()
+        .filter_map(|o| {
+            let f = o.first_order?;
+            let [x, y, z] = f.rms_rotation_per_axis_deg;
+            Some([x, y, z, f.rms_translation_mm])
+        })
+        .collect();
+    let first_order_random = if random.is_empty() {
+        AxisErrors::default()
+    } else {
+        let n = random.len() as f64;
+        let rms = |k: usize| (random.iter().map(|r| r[k] * r[k]).sum::<f64>() / n).sqrt();
+        let norm = |r: &[f64; 4]| (r[0] * r[0] + r[1] * r[1] + r[2] * r[2]).sqrt();
+        AxisErrors {
+            scenarios: random.len(),
+            rms_rotation_per_axis_deg: [rms(0), rms(1), rms(2)],
+            rms_rotation_deg: (random.iter().map(|r| norm(r).powi(2)).sum::<f64>() / n).sqrt(),
+            max_rotation_deg: random.iter().map(norm).fold(0.0, f64::max),
+            rms_translation_per_axis_mm: None,
+            rms_translation_mm: rms(3),
+            max_translation_mm: random.iter().map(|r| r[3]).fold(0.0, f64::max),
+        }
+    };
+    let solvers = config
+        .solvers
+        .iter()
+        .enumerate()
+        .map(|(index, solver)| {
+            let errors: Vec<PoseErrorVector> = visible_outcomes
+                .iter()
+                .filter_map(|o| o.solvers.get(index)?.systematic)
+                .collect();
+            (solver.name().to_string(), AxisErrors::of(&errors))
+        })
+        .collect();
+    Systematic {
+        scenarios: biased.len(),
+        max_displacement_px,
+        median_displacement_px,
+        first_order_random,
+        first_order_bias: AxisErrors::of(&bias),
+        solvers,
+    }
 }
 
 fn visible(outcome: &ScenarioOutcome) -> bool {
@@ -672,6 +808,11 @@ fn markdown(summary: &Summary) -> String {
     let _ = writeln!(out, "| spheres | {} mm |", h.sphere_diameter_mm);
     let _ = writeln!(
         out,
+        "| observation | {} (noise added on top) |",
+        h.observation
+    );
+    let _ = writeln!(
+        out,
         "| reference feature (paraperspective P0, transfer-model segment origin) | {} |",
         h.reference_point
     );
@@ -777,6 +918,8 @@ fn markdown(summary: &Summary) -> String {
         "\n![predicted vs measured](predicted_vs_measured.svg)\n"
     );
 
+    out.push_str(&systematic_markdown(&summary.systematic, &h.observation));
+
     if !summary.curves.is_empty() {
         let _ = writeln!(out, "## Error along each axis\n");
         let _ = writeln!(out, "Each point pools the visible scenarios at that value; dashed lines are the model predictions. CSV beside each plot.\n");
@@ -789,6 +932,52 @@ fn markdown(summary: &Summary) -> String {
         }
     }
     let _ = writeln!(out, "## Marker\n\n![three views](marker_views.svg)\n");
+    out
+}
+
+fn systematic_markdown(s: &Systematic, observation: &str) -> String {
+    let mut out = String::new();
+    let _ = writeln!(
+        out,
+        "\n## Systematic and random error (visible scenarios)\n"
+    );
+    let _ = writeln!(
+        out,
+        "Observation `{observation}`: the image point of each sphere is displaced from its projected centre by up to **{} px** (median over scenarios of the largest displacement {} px, {} scenarios). The systematic part is the pose error with zero noise; unlike the random part it does not average out over frames. Rotation about camera x, y, z (pitch, yaw, roll); RMS over scenarios.\n",
+        significant(Some(s.max_displacement_px), 3),
+        significant(Some(s.median_displacement_px), 3),
+        s.scenarios
+    );
+    let mut table = Table::new([
+        "part",
+        "rot x (°)",
+        "rot y (°)",
+        "rot z (°)",
+        "rot (°)",
+        "max rot (°)",
+        "trans (mm)",
+        "max trans (mm)",
+    ]);
+    let mut row = |name: String, e: &AxisErrors| {
+        let [x, y, z] = e.rms_rotation_per_axis_deg;
+        table.row([
+            name,
+            significant(Some(x), 3),
+            significant(Some(y), 3),
+            significant(Some(z), 3),
+            significant(Some(e.rms_rotation_deg), 3),
+            significant(Some(e.max_rotation_deg), 3),
+            significant(Some(e.rms_translation_mm), 3),
+            significant(Some(e.max_translation_mm), 3),
+        ]);
+    };
+    row("random, first-order (1σ)".into(), &s.first_order_random);
+    row("systematic, first-order bias".into(), &s.first_order_bias);
+    for (solver, errors) in &s.solvers {
+        row(format!("systematic, `{solver}` at zero noise"), errors);
+    }
+    out.push_str(&table.markdown());
+    out.push('\n');
     out
 }
 
@@ -927,6 +1116,7 @@ pub mod pipeline {
                     solvers: vec![Solver::ParallelWeighted],
                     noise: Default::default(),
                     gross_threshold_deg: crate::montecarlo::DEFAULT_GROSS_THRESHOLD_DEG,
+                    observation: Default::default(),
                 },
                 command: "test".into(),
                 grid_note: None,

@@ -14,6 +14,7 @@ use layout_opt::pnp::Solver;
 use layout_opt::search::optimise::{Optimiser, SearchSettings};
 use layout_opt::search::pipeline::{self, MeshExport, SearchConfig};
 use layout_opt::search::{Aggregate, Objective, ObjectiveSettings};
+use layout_opt::sphere_image::Observation;
 use std::path::PathBuf;
 
 /// Layout families.
@@ -81,6 +82,11 @@ pub struct SearchArgs {
     /// Noise model: isotropic, per-point, size[:REF_PX], optionally +outliers:RATE[:PX].
     #[arg(long, default_value = "isotropic")]
     noise_model: NoiseModel,
+    /// Image point of a sphere: `ellipse-centre` (its silhouette's centre,
+    /// what a blob detector measures; the crlb term then carries the pose
+    /// bias) or `centre` (its projected centre). Noise is added on top.
+    #[arg(long, default_value = "ellipse-centre")]
+    observation: Observation,
     /// Optimiser: nelder-mead, pso or annealing (the last two are followed by
     /// a Nelder–Mead polish).
     #[arg(long, default_value = "nelder-mead")]
@@ -224,6 +230,7 @@ fn config(args: SearchArgs, global: &GlobalOptions) -> anyhow::Result<SearchConf
             trials: args.trials,
             seed: global.seed,
             noise: args.noise_model,
+            observation: args.observation,
         },
         search: SearchSettings {
             optimiser: args.optimiser,

@@ -23,6 +23,12 @@ pub struct SolveArgs {
     /// List the solvers and exit.
     #[arg(long)]
     list: bool,
+    /// Sphere diameter, mm: the image points are the centres of the spheres'
+    /// silhouette ellipses (what a blob detector measures), and `ml` fits the
+    /// exact sphere-image model. A problem's own "sphere_diameter" wins.
+    /// Only `ml` accepts it; other solvers give each such problem an error.
+    #[arg(long, value_name = "MM")]
+    sphere_diameter: Option<f64>,
 }
 
 /// Noise of the built-in demo batch, px.
@@ -49,9 +55,22 @@ pub fn run(args: SolveArgs, global: &GlobalOptions) -> anyhow::Result<()> {
             ),
         ),
     };
+    if let Some(diameter) = args.sphere_diameter {
+        anyhow::ensure!(
+            diameter > 0.0 && diameter.is_finite(),
+            "--sphere-diameter must be a positive number of mm, got {diameter}"
+        );
+        anyhow::ensure!(
+            args.solver == Solver::Ml,
+            "--sphere-diameter needs --solver ml (the solver that fits the sphere-image model); {} fits projected centres",
+            args.solver
+        );
+    }
     let batch = Batch::from_json(&text).with_context(|| format!("in {source}"))?;
     let bar = progress::bar(batch.problems.len() as u64, "solving", global.quiet);
-    let output = batch.solve(args.solver, |done| bar.set_position(done as u64));
+    let output = batch.solve_with_spheres(args.solver, args.sphere_diameter, |done| {
+        bar.set_position(done as u64)
+    });
     bar.finish_and_clear();
     let json = serde_json::to_string_pretty(&output)?;
 

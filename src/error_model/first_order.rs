@@ -125,6 +125,87 @@ pub fn pose_covariance(
     })
 }
 
+/// The first-order systematic pose error caused by a fixed image bias `b`
+/// (for example the ellipse-centre displacement of spheres, see
+/// [`crate::sphere_image`]) in an estimator that fits the point model:
+/// `δ = (Jᵀ W J)⁻¹ Jᵀ W b`, the same Jacobian and weights as the covariance.
+/// `δ = (ω, δt)` in the perturbation of [`crate::pose::perturb`]: the
+/// estimate is `exp([ω]×) R`, `t + δt`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PoseBias {
+    /// Rotation bias about the camera axes x, y, z, radians.
+    pub rotation_rad: Vector3<f64>,
+    /// Translation bias along the camera axes, mm.
+    pub translation_mm: Vector3<f64>,
+}
+
+impl PoseBias {
+    /// Rotation bias per camera axis (x pitch, y yaw, z roll), signed degrees.
+    pub fn rotation_per_axis_deg(&self) -> Vector3<f64> {
+        self.rotation_rad.map(f64::to_degrees)
+    }
+
+    /// Geodesic rotation bias, degrees (to first order `|ω|`).
+    pub fn rotation_deg(&self) -> f64 {
+        self.rotation_rad.norm().to_degrees()
+    }
+
+    /// Translation bias, mm.
+    pub fn translation_norm_mm(&self) -> f64 {
+        self.translation_mm.norm()
+    }
+}
+
+/// [`pose_covariance`] and the [`PoseBias`] of the image bias
+/// `image_bias_px[i]` (raw pixels) in one pass over the points. With every
+/// σ zero (a noise-free scenario) the bias is computed with equal weights
+/// and the covariance is `None`.
+pub fn pose_covariance_and_bias(
+    camera: &Camera,
+    pose: &Pose,
+    object: &[Vector3<f64>],
+    sigma_px: &[f64],
+    image_bias_px: &[Vector2<f64>],
+) -> Result<(Option<PoseCovariance>, PoseBias), FirstOrderError> {
+    if sigma_px.len() != object.len() || image_bias_px.len() != object.len() {
+        return Err(FirstOrderError::MismatchedLengths {
+            points: object.len(),
+            sigmas: sigma_px.len().min(image_bias_px.len()),
+        });
+    }
+    let noise_free = sigma_px.iter().all(|&s| s == 0.0);
+    let mut information = SMatrix::<f64, 6, 6>::zeros();
+    let mut projected_bias = SMatrix::<f64, 6, 1>::zeros();
+    for (index, ((p, &sigma), bias)) in object.iter().zip(sigma_px).zip(image_bias_px).enumerate() {
+        // Divided (not multiplied by the reciprocal) so that the covariance
+        // is bit-identical to `pose_covariance`'s.
+        let variance = if noise_free {
+            1.0
+        } else if sigma > 0.0 && sigma.is_finite() {
+            sigma * sigma
+        } else {
+            return Err(FirstOrderError::BadSigma(sigma));
+        };
+        if pose.transform(p).z <= 0.0 {
+            return Err(FirstOrderError::BehindCamera(index));
+        }
+        let jacobian = pixel_jacobian(camera, pose, p);
+        information += jacobian.transpose() * jacobian / variance;
+        projected_bias += jacobian.transpose() * bias / variance;
+    }
+    let cholesky = information.cholesky().ok_or(FirstOrderError::Singular)?;
+    let delta = cholesky.solve(&projected_bias);
+    let bias = PoseBias {
+        rotation_rad: delta.fixed_rows::<3>(0).into_owned(),
+        translation_mm: delta.fixed_rows::<3>(3).into_owned(),
+    };
+    let covariance = (!noise_free).then(|| PoseCovariance {
+        covariance: cholesky.inverse(),
+        translation_norm_mm: pose.translation.norm(),
+    });
+    Ok((covariance, bias))
+}
+
 /// [`pose_covariance`] with the same σ for every point.
 pub fn pose_covariance_isotropic(
     camera: &Camera,
@@ -184,6 +265,60 @@ mod tests {
                 max_relative = 1e-6
             );
         }
+    }
+
+    /// The first-order bias is the Gauss–Newton step that the point model
+    /// takes from the truth on biased pixels: checked against LM on
+    /// pixels biased by a tiny fixed offset (where second-order terms are
+    /// negligible), and zero without bias.
+    #[test]
+    fn bias_matches_the_refined_pose_on_slightly_biased_pixels() {
+        // fx = fy, so that ML's normalised-plane fit is the pixel fit.
+        let camera = Camera::new(1300.0, 1300.0, 653.0, 508.0, 1280, 720, [0.0; 5]).unwrap();
+        let pose = Pose::new(
+            Rotation3::from_euler_angles(0.3, -0.2, 0.1),
+            Vector3::new(40.0, -20.0, 400.0),
+        );
+        let object = crate::synthetic::biprism_points(50.0);
+        let bias: Vec<Vector2<f64>> = (0..object.len())
+            .map(|i| Vector2::new(1e-3 * (i as f64 - 3.0), 5e-4 * (i % 3) as f64))
+            .collect();
+        let (covariance, predicted) =
+            pose_covariance_and_bias(&camera, &pose, &object, &[0.5; 7], &bias).unwrap();
+        let reference = pose_covariance(&camera, &pose, &object, &[0.5; 7]).unwrap();
+        assert_relative_eq!(
+            covariance.unwrap().covariance,
+            reference.covariance,
+            max_relative = 1e-10
+        );
+        let image: Vec<Vector2<f64>> = object
+            .iter()
+            .zip(&bias)
+            .map(|(p, b)| {
+                let pixel = camera.project(&pose.transform(p)).unwrap() + b;
+                camera.pixel_to_normalised(&pixel).unwrap()
+            })
+            .collect();
+        let refined = crate::pnp::ml::refine(&pose, &object, &image);
+        let omega = (refined.rotation * pose.rotation.inverse()).scaled_axis();
+        let dt = refined.translation - pose.translation;
+        assert_relative_eq!(
+            omega,
+            predicted.rotation_rad,
+            max_relative = 2e-3,
+            epsilon = 1e-12
+        );
+        assert_relative_eq!(
+            dt,
+            predicted.translation_mm,
+            max_relative = 2e-3,
+            epsilon = 1e-9
+        );
+        let (none, zero) =
+            pose_covariance_and_bias(&camera, &pose, &object, &[0.0; 7], &[Vector2::zeros(); 7])
+                .unwrap();
+        assert!(none.is_none());
+        assert_eq!(zero.rotation_deg(), 0.0);
     }
 
     #[test]

@@ -49,6 +49,7 @@ pub mod gauss_newton;
 pub mod iepnp;
 pub mod lhm;
 pub mod ml;
+pub mod ml_sphere;
 pub mod opnp;
 pub mod parallel;
 pub mod polynomial;

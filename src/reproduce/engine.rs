@@ -341,6 +341,9 @@ pub(crate) fn run_scenarios(
         solvers: context.solvers.clone(),
         noise: NoiseModel::default(),
         gross_threshold_deg: GROSS_ERROR_DEG,
+        // The paper simulates point features: its protocol observes the
+        // projected sphere centres.
+        observation: crate::sphere_image::Observation::Centre,
     };
     montecarlo::run(&target, scenarios, &config, &|_| {
         context.progress.advance(trials)

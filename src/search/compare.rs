@@ -12,7 +12,6 @@ use crate::montecarlo::{
 };
 use crate::noise::NoiseModel;
 use crate::pnp::Solver;
-use crate::scenario::Scenario;
 use nalgebra::Vector3;
 use serde::Serialize;
 use std::sync::atomic::AtomicBool;
@@ -153,34 +152,6 @@ pub fn hand_designs(envelope: &Envelope, sphere_diameter_mm: f64) -> Vec<Layout>
     ]
 }
 
-/// Per-scenario Monte-Carlo outcomes of `layout` with `solver`.
-pub fn monte_carlo_outcomes(
-    camera: &Camera,
-    layout: &Layout,
-    scenarios: &[Scenario],
-    solver: Solver,
-    trials: usize,
-    seed: u64,
-    noise: NoiseModel,
-) -> Result<Vec<ScenarioOutcome>, MonteCarloError> {
-    let object = layout.positions();
-    let sigmas = layout.point_sigmas();
-    let target = Target {
-        camera,
-        object: &object,
-        sphere_diameter_mm: layout.sphere_diameter_mm,
-        point_sigma_px: &sigmas,
-    };
-    let config = MonteCarloConfig {
-        trials,
-        seed,
-        solvers: vec![solver],
-        noise,
-        gross_threshold_deg: DEFAULT_GROSS_THRESHOLD_DEG,
-    };
-    montecarlo::run(&target, scenarios, &config, &|_| {})
-}
-
 /// What a comparison reports while it runs, and how it is stopped.
 pub struct CompareProgress<'a> {
     /// Called (from worker threads) after each scenario of each design and
@@ -252,6 +223,7 @@ pub fn compare(
                         solvers: vec![solver],
                         noise,
                         gross_threshold_deg: DEFAULT_GROSS_THRESHOLD_DEG,
+                        observation: evaluator.settings().observation,
                     };
                     montecarlo::run_until(
                         &target,

@@ -38,7 +38,7 @@ pub mod pipeline;
 pub mod report;
 
 use crate::camera::Camera;
-use crate::error_model::first_order::pose_covariance;
+use crate::error_model::first_order::{pose_covariance, pose_covariance_and_bias};
 use crate::error_model::transfer;
 use crate::family::{Constraints, Violations};
 use crate::montecarlo::{
@@ -47,6 +47,7 @@ use crate::montecarlo::{
 use crate::noise::NoiseModel;
 use crate::pnp::{parallel::reference_index, Solver};
 use crate::scenario::{sphere_images, visibility, visibility_margin_px, Scenario};
+use crate::sphere_image::{ellipse_centre_bias_px_into, Observation};
 use nalgebra::Vector3;
 use serde::Serialize;
 use std::str::FromStr;
@@ -214,6 +215,9 @@ pub struct ObjectiveSettings {
     pub seed: u64,
     /// Pixel noise model.
     pub noise: NoiseModel,
+    /// What a sphere's image point is; with ellipse centres the `crlb` term
+    /// carries the first-order pose bias, `√(rms² + bias²)`.
+    pub observation: Observation,
 }
 
 /// One term's raw aggregates.
@@ -371,6 +375,7 @@ impl Evaluator {
             .any(|(t, _)| matches!(t, Term::Crlb | Term::Transfer));
         let reference = reference_index(points);
         let mut in_front_flags = Vec::with_capacity(self.scenarios.len());
+        let mut image_bias = Vec::with_capacity(points.len());
         for scenario in &self.scenarios {
             let pose = scenario.pose();
             let images = sphere_images(
@@ -407,12 +412,39 @@ impl Evaluator {
             for ((term, _), (rotation, translation)) in terms.iter().zip(values.per_term.iter_mut())
             {
                 match term {
-                    Term::Crlb => {
-                        if let Ok(c) = pose_covariance(&self.camera, &pose, points, &sigmas) {
-                            rotation.push(c.rms_rotation_deg());
-                            translation.push(c.rms_translation_mm());
+                    Term::Crlb => match self.settings.observation {
+                        Observation::Centre => {
+                            if let Ok(c) = pose_covariance(&self.camera, &pose, points, &sigmas) {
+                                rotation.push(c.rms_rotation_deg());
+                                translation.push(c.rms_translation_mm());
+                            }
                         }
-                    }
+                        Observation::EllipseCentre => {
+                            let radius_mm = 0.5 * self.constraints.sphere_diameter_mm;
+                            if ellipse_centre_bias_px_into(
+                                &self.camera,
+                                &pose,
+                                points,
+                                radius_mm,
+                                &mut image_bias,
+                            )
+                            .is_err()
+                            {
+                                continue;
+                            }
+                            if let Ok((Some(c), bias)) = pose_covariance_and_bias(
+                                &self.camera,
+                                &pose,
+                                points,
+                                &sigmas,
+                                &image_bias,
+                            ) {
+                                rotation.push(c.rms_rotation_deg().hypot(bias.rotation_deg()));
+                                translation
+                                    .push(c.rms_translation_mm().hypot(bias.translation_norm_mm()));
+                            }
+                        }
+                    },
                     Term::Transfer => {
                         let p = transfer::predict(&self.camera, &pose, points, reference, &sigmas);
                         if let (Some(r), Some(t)) = (p.rms_rotation_deg, p.rms_translation_mm) {
@@ -447,6 +479,7 @@ impl Evaluator {
                 solvers: vec![*solver],
                 noise: self.settings.noise,
                 gross_threshold_deg: DEFAULT_GROSS_THRESHOLD_DEG,
+                observation: self.settings.observation,
             };
             if let Ok(outcomes) = montecarlo::run(&target, &in_front, &config, &|_| {}) {
                 for outcome in outcomes {
@@ -547,6 +580,7 @@ mod tests {
                 trials: 20,
                 seed: 1,
                 noise: NoiseModel::default(),
+                observation: Observation::default(),
             },
             Constraints {
                 envelope: Envelope::new([100.0; 3]).unwrap(),

@@ -896,6 +896,7 @@ mod tests {
                 trials: 10,
                 seed: 1,
                 noise: NoiseModel::default(),
+                observation: crate::sphere_image::Observation::default(),
             },
             Constraints {
                 envelope,

@@ -146,6 +146,7 @@ impl SearchConfig {
                 trials: 20,
                 seed,
                 noise: NoiseModel::default(),
+                observation: crate::sphere_image::Observation::default(),
             },
             search: SearchSettings {
                 optimiser: Optimiser::NelderMead,
@@ -892,6 +893,7 @@ pub fn run(
         solvers: config.validate_solvers.clone(),
         noise: config.objective.noise,
         gross_threshold_deg: DEFAULT_GROSS_THRESHOLD_DEG,
+        observation: config.objective.observation,
     };
     let scenarios_done = AtomicU64::new(0);
     let validation = watch(

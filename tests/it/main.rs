@@ -16,6 +16,7 @@ mod export;
 mod noise_free;
 mod noisy;
 mod plots;
+mod sphere_image;
 mod sqpnp_crosscheck;
 
 #[cfg(feature = "cli")]
@@ -28,5 +29,7 @@ mod reproduce;
 mod search;
 #[cfg(feature = "cli")]
 mod search_runs;
+#[cfg(feature = "cli")]
+mod sphere_cli;
 #[cfg(feature = "cli")]
 mod validate;
