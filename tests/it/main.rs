@@ -18,6 +18,8 @@ mod noisy;
 mod sqpnp_crosscheck;
 
 #[cfg(feature = "cli")]
+mod cli_consistency;
+#[cfg(feature = "cli")]
 mod cli_solve;
 #[cfg(feature = "cli")]
 mod export_cli;
