@@ -186,14 +186,22 @@ pub fn run(args: ValidateArgs, global: &GlobalOptions) -> anyhow::Result<()> {
     }
     if let Some(first) = summary.solvers.first() {
         let (f, t) = (&first.pooled.first_order, &first.pooled.transfer);
-        let show = |v: Option<f64>| v.map_or("—".into(), |v| format!("{v:.4}"));
+        let show = |v: Option<f64>, unit: &str| {
+            v.filter(|v| v.is_finite())
+                .map_or("not measurable".into(), |v| format!("{v:.4}{unit}"))
+        };
         println!(
-            "first-order limit: {}° / {} mm over {} scenarios; transfer model: {}° over {} scenarios",
-            show(f.predicted_rms_rotation_deg),
-            show(f.predicted_rms_translation_mm),
+            "first-order limit: {} / {} over {} scenarios; transfer model: {} over {} scenarios{}",
+            show(f.predicted_rms_rotation_deg, "°"),
+            show(f.predicted_rms_translation_mm, " mm"),
             f.scenarios,
-            show(t.predicted_rms_rotation_deg),
-            t.scenarios
+            show(t.predicted_rms_rotation_deg, "°"),
+            t.scenarios,
+            if summary.header.grid.sigma_px.values.contains(&0.0) {
+                " (the models predict nothing at σ = 0)"
+            } else {
+                ""
+            }
         );
     }
     println!(
