@@ -247,3 +247,46 @@ fn reproduce_subsets_never_write_into_reports_paper() {
         .is_file());
     assert!(!checkout.path().join("reports/paper").exists());
 }
+
+#[test]
+fn a_search_with_nothing_visible_says_not_measurable_never_nan() {
+    // 60 mm spheres on a 100 mm envelope always hide one another.
+    let dir = tempfile::tempdir().unwrap();
+    let assert = layout_opt()
+        .args([
+            "search",
+            "--quiet",
+            "--sphere-diameter",
+            "60",
+            "--starts",
+            "2",
+            "--iterations",
+            "150",
+            "--depth",
+            "400,800",
+            "--tilt",
+            "0,30",
+            "--offset-x",
+            "0",
+            "--compare-trials",
+            "5",
+            "--validate-solvers",
+            "parallel",
+            "--checkpoint-dir",
+        ])
+        .arg(dir.path().join("checkpoints"))
+        .arg("--out")
+        .arg(dir.path().join("x.json"))
+        .assert()
+        .success();
+    let stdout = String::from_utf8(assert.get_output().stdout.clone()).unwrap();
+    assert!(!stdout.contains("NaN"), "{stdout}");
+    assert!(stdout.contains("RMS rotation not measurable"), "{stdout}");
+    assert!(
+        stdout.contains("no scenario of the grid shows every sphere"),
+        "{stdout}"
+    );
+    let report = std::fs::read_to_string(dir.path().join("x-report/report.md")).unwrap();
+    assert!(!report.contains("NaN"));
+    assert!(report.contains("not measurable"), "{report}");
+}
