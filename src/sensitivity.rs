@@ -1035,6 +1035,51 @@ fn markdown(summary: &Summary) -> String {
     out
 }
 
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn each_scenario_takes_the_first_rule_it_breaks() {
+        let with = |behind: Vec<usize>, outside: Vec<usize>, occluded: Vec<(usize, usize)>| {
+            VisibilityClass::of(&Visibility {
+                behind,
+                outside,
+                occluded,
+            })
+        };
+        assert_eq!(with(vec![], vec![], vec![]), VisibilityClass::Visible);
+        assert_eq!(
+            with(vec![], vec![], vec![(1, 2)]),
+            VisibilityClass::Occluded
+        );
+        assert_eq!(
+            with(vec![], vec![3], vec![(1, 2)]),
+            VisibilityClass::OutsideImage
+        );
+        assert_eq!(
+            with(vec![0], vec![3], vec![(1, 2)]),
+            VisibilityClass::BehindCamera
+        );
+        assert_eq!(with(vec![0], vec![], vec![]), VisibilityClass::BehindCamera);
+    }
+
+    #[test]
+    fn axis_table_merges_runs_of_equal_counts() {
+        let axis = AxisVisibility {
+            axis: "tilt".into(),
+            unit: "deg".into(),
+            values: vec![-20.0, -10.0, 0.0, 10.0],
+            counts: vec![[3, 0, 0, 0], [3, 0, 0, 0], [1, 2, 0, 0], [3, 0, 0, 0]],
+        };
+        assert_eq!(
+            axis_visibility_table(&axis).markdown(),
+            "| tilt (deg) | visible | occluded | outside image | behind camera |\n|---|---|---|---|---|\n\
+| -20 … -10 | 3 | 0 | 0 | 0 |\n| 0 | 1 | 2 | 0 | 0 |\n| 10 | 3 | 0 | 0 | 0 |\n"
+        );
+    }
+}
+
 /// A validation as one call: the Monte-Carlo run, the report and `run.json`,
 /// into the directory the configuration names, with progress through an
 /// [`Observer`](crate::observer::Observer).
