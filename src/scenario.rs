@@ -38,6 +38,9 @@ use std::str::FromStr;
 pub const DEFAULT_STEP_COUNT: usize = 5;
 /// Largest number of values one range may expand to.
 pub const MAX_RANGE_VALUES: usize = 100_000;
+/// Largest tilt, pan or roll, degrees: angles are taken in −180…180° so
+/// that every attitude appears once.
+pub const MAX_ANGLE_DEG: f64 = 180.0;
 /// Margin (px) a sphere's image disc must keep from the image border.
 pub const VISIBILITY_MARGIN_PX: f64 = 5.0;
 
@@ -140,18 +143,19 @@ fn parse_range(text: &str) -> Result<Range, ScenarioError> {
                 if step <= 0.0 {
                     return Err(error(format!("the step must be positive, got {step}")));
                 }
-                if end < start {
+                // A descending range runs from A down to B, as `A..B`
+                // without a step does; the step is always a magnitude.
+                let direction = if end < start { -1.0 } else { 1.0 };
+                let count = ((end - start).abs() / step + 1e-9).floor();
+                if count >= MAX_RANGE_VALUES as f64 {
                     return Err(error(format!(
-                        "the range is empty: {end} is below {start} (write the lower bound first)"
+                        "{} values is more than {MAX_RANGE_VALUES}",
+                        count + 1.0
                     )));
                 }
-                let count = ((end - start) / step + 1e-9).floor() as usize + 1;
-                if count > MAX_RANGE_VALUES {
-                    return Err(error(format!(
-                        "{count} values is more than {MAX_RANGE_VALUES}"
-                    )));
-                }
-                (0..count).map(|k| start + step * k as f64).collect()
+                (0..count as usize + 1)
+                    .map(|k| start + direction * step * k as f64)
+                    .collect()
             }
         };
         return Ok(Range { values });
@@ -224,8 +228,9 @@ pub struct ScenarioGrid {
 }
 
 impl ScenarioGrid {
-    /// Builds a grid, checking every range is non-empty, depths are positive
-    /// and noise levels are non-negative.
+    /// Builds a grid, checking every range is non-empty, depths are positive,
+    /// angles lie within ±[`MAX_ANGLE_DEG`] and noise levels are
+    /// non-negative.
     pub fn new(
         depth_mm: Range,
         offset_x_mm: Range,
@@ -258,6 +263,19 @@ impl ScenarioGrid {
                 requirement: "positive (mm in front of the camera)",
                 value: depth,
             });
+        }
+        for (quantity, range) in [
+            ("tilt", &grid.tilt_deg),
+            ("pan", &grid.pan_deg),
+            ("roll", &grid.roll_deg),
+        ] {
+            if let Some(&angle) = range.values.iter().find(|a| a.abs() > MAX_ANGLE_DEG) {
+                return Err(ScenarioError::OutOfDomain {
+                    quantity,
+                    requirement: "within −180…180° (each attitude once)",
+                    value: angle,
+                });
+            }
         }
         if let Some(&sigma) = grid.sigma_px.values.iter().find(|&&s| s < 0.0) {
             return Err(ScenarioError::OutOfDomain {
@@ -528,8 +546,19 @@ mod tests {
             DEFAULT_STEP_COUNT
         );
         assert_eq!("0..1:0.3".parse::<Range>().unwrap().values.len(), 4);
-        let err = "10..0:1".parse::<Range>().unwrap_err();
-        assert!(err.to_string().contains("the range is empty"), "{err}");
+        // Descending ranges run from A down to B in both forms.
+        assert_eq!(
+            "1000..200:200".parse::<Range>().unwrap().values,
+            vec![1000.0, 800.0, 600.0, 400.0, 200.0]
+        );
+        assert_eq!(
+            "1000..200".parse::<Range>().unwrap().values,
+            vec![1000.0, 800.0, 600.0, 400.0, 200.0]
+        );
+        assert_eq!(
+            "10..0:4".parse::<Range>().unwrap().values,
+            vec![10.0, 6.0, 2.0]
+        );
         let err = "1..2:0".parse::<Range>().unwrap_err();
         assert!(err.to_string().contains("step must be positive"), "{err}");
         let err = "a..2".parse::<Range>().unwrap_err();
@@ -569,6 +598,30 @@ mod tests {
             err.to_string().contains("noise σ must be non-negative"),
             "{err}"
         );
+        let err = ScenarioGrid::new(
+            ok("100"),
+            ok("0"),
+            ok("0"),
+            ok("-200..200:10"),
+            ok("0"),
+            ok("0"),
+            ok("0.5"),
+        )
+        .unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "tilt must be within −180…180° (each attitude once), got -200"
+        );
+        assert!(ScenarioGrid::new(
+            ok("100"),
+            ok("0"),
+            ok("0"),
+            ok("-180..180:90"),
+            ok("180"),
+            ok("-180"),
+            ok("0.5"),
+        )
+        .is_ok());
     }
 
     #[test]

@@ -19,7 +19,7 @@ use crate::montecarlo::{
 };
 use crate::pnp::parallel::reference_index;
 use crate::report::{plots, significant, write_text, ReportError, Table};
-use crate::scenario::{Scenario, ScenarioGrid};
+use crate::scenario::{Scenario, ScenarioGrid, Visibility};
 use serde::Serialize;
 use std::fmt::Write as _;
 use std::path::Path;
@@ -74,23 +74,91 @@ pub struct Header {
     pub grid: ScenarioGrid,
 }
 
-/// Scenario counts by visibility.
+/// Why a scenario is not pooled, or that it is: one class per scenario, so
+/// the counts add up to the grid. A scenario that breaks several rules is
+/// counted under the first of behind the camera, outside the image,
+/// occluded (the most severe: a sphere behind the camera has no image at
+/// all, one outside the image is lost, an occluded one is seen but cannot
+/// be measured cleanly).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum VisibilityClass {
+    /// Every sphere in front, inside the image and unoccluded.
+    Visible,
+    /// Every sphere in front and inside the image, some disc overlapping a
+    /// nearer one.
+    Occluded,
+    /// Every sphere in front, some leaving the image.
+    OutsideImage,
+    /// Some sphere behind the camera (no trials run).
+    BehindCamera,
+}
+
+impl VisibilityClass {
+    /// The class of a scenario, by the precedence above.
+    pub fn of(visibility: &Visibility) -> Self {
+        if !visibility.behind.is_empty() {
+            Self::BehindCamera
+        } else if !visibility.outside.is_empty() {
+            Self::OutsideImage
+        } else if !visibility.occluded.is_empty() {
+            Self::Occluded
+        } else {
+            Self::Visible
+        }
+    }
+
+    /// The class in words, as in the CSV files.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Visible => "visible",
+            Self::Occluded => "occluded",
+            Self::OutsideImage => "outside-image",
+            Self::BehindCamera => "behind-camera",
+        }
+    }
+}
+
+/// Scenario counts by visibility: `visible + occluded + outside_image +
+/// behind_camera = scenarios`, each scenario counted once by the precedence
+/// of [`VisibilityClass`].
 #[derive(Debug, Clone, Serialize)]
 pub struct VisibilityCounts {
     /// Scenarios in the grid.
     pub scenarios: usize,
     /// Scenarios with every sphere visible (pooled in the statistics).
     pub visible: usize,
-    /// Scenarios in which some sphere's disc overlaps a nearer one.
+    /// Scenarios with every sphere in front and inside the image, in which
+    /// some sphere's disc overlaps a nearer one.
     pub occluded: usize,
-    /// Scenarios in which some sphere leaves the image.
+    /// Scenarios with every sphere in front, in which some sphere leaves the
+    /// image (whether or not another is occluded).
     pub outside_image: usize,
     /// Scenarios in which some sphere is behind the camera (no trials run).
     pub behind_camera: usize,
     /// Fraction of scenarios that are visible.
     pub availability: f64,
-    /// Up to a dozen occluded scenarios, described (which sphere hides which).
+    /// Scenarios with an occluded sphere, whatever their class (a superset
+    /// of `occluded`); every one is listed in `occlusions.csv`.
+    pub with_occlusion: usize,
+    /// The first dozen scenarios of class occluded (lost to occlusion
+    /// alone), described: which sphere hides which.
     pub occlusion_examples: Vec<String>,
+    /// The counts at each value of every axis with more than one value.
+    pub by_axis: Vec<AxisVisibility>,
+}
+
+/// Visibility counts at each value of one grid axis.
+#[derive(Debug, Clone, Serialize)]
+pub struct AxisVisibility {
+    /// Axis name (depth, offset-x, ...).
+    pub axis: String,
+    /// Axis unit.
+    pub unit: String,
+    /// The axis values.
+    pub values: Vec<f64>,
+    /// Per value: visible, occluded, outside the image, behind the camera.
+    pub counts: Vec<[usize; 4]>,
 }
 
 /// One solver pooled over the visible scenarios, with model agreement.
@@ -289,7 +357,7 @@ pub fn run_until(
     };
     let summary = Summary {
         header,
-        visibility: visibility_counts(layout, &outcomes),
+        visibility: visibility_counts(layout, grid, &outcomes),
         solvers: solver_rows(&outcomes, config.solvers.len()),
         curves: curves(grid, &outcomes, config),
         systematic: systematic(&outcomes, config),
@@ -360,6 +428,81 @@ fn systematic(outcomes: &[ScenarioOutcome], config: &MonteCarloConfig) -> System
     }
 }
 
+/// Scenarios of the timed calibration run behind [`estimate_seconds`].
+pub const CALIBRATION_SCENARIOS: usize = 8;
+/// Trials per scenario of that run.
+pub const CALIBRATION_TRIALS: usize = 4;
+/// Shortest calibration run that is trusted, seconds; a shorter one is
+/// repeated on more scenarios.
+pub const CALIBRATION_MIN_SECONDS: f64 = 0.05;
+
+/// A run-time estimate and where it came from.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RunEstimate {
+    /// Estimated wall-clock seconds of the full run.
+    pub seconds: f64,
+    /// Scenarios of the calibration run.
+    pub calibration_scenarios: usize,
+    /// Trials per scenario of the calibration run.
+    pub calibration_trials: usize,
+    /// Wall-clock seconds of the calibration run.
+    pub calibration_seconds: f64,
+}
+
+/// Estimates the wall-clock time of [`run`] from a short timed run of the
+/// same solvers on [`CALIBRATION_SCENARIOS`] scenarios spread evenly over
+/// the grid (so visible and hidden ones in their proportions) at
+/// [`CALIBRATION_TRIALS`] trials (four times the scenarios, again, while
+/// the run takes less than [`CALIBRATION_MIN_SECONDS`]), scaled linearly to
+/// the whole grid and trial count. The calibration uses its own noise streams' results only
+/// for timing; the run's results do not depend on it.
+pub fn estimate_seconds(
+    layout: &Layout,
+    camera: &Camera,
+    grid: &ScenarioGrid,
+    config: &MonteCarloConfig,
+) -> Result<RunEstimate, SensitivityError> {
+    layout.validate()?;
+    let object = layout.positions();
+    let sigmas = layout.point_sigmas();
+    let target = Target {
+        camera,
+        object: &object,
+        sphere_diameter_mm: layout.sphere_diameter_mm,
+        point_sigma_px: &sigmas,
+    };
+    let scenarios = grid.scenarios();
+    let trials = config.trials.min(CALIBRATION_TRIALS);
+    let calibration = MonteCarloConfig {
+        trials,
+        ..config.clone()
+    };
+    // Start the worker threads before timing anything.
+    rayon::broadcast(|_| ());
+    let mut wanted = CALIBRATION_SCENARIOS;
+    let (sample_len, calibration_seconds) = loop {
+        let stride = scenarios.len().div_ceil(wanted).max(1);
+        let sample: Vec<Scenario> = scenarios.iter().step_by(stride).copied().collect();
+        let started = std::time::Instant::now();
+        montecarlo::run(&target, &sample, &calibration, &|_| {})?;
+        let seconds = started.elapsed().as_secs_f64();
+        // A run too short to time well (fixed costs dominate) is repeated
+        // on four times the scenarios, up to the whole grid.
+        if seconds >= CALIBRATION_MIN_SECONDS || sample.len() >= scenarios.len() {
+            break (sample.len(), seconds);
+        }
+        wanted *= 4;
+    };
+    let scale =
+        (scenarios.len() as f64 / sample_len as f64) * (config.trials as f64 / trials as f64);
+    Ok(RunEstimate {
+        seconds: calibration_seconds * scale,
+        calibration_scenarios: sample_len,
+        calibration_trials: trials,
+        calibration_seconds,
+    })
+}
+
 fn visible(outcome: &ScenarioOutcome) -> bool {
     outcome.visibility.is_visible()
 }
@@ -371,37 +514,129 @@ fn describe_scenario(s: &Scenario) -> String {
     )
 }
 
-fn visibility_counts(layout: &Layout, outcomes: &[ScenarioOutcome]) -> VisibilityCounts {
-    let count = |f: &dyn Fn(&ScenarioOutcome) -> bool| outcomes.iter().filter(|o| f(o)).count();
-    let visible = count(&|o| visible(o));
-    let occlusion_examples = outcomes
+fn class_index(class: VisibilityClass) -> usize {
+    match class {
+        VisibilityClass::Visible => 0,
+        VisibilityClass::Occluded => 1,
+        VisibilityClass::OutsideImage => 2,
+        VisibilityClass::BehindCamera => 3,
+    }
+}
+
+fn count_classes<'a>(outcomes: impl Iterator<Item = &'a ScenarioOutcome>) -> [usize; 4] {
+    let mut counts = [0; 4];
+    for o in outcomes {
+        counts[class_index(VisibilityClass::of(&o.visibility))] += 1;
+    }
+    counts
+}
+
+fn occluded_pairs(layout: &Layout, outcome: &ScenarioOutcome) -> String {
+    outcome
+        .visibility
+        .occluded
+        .iter()
+        .map(|&(hidden, by)| {
+            format!(
+                "{} behind {}",
+                layout.points[hidden].name, layout.points[by].name
+            )
+        })
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+fn visibility_counts(
+    layout: &Layout,
+    grid: &ScenarioGrid,
+    outcomes: &[ScenarioOutcome],
+) -> VisibilityCounts {
+    let with_occlusion: Vec<&ScenarioOutcome> = outcomes
         .iter()
         .filter(|o| !o.visibility.occluded.is_empty())
+        .collect();
+    let occlusion_examples = with_occlusion
+        .iter()
+        .filter(|o| VisibilityClass::of(&o.visibility) == VisibilityClass::Occluded)
         .take(12)
         .map(|o| {
-            let pairs: Vec<String> = o
-                .visibility
-                .occluded
-                .iter()
-                .map(|&(hidden, by)| {
-                    format!(
-                        "{} behind {}",
-                        layout.points[hidden].name, layout.points[by].name
-                    )
-                })
-                .collect();
-            format!("{}: {}", describe_scenario(&o.scenario), pairs.join(", "))
+            format!(
+                "{}: {}",
+                describe_scenario(&o.scenario),
+                occluded_pairs(layout, o)
+            )
         })
         .collect();
+    let by_axis = grid
+        .named_ranges()
+        .iter()
+        .filter(|(_, range)| range.values.len() > 1)
+        .map(|(axis, range)| AxisVisibility {
+            axis: axis.to_string(),
+            unit: axis_unit(axis).to_string(),
+            values: range.values.clone(),
+            counts: range
+                .values
+                .iter()
+                .map(|&value| {
+                    count_classes(
+                        outcomes
+                            .iter()
+                            .filter(|o| axis_value(&o.scenario, axis) == value),
+                    )
+                })
+                .collect(),
+        })
+        .collect();
+    let [visible, occluded, outside_image, behind_camera] = count_classes(outcomes.iter());
     VisibilityCounts {
         scenarios: outcomes.len(),
         visible,
-        occluded: count(&|o| !o.visibility.occluded.is_empty()),
-        outside_image: count(&|o| !o.visibility.outside.is_empty()),
-        behind_camera: count(&|o| !o.visibility.behind.is_empty()),
+        occluded,
+        outside_image,
+        behind_camera,
         availability: visible as f64 / outcomes.len().max(1) as f64,
+        with_occlusion: with_occlusion.len(),
         occlusion_examples,
+        by_axis,
     }
+}
+
+/// Every scenario with an occluded sphere, whatever its class: where it is
+/// and which sphere hides which.
+fn occlusion_table(layout: &Layout, validation: &Analysis) -> Table {
+    let mut table = Table::new([
+        "scenario",
+        "depth_mm",
+        "offset_x_mm",
+        "offset_y_mm",
+        "tilt_deg",
+        "pan_deg",
+        "roll_deg",
+        "sigma_px",
+        "class",
+        "occluded",
+    ]);
+    for o in validation
+        .outcomes
+        .iter()
+        .filter(|o| !o.visibility.occluded.is_empty())
+    {
+        let s = &o.scenario;
+        table.row([
+            s.index.to_string(),
+            s.depth_mm.to_string(),
+            s.offset_x_mm.to_string(),
+            s.offset_y_mm.to_string(),
+            s.tilt_deg.to_string(),
+            s.pan_deg.to_string(),
+            s.roll_deg.to_string(),
+            s.sigma_px.to_string(),
+            VisibilityClass::of(&o.visibility).name().to_string(),
+            occluded_pairs(layout, o),
+        ]);
+    }
+    table
 }
 
 fn solver_rows(outcomes: &[ScenarioOutcome], solver_count: usize) -> Vec<SolverRow> {
@@ -544,6 +779,10 @@ pub fn write_report(
         .csv()
         .map_err(|e| ReportError::write(&dir.join("scenarios.csv"), e))?;
     write_text(&dir.join("scenarios.csv"), &scenarios_csv)?;
+    let occlusions_csv = occlusion_table(layout, validation)
+        .csv()
+        .map_err(|e| ReportError::write(&dir.join("occlusions.csv"), e))?;
+    write_text(&dir.join("occlusions.csv"), &occlusions_csv)?;
     for curve in &summary.curves {
         write_curve(dir, curve)?;
     }
@@ -687,6 +926,7 @@ fn scenario_table(layout: &Layout, validation: &Analysis) -> Table {
         "roll_deg",
         "sigma_px",
         "visible",
+        "class",
         "visibility_issues",
         "first_order_rms_rot_deg",
         "first_order_rms_trans_mm",
@@ -735,6 +975,7 @@ fn scenario_table(layout: &Layout, validation: &Analysis) -> Table {
             s.roll_deg.to_string(),
             s.sigma_px.to_string(),
             v.is_visible().to_string(),
+            VisibilityClass::of(v).name().to_string(),
             issues.join("; "),
             opt(o.first_order.map(|f| f.rms_rotation_deg)),
             opt(o.first_order.map(|f| f.rms_translation_mm)),
@@ -780,6 +1021,34 @@ fn range_text(values: &[f64]) -> String {
             .collect::<Vec<_>>()
             .join(", "),
     }
+}
+
+/// One axis's visibility counts as a table, consecutive values with the
+/// same counts merged into one row ("−90 … −60").
+fn axis_visibility_table(axis: &AxisVisibility) -> Table {
+    let mut table = Table::new([
+        format!("{} ({})", axis.axis, axis.unit),
+        "visible".to_string(),
+        "occluded".to_string(),
+        "outside image".to_string(),
+        "behind camera".to_string(),
+    ]);
+    let mut start = 0;
+    while start < axis.values.len() {
+        let mut end = start;
+        while end + 1 < axis.values.len() && axis.counts[end + 1] == axis.counts[start] {
+            end += 1;
+        }
+        let values = if end == start {
+            axis.values[start].to_string()
+        } else {
+            format!("{} … {}", axis.values[start], axis.values[end])
+        };
+        let counts = axis.counts[start];
+        table.row(std::iter::once(values).chain(counts.iter().map(|c| c.to_string())));
+        start = end + 1;
+    }
+    table
 }
 
 fn markdown(summary: &Summary) -> String {
@@ -833,15 +1102,23 @@ fn markdown(summary: &Summary) -> String {
     out.push_str(&grid.markdown());
     let _ = writeln!(
         out,
-        "\n{} scenarios: **{} visible** (availability {:.1}%), {} with an occluded sphere, {} with a sphere outside the image (margin 5 px), {} with a sphere behind the camera (no trials).",
-        v.scenarios, v.visible, 100.0 * v.availability, v.occluded, v.outside_image, v.behind_camera
+        "\n{} scenarios: **{} visible** (availability {:.1}%), {} occluded, {} with a sphere outside the image (margin 5 px), {} with a sphere behind the camera (no trials); {} + {} + {} + {} = {}.",
+        v.scenarios, v.visible, 100.0 * v.availability, v.occluded, v.outside_image, v.behind_camera,
+        v.visible, v.occluded, v.outside_image, v.behind_camera, v.scenarios
     );
-    let _ = writeln!(out, "A sphere is occluded when its image disc overlaps the disc of a nearer sphere. Statistics below pool the visible scenarios; `scenarios.csv` has every scenario, visible or not.\n");
+    let _ = writeln!(out, "Each scenario is counted once, under the first rule it breaks in the order behind the camera, outside the image, occluded. A sphere is occluded when its image disc overlaps the disc of a nearer sphere; {} scenarios have an occluded sphere, {} of them also breaking an earlier rule. Statistics below pool the visible scenarios; `scenarios.csv` has every scenario, visible or not, with its class, and `occlusions.csv` every scenario with an occluded sphere and which sphere hides which.\n", v.with_occlusion, v.with_occlusion - v.occluded);
+    for axis in &v.by_axis {
+        let _ = writeln!(out, "Visibility by {} ({}): scenarios at each value; a row \"A … B\" stands for consecutive values with the same counts.\n", axis.axis, axis.unit);
+        out.push_str(&axis_visibility_table(axis).markdown());
+        out.push('\n');
+    }
     if !v.occlusion_examples.is_empty() {
         let _ = writeln!(
             out,
-            "Occluded scenarios (first {}):\n",
-            v.occlusion_examples.len()
+            "Occluded scenarios (first {} of {}; `occlusions.csv` lists all {} scenarios with an occluded sphere):\n",
+            v.occlusion_examples.len(),
+            v.occluded,
+            v.with_occlusion
         );
         for example in &v.occlusion_examples {
             let _ = writeln!(out, "- {example}");
@@ -979,6 +1256,51 @@ fn systematic_markdown(s: &Systematic, observation: &str) -> String {
     out.push_str(&table.markdown());
     out.push('\n');
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn each_scenario_takes_the_first_rule_it_breaks() {
+        let with = |behind: Vec<usize>, outside: Vec<usize>, occluded: Vec<(usize, usize)>| {
+            VisibilityClass::of(&Visibility {
+                behind,
+                outside,
+                occluded,
+            })
+        };
+        assert_eq!(with(vec![], vec![], vec![]), VisibilityClass::Visible);
+        assert_eq!(
+            with(vec![], vec![], vec![(1, 2)]),
+            VisibilityClass::Occluded
+        );
+        assert_eq!(
+            with(vec![], vec![3], vec![(1, 2)]),
+            VisibilityClass::OutsideImage
+        );
+        assert_eq!(
+            with(vec![0], vec![3], vec![(1, 2)]),
+            VisibilityClass::BehindCamera
+        );
+        assert_eq!(with(vec![0], vec![], vec![]), VisibilityClass::BehindCamera);
+    }
+
+    #[test]
+    fn axis_table_merges_runs_of_equal_counts() {
+        let axis = AxisVisibility {
+            axis: "tilt".into(),
+            unit: "deg".into(),
+            values: vec![-20.0, -10.0, 0.0, 10.0],
+            counts: vec![[3, 0, 0, 0], [3, 0, 0, 0], [1, 2, 0, 0], [3, 0, 0, 0]],
+        };
+        assert_eq!(
+            axis_visibility_table(&axis).markdown(),
+            "| tilt (deg) | visible | occluded | outside image | behind camera |\n|---|---|---|---|---|\n\
+| -20 … -10 | 3 | 0 | 0 | 0 |\n| 0 | 1 | 2 | 0 | 0 |\n| 10 | 3 | 0 | 0 | 0 |\n"
+        );
+    }
 }
 
 /// A validation as one call: the Monte-Carlo run, the report and `run.json`,

@@ -1,11 +1,27 @@
 //! Flags shared by the commands that run scenarios: the camera and the
 //! scenario grid.
 
-use anyhow::Context;
 use clap::Args;
 use layout_opt::camera::Camera;
 use layout_opt::scenario::{Range, ScenarioGrid};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
+
+/// Names the file in an error about it, unless the message already does:
+/// "reading layout x.json: malformed layout: …", but not "reading layout
+/// x.json: cannot read layout file x.json: …".
+pub fn naming_file<T, E>(result: Result<T, E>, what: &str, path: &Path) -> anyhow::Result<T>
+where
+    E: std::error::Error + Send + Sync + 'static,
+{
+    result.map_err(|error| {
+        let shown = path.display().to_string();
+        if error.to_string().contains(&shown) {
+            anyhow::Error::new(error)
+        } else {
+            anyhow::Error::new(error).context(format!("{what} {shown}"))
+        }
+    })
+}
 
 /// The camera.
 #[derive(Debug, Clone, Args)]
@@ -24,7 +40,7 @@ impl CameraArgs {
     /// The camera these flags name.
     pub fn camera(&self) -> anyhow::Result<Camera> {
         match (&self.camera, self.with_distortion) {
-            (Some(path), false) => Camera::load(path).with_context(|| format!("loading camera {}", path.display())),
+            (Some(path), false) => naming_file(Camera::load(path), "camera", path),
             (Some(_), true) => anyhow::bail!("--with-distortion applies to the default camera; a camera file carries its own distortion"),
             (None, false) => Ok(Camera::paper()),
             (None, true) => Ok(Camera::paper_with_distortion()),
@@ -94,4 +110,24 @@ pub fn command_line() -> String {
         })
         .collect::<Vec<_>>()
         .join(" ")
+}
+
+/// Runs estimated to take at least this long, seconds, print their
+/// estimate before they start.
+pub const SLOW_RUN_SECONDS: f64 = 10.0;
+
+/// A duration for an estimate, rounded to what an estimate can promise:
+/// "5 s", "40 s", "3 min", "1.5 h".
+pub fn duration_text(seconds: f64) -> String {
+    if !seconds.is_finite() {
+        "an unknown time".into()
+    } else if seconds < 1.0 {
+        "1 s".into()
+    } else if seconds < 90.0 {
+        format!("{:.0} s", seconds)
+    } else if seconds < 5400.0 {
+        format!("{:.0} min", seconds / 60.0)
+    } else {
+        format!("{:.1} h", seconds / 3600.0)
+    }
 }

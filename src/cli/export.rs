@@ -1,6 +1,7 @@
 //! `layout-opt export`: a printable, watertight marker mesh (STL, OBJ,
 //! glTF, GLB) and its fabrication sheet.
 
+use super::common::naming_file;
 use super::{progress, GlobalOptions};
 use anyhow::Context;
 use clap::Args;
@@ -72,15 +73,19 @@ fn load_layout(args: &ExportArgs) -> anyhow::Result<(Layout, String)> {
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("obj"));
     let mut layout = if is_obj {
-        Layout::from_obj(
+        naming_file(
+            Layout::from_obj(
+                path,
+                &ObjImport {
+                    sphere_diameter_mm: args.sphere_diameter,
+                    name: None,
+                },
+            ),
+            "layout",
             path,
-            &ObjImport {
-                sphere_diameter_mm: args.sphere_diameter,
-                name: None,
-            },
         )?
     } else {
-        Layout::load(path)?
+        naming_file(Layout::load(path), "layout", path)?
     };
     if let Some(d) = args.sphere_diameter {
         layout.sphere_diameter_mm = d;

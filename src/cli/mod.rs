@@ -9,7 +9,11 @@ mod search;
 mod solve;
 mod validate;
 
-use clap::{Args, Parser, Subcommand};
+use clap::{Args, CommandFactory, FromArgMatches, Parser, Subcommand};
+
+/// Most worker threads `--threads` accepts, per core: more only queue
+/// behind each other, and a huge count exhausts the machine while starting.
+pub const MAX_THREADS_PER_CORE: usize = 4;
 
 /// Design 3D fiducial markers for close-range camera pose estimation.
 #[derive(Debug, Parser)]
@@ -27,7 +31,8 @@ pub struct GlobalOptions {
     /// Seed of every random stream.
     #[arg(long, global = true, default_value_t = 7)]
     pub seed: u64,
-    /// Worker threads (default: all cores). Results do not depend on it.
+    /// Worker threads (default: all cores; at most 4× the cores). Results do
+    /// not depend on it.
     #[arg(long, global = true)]
     pub threads: Option<usize>,
     /// No progress bar.
@@ -54,9 +59,15 @@ enum Command {
 
 /// Parses the command line and runs the chosen subcommand.
 pub fn run() -> anyhow::Result<()> {
-    let cli = Cli::parse();
+    let cli = parse();
     if let Some(threads) = cli.global.threads {
         anyhow::ensure!(threads > 0, "--threads must be at least 1");
+        let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+        anyhow::ensure!(
+            threads <= MAX_THREADS_PER_CORE * cores,
+            "--threads {threads} is more than {MAX_THREADS_PER_CORE}× the {cores} cores of this machine ({} threads at most); results do not depend on the thread count, so use fewer",
+            MAX_THREADS_PER_CORE * cores
+        );
         rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
             .build_global()
@@ -69,4 +80,20 @@ pub fn run() -> anyhow::Result<()> {
         Command::Reproduce(args) => reproduce::run(args, &cli.global),
         Command::Export(args) => export::run(args, &cli.global),
     }
+}
+
+/// The command line, parsed. Every subcommand reads a word like `-1` or
+/// `-0.5` after a flag as a negative number rather than as an unknown flag
+/// (grid ranges such as `-90..90` also take hyphen values).
+fn parse() -> Cli {
+    let mut command = Cli::command();
+    let names: Vec<String> = command
+        .get_subcommands()
+        .map(|c| c.get_name().to_string())
+        .collect();
+    for name in names {
+        command = command.mut_subcommand(name, |c| c.allow_negative_numbers(true));
+    }
+    let matches = command.get_matches();
+    Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit())
 }

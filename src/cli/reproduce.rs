@@ -1,11 +1,12 @@
 //! `layout-opt reproduce`: the seed paper's simulation experiments,
 //! regenerated and checked claim by claim.
 
-use super::common::command_line;
+use super::common::{command_line, duration_text, SLOW_RUN_SECONDS};
 use super::{progress, GlobalOptions};
 use clap::Args;
+use layout_opt::report::Table;
 use layout_opt::reproduce::pipeline::{self, ReproduceConfig, ReproduceOutcome};
-use layout_opt::reproduce::{self, claims::Verdict, Config};
+use layout_opt::reproduce::{self, claims::Verdict, Config, Experiment, REFERENCE_THREADS};
 use std::path::PathBuf;
 
 /// Flags of `reproduce`.
@@ -15,9 +16,12 @@ pub struct ReproduceArgs {
     /// off-axis, tilt, protocol.
     #[arg(long, default_value = "all")]
     experiment: String,
-    /// Output directory.
-    #[arg(long, value_name = "DIR", default_value = "reports/paper")]
-    out: PathBuf,
+    /// Output directory. Default: reports/paper for the full run; a run with
+    /// --quick, --trials or a subset of experiments gets its own directory
+    /// (reports/paper-quick, reports/paper-trials-N, reports/paper-timing),
+    /// so the reference report is never overwritten by a smaller run.
+    #[arg(long, value_name = "DIR")]
+    out: Option<PathBuf>,
     /// Trials per setting for every experiment (repetitions for timing).
     /// Default: the paper's counts (protocol: 30 noise draws per pose).
     #[arg(long)]
@@ -36,10 +40,20 @@ pub fn run(args: ReproduceArgs, global: &GlobalOptions) -> anyhow::Result<()> {
         trials: args.trials,
         quick: args.quick,
     };
+    let out_dir = args.out.clone().unwrap_or_else(|| config.default_out_dir());
+    let threads = rayon::current_num_threads();
+    if !global.quiet && config.estimate_seconds(threads) >= SLOW_RUN_SECONDS {
+        eprintln!(
+            "estimate: about {} on {threads} threads (cost model: each experiment's time in a reference run of every experiment at default trials, {} s on {REFERENCE_THREADS} threads of a shared 2-core machine, scaled by trials and threads); report in {}",
+            duration_text(config.estimate_seconds(threads)),
+            Experiment::ALL.iter().map(|e| e.reference_seconds()).sum::<f64>().round(),
+            out_dir.display()
+        );
+    }
     let config = ReproduceConfig {
         experiments: config,
         command: command_line(),
-        out_dir: args.out.clone(),
+        out_dir,
     };
     let mut bars = progress::Bars::new(global.quiet);
     let result = pipeline::run(&config, &mut bars);
@@ -48,6 +62,7 @@ pub fn run(args: ReproduceArgs, global: &GlobalOptions) -> anyhow::Result<()> {
         reproduction,
         seconds,
     } = result?;
+    let out_dir = &config.out_dir;
     let config = &config.experiments;
     println!(
         "reproduce: seed {}{}, {} threads",
@@ -55,29 +70,33 @@ pub fn run(args: ReproduceArgs, global: &GlobalOptions) -> anyhow::Result<()> {
         if config.quick { ", --quick" } else { "" },
         rayon::current_num_threads()
     );
-    println!(
-        "{:<10} {:>8} {:>6} {:>14} {:>14} {:>10}",
-        "experiment", "trials", "holds", "does not hold", "not evaluated", "wall (s)"
-    );
+    let mut table = Table::new([
+        "experiment",
+        "trials",
+        "holds",
+        "does not hold",
+        "not evaluated",
+        "wall (s)",
+    ]);
     for (result, (_, wall)) in reproduction
         .experiments
         .iter()
         .zip(&reproduction.wall_seconds)
     {
         let count = |v: Verdict| result.claims.iter().filter(|c| c.verdict == v).count();
-        println!(
-            "{:<10} {:>8} {:>6} {:>14} {:>14} {:>10.1}",
-            result.experiment.name(),
-            result.trials,
-            count(Verdict::Holds),
-            count(Verdict::DoesNotHold),
-            count(Verdict::NotEvaluated),
-            wall
-        );
+        table.row([
+            result.experiment.name().to_string(),
+            result.trials.to_string(),
+            count(Verdict::Holds).to_string(),
+            count(Verdict::DoesNotHold).to_string(),
+            count(Verdict::NotEvaluated).to_string(),
+            format!("{wall:.1}"),
+        ]);
     }
+    print!("{}", table.console());
     println!(
         "{seconds:.1} s in all; report in {}",
-        args.out.join("report.md").display()
+        out_dir.join("report.md").display()
     );
     Ok(())
 }

@@ -2,7 +2,9 @@
 //! Ctrl-C into an [`Observer`], and the summary printed. The pipeline itself
 //! is [`layout_opt::search::pipeline::run`].
 
-use super::common::{command_line, CameraArgs, GridArgs};
+use super::common::{
+    command_line, duration_text, naming_file, CameraArgs, GridArgs, SLOW_RUN_SECONDS,
+};
 use super::{progress, GlobalOptions};
 use anyhow::Context;
 use clap::{Args, ValueEnum};
@@ -11,11 +13,15 @@ use layout_opt::layout::Layout;
 use layout_opt::mesh::Format;
 use layout_opt::noise::NoiseModel;
 use layout_opt::pnp::Solver;
+use layout_opt::report::{percent_lower, Table};
+use layout_opt::scenario::ScenarioGrid;
+use layout_opt::search::compare::hand_designs;
 use layout_opt::search::optimise::{Optimiser, SearchSettings};
 use layout_opt::search::pipeline::{self, MeshExport, SearchConfig};
-use layout_opt::search::{Aggregate, Objective, ObjectiveSettings};
+use layout_opt::search::{Aggregate, Evaluator, Objective, ObjectiveSettings, Term};
 use layout_opt::sphere_image::Observation;
 use std::path::PathBuf;
+use std::time::Instant;
 
 /// Layout families.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -158,6 +164,7 @@ pub struct SearchArgs {
 fn config(args: SearchArgs, global: &GlobalOptions) -> anyhow::Result<SearchConfig> {
     let camera = args.camera.camera()?;
     let grid = args.grid.grid(&pipeline::default_grid())?;
+    check_degenerate(&args, &grid)?;
     if args.init.is_some() && args.family != FamilyName::Custom {
         anyhow::bail!("--init applies to --family custom");
     }
@@ -176,8 +183,7 @@ fn config(args: SearchArgs, global: &GlobalOptions) -> anyhow::Result<SearchConf
         FamilyName::Custom => {
             let start = match &args.init {
                 Some(path) => {
-                    let layout = Layout::load(path)
-                        .with_context(|| format!("loading start layout {}", path.display()))?;
+                    let layout = naming_file(Layout::load(path), "start layout", path)?;
                     layout
                         .validate()
                         .with_context(|| format!("start layout {}", path.display()))?;
@@ -258,8 +264,130 @@ fn config(args: SearchArgs, global: &GlobalOptions) -> anyhow::Result<SearchConf
 /// Exit status of a run stopped by Ctrl-C (128 + SIGINT, as shells report).
 pub const EXIT_INTERRUPTED: i32 = 130;
 
+/// Refuses settings under which the objective cannot rank layouts, naming
+/// the flag and why, before any work starts.
+fn check_degenerate(args: &SearchArgs, grid: &ScenarioGrid) -> anyhow::Result<()> {
+    if let Some(&sigma) = grid.sigma_px.values.iter().find(|&&s| s <= 0.0) {
+        anyhow::bail!(
+            "--noise {sigma}: search needs σ > 0 px; without noise every layout's error is zero, so the objective cannot tell layouts apart (and its ratio to the paper's biprism is 0/0)"
+        );
+    }
+    for (flag, weight) in [
+        ("--translation-weight", args.translation_weight),
+        ("--availability-weight", args.availability_weight),
+    ] {
+        anyhow::ensure!(
+            weight.is_finite(),
+            "{flag} must be finite, got {weight}: an infinite or undefined weight makes every layout's objective infinite or undefined, so none can be ranked"
+        );
+        anyhow::ensure!(
+            weight >= 0.0,
+            "{flag} must be non-negative, got {weight}: a negative weight would reward the error it should price"
+        );
+    }
+    let d = args.sphere_diameter;
+    anyhow::ensure!(
+        d.is_finite() && d > 0.0,
+        "--sphere-diameter must be a positive, finite number of mm, got {d}"
+    );
+    for (flag, value) in [
+        ("--min-gap", args.min_gap),
+        ("--min-distance-diff", args.min_distance_diff),
+    ] {
+        anyhow::ensure!(
+            value.is_finite() && value >= 0.0,
+            "{flag} must be a finite, non-negative number, got {value}"
+        );
+    }
+    anyhow::ensure!(args.trials > 0, "--trials must be at least 1");
+    anyhow::ensure!(
+        args.compare_trials > 0,
+        "--compare-trials must be at least 1"
+    );
+    Ok(())
+}
+
+/// Nelder–Mead's evaluations per start, `SIMPLEX_EVALUATIONS_PER_START +
+/// SIMPLEX_EVALUATIONS_PER_ITERATION × iterations`: a line through two
+/// measured biprism searches (`search --depth 200..1000`): 8 starts × 3000
+/// iterations made 38,423 evaluations, 2 starts × 150 iterations 985. The
+/// fixed part is the restarted rounds' initial simplices and the start's
+/// repair.
+const SIMPLEX_EVALUATIONS_PER_START: f64 = 265.0;
+/// See [`SIMPLEX_EVALUATIONS_PER_START`].
+const SIMPLEX_EVALUATIONS_PER_ITERATION: f64 = 1.51;
+/// Objective evaluations timed for the estimate; the fastest counts (the
+/// others may be slowed by the machine's other work).
+const TIMED_EVALUATIONS: usize = 3;
+
+/// For objectives with a Monte-Carlo term (the slow ones), prints an
+/// estimate of the optimisation's time before a run of
+/// [`SLOW_RUN_SECONDS`] or more: the fastest of [`TIMED_EVALUATIONS`]
+/// evaluations of the paper's biprism, times the evaluations the optimiser
+/// will make (a cost model, [`SIMPLEX_EVALUATIONS_PER_START`]), over the
+/// threads that run the starts in parallel.
+fn print_estimate(config: &SearchConfig) {
+    let settings = &config.objective;
+    if !settings
+        .objective
+        .terms
+        .iter()
+        .any(|(term, _)| matches!(term, Term::MonteCarlo(_)))
+    {
+        return;
+    }
+    let constraints = config.constraints;
+    let paper = hand_designs(&constraints.envelope, constraints.sphere_diameter_mm).swap_remove(0);
+    let (positions, sigmas) = (paper.positions(), paper.point_sigmas());
+    // Building the evaluator scores its reference layout once: that is the
+    // first timed evaluation.
+    let started = Instant::now();
+    let evaluator = Evaluator::new(
+        config.camera,
+        config.grid.scenarios(),
+        settings.clone(),
+        constraints,
+        &positions,
+    );
+    let mut per_evaluation = started.elapsed().as_secs_f64();
+    for _ in 1..TIMED_EVALUATIONS {
+        let started = Instant::now();
+        let _ = evaluator.evaluate(&positions, &sigmas);
+        per_evaluation = per_evaluation.min(started.elapsed().as_secs_f64());
+    }
+    let search = &config.search;
+    let simplex = |iterations: u64| {
+        SIMPLEX_EVALUATIONS_PER_START + SIMPLEX_EVALUATIONS_PER_ITERATION * iterations as f64
+    };
+    let per_start = match search.optimiser {
+        Optimiser::NelderMead => simplex(search.iterations),
+        Optimiser::ParticleSwarm => {
+            search.iterations as f64 * search.particles as f64 + simplex(search.polish_iterations)
+        }
+        Optimiser::Annealing => search.iterations as f64 + simplex(search.polish_iterations),
+    };
+    let evaluations = per_start * search.starts as f64;
+    let parallel = rayon::current_num_threads().min(search.starts).max(1);
+    let seconds = per_evaluation * evaluations / parallel as f64;
+    if seconds < SLOW_RUN_SECONDS {
+        return;
+    }
+    eprintln!(
+        "estimate: the optimisation takes about {} ({:.3} s per evaluation of {} on the paper's biprism over {} scenarios, the fastest of {TIMED_EVALUATIONS} timed now; × about {:.0} evaluations for {} starts (cost model from two measured searches); / {parallel} threads); the comparison and the winner's validation follow",
+        duration_text(seconds),
+        per_evaluation,
+        settings.objective,
+        config.grid.len(),
+        evaluations,
+        search.starts,
+    );
+}
+
 pub fn run(args: SearchArgs, global: &GlobalOptions) -> anyhow::Result<()> {
     let config = config(args, global)?;
+    if !global.quiet {
+        print_estimate(&config);
+    }
     progress::catch_ctrl_c();
     let mut bars = progress::Bars::new(global.quiet);
     let result = pipeline::run(&config, &mut bars);
@@ -282,37 +410,48 @@ pub fn run(args: SearchArgs, global: &GlobalOptions) -> anyhow::Result<()> {
         "{}: {} ({} evaluations in {search_seconds:.1} s); wrote {layout_path}",
         config.name, outcome.family, outcome.evaluations,
     );
-    println!(
-        "{:<26} {:>10} {:>8} {:>14} {:>16} {:>22}",
+    let mut table = Table::new([
         "design",
         "objective",
         "avail %",
         "RMS rot (°)",
         "RMS trans (mm)",
-        "both visible: vs winner"
-    );
+        "both visible: vs winner",
+    ]);
     for row in &summary.designs {
         let mc = &row.monte_carlo[1];
+        table.row([
+            row.name.clone(),
+            measurable(row.evaluation.objective, 4),
+            format!("{:.1}", 100.0 * row.evaluation.availability),
+            measurable(mc.all.rms_rotation_deg, 4),
+            measurable(mc.all.rms_translation_mm, 3),
+            format!(
+                "{} / {}",
+                measurable(mc.common.rms_rotation_deg, 4),
+                measurable(mc.winner_common.rms_rotation_deg, 4)
+            ),
+        ]);
+    }
+    print!("{}", table.console());
+    if summary
+        .designs
+        .first()
+        .is_some_and(|winner| winner.evaluation.availability == 0.0)
+    {
         println!(
-            "{:<26} {:>10.4} {:>8.1} {:>14.4} {:>16.3} {:>12.4} / {:.4}",
-            row.name,
-            row.evaluation.objective,
-            100.0 * row.evaluation.availability,
-            mc.all.rms_rotation_deg,
-            mc.all.rms_translation_mm,
-            mc.common.rms_rotation_deg,
-            mc.winner_common.rms_rotation_deg
+            "no scenario of the grid shows every sphere of the winner, so its Monte-Carlo errors on visible scenarios are not measurable; check --sphere-diameter, --envelope and the grid"
         );
     }
     let seeds = &summary.header.comparison_seeds;
     println!(
-        "winner vs paper biprism ({} Monte-Carlo, {} trials, seeds {} and {}, scenarios both see): RMS rotation {:.1}% / {:.1}% lower; availability {:+.1} points",
+        "winner vs paper biprism ({} Monte-Carlo, {} trials, seeds {} and {}, scenarios both see): RMS rotation {} / {}; availability {:+.1} points",
         config.compare_solver,
         config.compare_trials,
         seeds[0],
         seeds[1],
-        v.rotation_reduction_vs_paper_percent[0],
-        v.rotation_reduction_vs_paper_percent[1],
+        percent_lower(v.rotation_reduction_vs_paper_percent[0]),
+        percent_lower(v.rotation_reduction_vs_paper_percent[1]),
         v.availability_difference_pp
     );
     let yes_no = |b: bool| if b { "yes" } else { "no" };
@@ -331,4 +470,14 @@ pub fn run(args: SearchArgs, global: &GlobalOptions) -> anyhow::Result<()> {
         outcome.total_seconds
     );
     Ok(())
+}
+
+/// A number with `decimals` decimals, or "not measurable" when it is not
+/// finite (nothing visible to measure it on).
+fn measurable(value: f64, decimals: usize) -> String {
+    if value.is_finite() {
+        format!("{value:.decimals$}")
+    } else {
+        "not measurable".into()
+    }
 }

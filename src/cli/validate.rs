@@ -1,6 +1,8 @@
 //! `layout-opt validate`: a layout's sensitivity report.
 
-use super::common::{command_line, CameraArgs, GridArgs};
+use super::common::{
+    command_line, duration_text, naming_file, CameraArgs, GridArgs, SLOW_RUN_SECONDS,
+};
 use super::{progress, GlobalOptions};
 use anyhow::Context;
 use clap::Args;
@@ -8,7 +10,9 @@ use layout_opt::layout::Layout;
 use layout_opt::montecarlo::{MonteCarloConfig, DEFAULT_GROSS_THRESHOLD_DEG};
 use layout_opt::noise::NoiseModel;
 use layout_opt::pnp::Solver;
+use layout_opt::report::Table;
 use layout_opt::scenario::ScenarioGrid;
+use layout_opt::sensitivity;
 use layout_opt::sensitivity::pipeline::{self, SensitivityConfig, SensitivityOutcome};
 use layout_opt::sphere_image::Observation;
 use std::path::PathBuf;
@@ -70,9 +74,7 @@ pub fn parse_solvers(text: &str) -> anyhow::Result<Vec<Solver>> {
 
 pub fn run(args: ValidateArgs, global: &GlobalOptions) -> anyhow::Result<()> {
     let layout = match &args.layout {
-        Some(path) => {
-            Layout::load(path).with_context(|| format!("loading layout {}", path.display()))?
-        }
+        Some(path) => naming_file(Layout::load(path), "layout", path)?,
         None => Layout::paper_biprism(),
     };
     layout
@@ -96,6 +98,11 @@ pub fn run(args: ValidateArgs, global: &GlobalOptions) -> anyhow::Result<()> {
             "default tilt step {POLYNOMIAL_TILT_STEP_DEG}° instead of the paper's {DEFAULT_TILT_STEP_DEG}° because the solvers include dls or opnp; pass --tilt -90..90:{DEFAULT_TILT_STEP_DEG} for the full protocol"
         )
     });
+    anyhow::ensure!(
+        args.gross_threshold > 0.0 && args.gross_threshold.is_finite(),
+        "--gross-threshold must be a positive, finite number of degrees, got {}",
+        args.gross_threshold
+    );
     let config = SensitivityConfig {
         out_dir: args
             .out
@@ -115,6 +122,31 @@ pub fn run(args: ValidateArgs, global: &GlobalOptions) -> anyhow::Result<()> {
         command: command_line(),
         grid_note: tilt_note.clone(),
     };
+    if let Some(note) = &tilt_note {
+        println!("note: {note}");
+    }
+    if !global.quiet {
+        // Every run is estimated (the calibration takes a fraction of a
+        // second); only the slow ones say so.
+        let estimate = sensitivity::estimate_seconds(
+            &config.layout,
+            &config.camera,
+            &config.grid,
+            &config.monte_carlo,
+        )?;
+        if estimate.seconds >= SLOW_RUN_SECONDS {
+            eprintln!(
+            "estimate: about {} on {} threads (a timed calibration run of {} scenarios × {} trials took {:.2} s; scaled to {} scenarios × {} trials)",
+            duration_text(estimate.seconds),
+            rayon::current_num_threads(),
+            estimate.calibration_scenarios,
+            estimate.calibration_trials,
+            estimate.calibration_seconds,
+            config.grid.len(),
+            config.monte_carlo.trials
+        );
+        }
+    }
     let mut bars = progress::Bars::new(global.quiet);
     let result = pipeline::run(&config, &mut bars);
     bars.finish();
@@ -127,43 +159,56 @@ pub fn run(args: ValidateArgs, global: &GlobalOptions) -> anyhow::Result<()> {
     let config = &config.monte_carlo;
     let threads = rayon::current_num_threads();
 
-    if let Some(note) = &tilt_note {
-        println!("note: {note}");
-    }
     let summary = &validation.summary;
     let v = &summary.visibility;
     println!(
-        "{}: {} scenarios × {} trials, seed {} ({} visible, {} occluded, {} outside the image, {} behind the camera)",
+        "{}: {} scenarios × {} trials, seed {}: {} visible, {} occluded, {} outside the image, {} behind the camera (each scenario counted once, in the order behind, outside, occluded)",
         layout.name, v.scenarios, config.trials, config.seed, v.visible, v.occluded, v.outside_image, v.behind_camera
     );
-    println!(
-        "{:<18} {:>12} {:>12} {:>14} {:>10}",
-        "solver", "RMS rot (°)", "/ 1st order", "RMS trans (mm)", "gross"
-    );
+    if v.visible == 0 {
+        println!("no scenario is visible, so no error is measurable; see {} for why each scenario is hidden", out.join("scenarios.csv").display());
+    }
+    let mut table = Table::new([
+        "solver",
+        "RMS rot (°)",
+        "/ 1st order",
+        "RMS trans (mm)",
+        "gross",
+    ]);
     for row in &summary.solvers {
         let p = &row.pooled;
-        println!(
-            "{:<18} {:>12.4} {:>12} {:>14.3} {:>10}",
-            p.solver.name(),
-            p.rms_rotation_deg,
+        table.row([
+            p.solver.name().to_string(),
+            format!("{:.4}", p.rms_rotation_deg),
             row.pooled
                 .first_order
                 .rotation_ratio
                 .map_or("—".into(), |r| format!("{r:.3}")),
-            p.rms_translation_mm,
-            p.gross_failures
-        );
+            format!("{:.3}", p.rms_translation_mm),
+            p.gross_failures.to_string(),
+        ]);
+    }
+    if !summary.solvers.is_empty() {
+        print!("{}", table.console());
     }
     if let Some(first) = summary.solvers.first() {
         let (f, t) = (&first.pooled.first_order, &first.pooled.transfer);
-        let show = |v: Option<f64>| v.map_or("—".into(), |v| format!("{v:.4}"));
+        let show = |v: Option<f64>, unit: &str| {
+            v.filter(|v| v.is_finite())
+                .map_or("not measurable".into(), |v| format!("{v:.4}{unit}"))
+        };
         println!(
-            "first-order limit: {}° / {} mm over {} scenarios; transfer model: {}° over {} scenarios",
-            show(f.predicted_rms_rotation_deg),
-            show(f.predicted_rms_translation_mm),
+            "first-order limit: {} / {} over {} scenarios; transfer model: {} over {} scenarios{}",
+            show(f.predicted_rms_rotation_deg, "°"),
+            show(f.predicted_rms_translation_mm, " mm"),
             f.scenarios,
-            show(t.predicted_rms_rotation_deg),
-            t.scenarios
+            show(t.predicted_rms_rotation_deg, "°"),
+            t.scenarios,
+            if summary.header.grid.sigma_px.values.contains(&0.0) {
+                " (the models predict nothing at σ = 0)"
+            } else {
+                ""
+            }
         );
     }
     let s = &summary.systematic;
@@ -179,7 +224,7 @@ pub fn run(args: ValidateArgs, global: &GlobalOptions) -> anyhow::Result<()> {
     );
     println!(
         "{solves} solves in {seconds:.1} s on {threads} threads ({:.0} solves/s); report in {}",
-        solves as f64 / seconds,
+        solves as f64 / seconds.max(1e-9),
         out.display()
     );
     Ok(())

@@ -64,6 +64,45 @@ impl Table {
         out
     }
 
+    /// The table as plain text for a terminal: every column as wide as its
+    /// widest cell (counted in characters, so "°" and "—" count one), the
+    /// first column left-aligned and the others right-aligned, two spaces
+    /// between columns. Long names widen their column rather than shift
+    /// the rest of the row.
+    pub fn console(&self) -> String {
+        let columns = self
+            .rows
+            .iter()
+            .map(Vec::len)
+            .chain([self.header.len()])
+            .max()
+            .unwrap_or(0);
+        let mut widths = vec![0; columns];
+        for row in std::iter::once(&self.header).chain(&self.rows) {
+            for (k, cell) in row.iter().enumerate() {
+                widths[k] = widths[k].max(cell.chars().count());
+            }
+        }
+        let mut out = String::new();
+        for row in std::iter::once(&self.header).chain(&self.rows) {
+            let mut line = String::new();
+            for (k, width) in widths.iter().enumerate() {
+                let cell = row.get(k).map_or("", String::as_str);
+                let pad = " ".repeat(width - cell.chars().count());
+                if k == 0 {
+                    line.push_str(cell);
+                    line.push_str(&pad);
+                } else {
+                    line.push_str("  ");
+                    line.push_str(&pad);
+                    line.push_str(cell);
+                }
+            }
+            let _ = writeln!(out, "{}", line.trim_end());
+        }
+        out
+    }
+
     /// The table as CSV (same cells).
     pub fn csv(&self) -> Result<String, csv::Error> {
         let mut writer = csv::Writer::from_writer(Vec::new());
@@ -92,6 +131,20 @@ pub fn significant(value: Option<f64>, digits: usize) -> String {
     }
 }
 
+/// A reduction in percent (positive when the new value is lower) in words:
+/// "40.2% lower" or "7.7% higher", never "−7.7% lower"; "not measurable"
+/// when the reduction is not a finite number (for example when the
+/// reference error is zero or nothing was measured).
+pub fn percent_lower(reduction_percent: f64) -> String {
+    if !reduction_percent.is_finite() {
+        "not measurable".into()
+    } else if reduction_percent < 0.0 && format!("{:.1}", -reduction_percent) != "0.0" {
+        format!("{:.1}% higher", -reduction_percent)
+    } else {
+        format!("{:.1}% lower", reduction_percent.abs())
+    }
+}
+
 /// Writes a text file atomically ([`crate::files::write_atomic`]),
 /// creating its directory.
 pub fn write_text(path: &Path, text: &str) -> Result<(), ReportError> {
@@ -111,6 +164,30 @@ mod tests {
             "| solver | RMS (°) |\n|---|---|\n| ml | 0.12 |\n"
         );
         assert_eq!(table.csv().unwrap(), "solver,RMS (°)\nml,0.12\n");
+    }
+
+    #[test]
+    fn console_columns_align_on_long_names() {
+        let mut table = Table::new(["design", "RMS (°)"]);
+        table.row(["winner", "0.12"]);
+        table.row(["a-design-with-a-very-long-name", "10.5"]);
+        let text = table.console();
+        let lines: Vec<&str> = text.lines().collect();
+        assert_eq!(lines.len(), 3);
+        // Every line ends its last column at the same character.
+        let ends: Vec<usize> = lines.iter().map(|l| l.chars().count()).collect();
+        assert!(ends.iter().all(|&e| e == ends[0]), "{text}");
+        assert!(lines[1].starts_with("winner "), "{text}");
+        assert!(lines[2].ends_with("  10.5"), "{text}");
+    }
+
+    #[test]
+    fn percentages_say_lower_or_higher() {
+        assert_eq!(percent_lower(40.24), "40.2% lower");
+        assert_eq!(percent_lower(-7.7), "7.7% higher");
+        assert_eq!(percent_lower(0.0), "0.0% lower");
+        assert_eq!(percent_lower(f64::NAN), "not measurable");
+        assert_eq!(percent_lower(f64::INFINITY), "not measurable");
     }
 
     #[test]

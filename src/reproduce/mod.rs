@@ -197,6 +197,22 @@ impl Experiment {
         }
     }
 
+    /// Wall-clock seconds of the experiment at its default trials in the
+    /// reference run (`layout-opt reproduce --quiet`, seed 7, every solver,
+    /// 2 threads on a shared 2-core machine): the cost model behind
+    /// [`Config::estimate_seconds`].
+    pub fn reference_seconds(self) -> f64 {
+        match self {
+            Experiment::Points => 2.1,
+            Experiment::Noise => 16.3,
+            Experiment::Timing => 15.2,
+            Experiment::Depth => 2.8,
+            Experiment::OffAxis => 2.1,
+            Experiment::Tilt => 9.0,
+            Experiment::Protocol => 20.4,
+        }
+    }
+
     /// Whether its outputs are bit-reproducible (timing is not).
     pub fn deterministic(self) -> bool {
         self != Experiment::Timing
@@ -279,6 +295,55 @@ impl Config {
         } else {
             experiment.default_trials()
         })
+    }
+}
+
+/// Threads of the reference run behind [`Experiment::reference_seconds`].
+pub const REFERENCE_THREADS: usize = 2;
+
+impl Config {
+    /// Estimated wall-clock seconds on `threads` threads, from a cost model:
+    /// each experiment's time in the reference run
+    /// ([`Experiment::reference_seconds`]), scaled by its trials over the
+    /// default ones and, except for timing (one thread by design), by
+    /// [`REFERENCE_THREADS`] over `threads`. A machine faster or slower per
+    /// core than the reference one scales the whole estimate.
+    pub fn estimate_seconds(&self, threads: usize) -> f64 {
+        self.experiments
+            .iter()
+            .map(|&experiment| {
+                let trials =
+                    self.trials_for(experiment) as f64 / experiment.default_trials() as f64;
+                let threads = if experiment == Experiment::Timing {
+                    1.0
+                } else {
+                    REFERENCE_THREADS as f64 / threads.max(1) as f64
+                };
+                experiment.reference_seconds() * trials * threads
+            })
+            .sum()
+    }
+
+    /// The default output directory: `reports/paper` for the reference run
+    /// (every experiment at its default trials), and a directory of its own
+    /// for any run of lower fidelity or narrower scope, so that a default
+    /// never overwrites the committed reference report with a smaller run:
+    /// `reports/paper-quick`, `reports/paper-trials-20`,
+    /// `reports/paper-timing`, `reports/paper-quick-noise-depth`.
+    pub fn default_out_dir(&self) -> std::path::PathBuf {
+        let mut name = String::from("paper");
+        if self.quick && self.trials.is_none() {
+            name.push_str("-quick");
+        }
+        if let Some(trials) = self.trials {
+            let _ = write!(name, "-trials-{trials}");
+        }
+        if self.experiments != Experiment::ALL {
+            for experiment in &self.experiments {
+                let _ = write!(name, "-{}", experiment.name());
+            }
+        }
+        Path::new("reports").join(name)
     }
 }
 
@@ -776,5 +841,47 @@ pub mod pipeline {
             reproduction,
             seconds,
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn config(experiments: &str, trials: Option<usize>, quick: bool) -> Config {
+        Config {
+            experiments: parse_experiments(experiments).unwrap(),
+            seed: 7,
+            trials,
+            quick,
+        }
+    }
+
+    #[test]
+    fn only_the_reference_run_defaults_to_reports_paper() {
+        let dir = |c: Config| c.default_out_dir().display().to_string();
+        assert_eq!(dir(config("all", None, false)), "reports/paper");
+        assert_eq!(dir(config("all", None, true)), "reports/paper-quick");
+        assert_eq!(
+            dir(config("all", Some(20), false)),
+            "reports/paper-trials-20"
+        );
+        assert_eq!(dir(config("timing", None, false)), "reports/paper-timing");
+        assert_eq!(
+            dir(config("depth,noise", None, true)),
+            "reports/paper-quick-noise-depth"
+        );
+    }
+
+    #[test]
+    fn estimate_scales_with_trials_and_threads() {
+        let full = config("noise", None, false);
+        assert!((full.estimate_seconds(2) - 16.3).abs() < 1e-9);
+        assert!((full.estimate_seconds(4) - 8.15).abs() < 1e-9);
+        let fewer = config("noise", Some(50), false);
+        assert!((fewer.estimate_seconds(2) - 1.63).abs() < 1e-9);
+        // Timing runs on one thread whatever the pool.
+        let timing = config("timing", None, false);
+        assert_eq!(timing.estimate_seconds(2), timing.estimate_seconds(8));
     }
 }

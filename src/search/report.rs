@@ -9,7 +9,7 @@ use super::optimise::{SearchOutcome, SearchSettings};
 use super::ObjectiveSettings;
 use crate::camera::Camera;
 use crate::family::Constraints;
-use crate::report::{plots, significant, write_text, ReportError, Table};
+use crate::report::{percent_lower, plots, significant, write_text, ReportError, Table};
 use crate::scenario::ScenarioGrid;
 use serde::Serialize;
 use std::fmt::Write as _;
@@ -295,7 +295,7 @@ fn markdown(summary: &SearchSummary, table: &Table) -> String {
     for (k, seed) in h.comparison_seeds.iter().enumerate() {
         verdicts.row([
             format!("RMS rotation error at least 40% below the paper's biprism, on the scenarios both see (seed {seed})"),
-            format!("{:.1}% lower: {}", v.rotation_reduction_vs_paper_percent[k], yes(v.rotation_reduction_vs_paper_percent[k] >= 40.0)),
+            format!("{}: {}", percent_lower(v.rotation_reduction_vs_paper_percent[k]), yes(v.rotation_reduction_vs_paper_percent[k] >= 40.0)),
         ]);
         verdicts.row([
             format!("translation error no worse than the paper's biprism (seed {seed})"),

@@ -20,6 +20,8 @@ mod sphere_image;
 mod sqpnp_crosscheck;
 
 #[cfg(feature = "cli")]
+mod cli_consistency;
+#[cfg(feature = "cli")]
 mod cli_solve;
 #[cfg(feature = "cli")]
 mod export_cli;

@@ -44,8 +44,12 @@ const EXPERIMENT_FILES: [(&str, &[&str]); 7] = [
     ),
 ];
 
-fn run_quick(dir: &Path, threads: &str) {
+/// Runs `reproduce --quick` with `checkout` as the working directory and no
+/// `--out`, and returns where it wrote: its default `reports/paper-quick/`,
+/// never the reference run's `reports/paper/`.
+fn run_quick(checkout: &Path, threads: &str) -> std::path::PathBuf {
     layout_opt()
+        .current_dir(checkout)
         .args([
             "reproduce",
             "--quick",
@@ -54,13 +58,15 @@ fn run_quick(dir: &Path, threads: &str) {
             "11",
             "--threads",
             threads,
-            "--out",
         ])
-        .arg(dir)
         .assert()
         .success()
-        .stdout(predicate::str::contains("report in"))
+        .stdout(predicate::str::contains(
+            "report in reports/paper-quick/report.md",
+        ))
         .stdout(predicate::str::contains("protocol"));
+    assert!(!checkout.join("reports/paper").exists());
+    checkout.join("reports/paper-quick")
 }
 
 /// Rows of a CSV as maps from column name to cell.
@@ -281,17 +287,14 @@ fn summary_without_command(dir: &Path) -> serde_json::Value {
 
 #[test]
 fn quick_run_has_every_part_is_sane_and_reproducible() {
-    let first = tempfile::tempdir().unwrap();
-    run_quick(first.path(), "2");
-    check_structure(first.path());
-    check_statistics(first.path());
+    let first_checkout = tempfile::tempdir().unwrap();
+    let first = run_quick(first_checkout.path(), "2");
+    check_structure(&first);
+    check_statistics(&first);
 
-    let second = tempfile::tempdir().unwrap();
-    run_quick(second.path(), "1");
-    let (a, b) = (
-        deterministic_csvs(first.path()),
-        deterministic_csvs(second.path()),
-    );
+    let second_checkout = tempfile::tempdir().unwrap();
+    let second = run_quick(second_checkout.path(), "1");
+    let (a, b) = (deterministic_csvs(&first), deterministic_csvs(&second));
     assert_eq!(a.keys().collect::<Vec<_>>(), b.keys().collect::<Vec<_>>());
     assert!(a.len() >= 8, "{:?}", a.keys());
     for (name, content) in &a {
@@ -301,8 +304,8 @@ fn quick_run_has_every_part_is_sane_and_reproducible() {
         );
     }
     assert_eq!(
-        summary_without_command(first.path()),
-        summary_without_command(second.path())
+        summary_without_command(&first),
+        summary_without_command(&second)
     );
 }
 

@@ -197,7 +197,11 @@ fn custom_search_keeps_fixed_points() {
 #[test]
 fn bad_arguments_are_clear_errors() {
     for (args, message) in [
-        (&["--depth", "500..100:50"][..], "the range is empty"),
+        (&["--depth", "500..100:0"][..], "the step must be positive"),
+        (
+            &["--tilt", "-200..200:10"][..],
+            "tilt must be within −180…180°",
+        ),
         (&["--depth", "0"][..], "depth must be positive"),
         (&["--envelope", "5"][..], "smaller than one sphere"),
         (

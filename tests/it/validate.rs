@@ -220,7 +220,8 @@ fn bad_layouts_are_rejected_clearly() {
 fn bad_ranges_are_rejected_clearly() {
     for (flag, value, message) in [
         ("--depth", "0..100:50", "depth must be positive"),
-        ("--depth", "900..100:100", "the range is empty"),
+        ("--depth", "900..100:0", "the step must be positive"),
+        ("--tilt", "-200..200:10", "tilt must be within −180…180°"),
         ("--tilt", "a..b", "is not a number"),
         ("--noise", "-1", "noise σ must be non-negative"),
     ] {
