@@ -2,7 +2,10 @@
 //! the hand designs, validation of the winner, the report and an optional
 //! mesh export. [`run`] takes a [`SearchConfig`] that names every input and
 //! every output path, and reports progress through an [`Observer`]; it never
-//! prints.
+//! prints. A run never loses or clobbers a result: it checks and locks its
+//! outputs before any work, keeps the best layout so far in
+//! [`partial_path`], can be stopped in every phase, and replaces the layout
+//! and report only when every phase has finished.
 //!
 //! ```no_run
 //! use layout_opt::observer::Silent;
