@@ -34,19 +34,19 @@ fn unit(phase: &str) -> &'static str {
 /// A named phase's bar: the phase, the bar, steps done of the phase's whole
 /// budget in its unit, time spent and the estimate of time left.
 fn phase_bar(phase: &str, total: u64, quiet: bool) -> ProgressBar {
-    let bar = self::bar(total, "", quiet);
-    if !bar.is_hidden() {
-        bar.set_style(
+    if quiet || !std::io::stderr().is_terminal() || !std::io::stdout().is_terminal() {
+        return ProgressBar::hidden();
+    }
+    ProgressBar::new(total)
+        .with_style(
             ProgressStyle::with_template(
                 "{prefix:>10} [{bar:40}] {pos}/{len} {msg} ({elapsed} spent, about {eta} left)",
             )
             .expect("the template is valid")
             .progress_chars("=> "),
-        );
-        bar.set_prefix(phase.to_string());
-        bar.set_message(unit(phase));
-    }
-    bar
+        )
+        .with_prefix(phase.to_string())
+        .with_message(unit(phase))
 }
 
 /// Set by Ctrl-C once [`catch_ctrl_c`] ran.

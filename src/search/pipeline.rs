@@ -2,7 +2,10 @@
 //! the hand designs, validation of the winner, the report and an optional
 //! mesh export. [`run`] takes a [`SearchConfig`] that names every input and
 //! every output path, and reports progress through an [`Observer`]; it never
-//! prints.
+//! prints. A run never loses or clobbers a result: it checks and locks its
+//! outputs before any work, keeps the best layout so far in
+//! [`partial_path`], can be stopped in every phase, and replaces the layout
+//! and report only when every phase has finished.
 //!
 //! ```no_run
 //! use layout_opt::observer::Silent;
@@ -1127,6 +1130,51 @@ mod tests {
         assert_eq!(resumed.evaluations, finished.evaluations);
         assert_eq!(resumed.winner.points, finished.winner.points);
         assert!(!resumed.partial.exists() && !resumed.checkpoints.exists());
+    }
+
+    /// Records each phase's last progress.
+    #[derive(Default)]
+    struct Record {
+        last: Vec<(String, u64, u64)>,
+    }
+
+    impl Observer for Record {
+        fn progress(&mut self, phase: &str, done: u64, total: u64) {
+            assert!(done <= total, "{phase}: {done} of {total}");
+            match self.last.last_mut() {
+                Some(last) if last.0 == phase => {
+                    assert!(
+                        done >= last.1,
+                        "{phase} went back from {} to {done}",
+                        last.1
+                    );
+                    assert_eq!(total, last.2, "{phase} changed its total");
+                    *last = (phase.to_string(), done, total);
+                }
+                _ => self.last.push((phase.to_string(), done, total)),
+            }
+        }
+    }
+
+    #[test]
+    fn every_phase_has_a_bar_that_ends_at_its_total() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut config = small(dir.path());
+        config.search.starts = 3;
+        config.search.iterations = 400;
+        let mut observer = Record::default();
+        run(&config, &mut observer).unwrap();
+        let phases: Vec<&str> = observer.last.iter().map(|p| p.0.as_str()).collect();
+        assert_eq!(phases, [PHASE_SEARCH, PHASE_COMPARE, PHASE_VALIDATE]);
+        // The search's total is its real budget: starts × iterations.
+        assert_eq!(observer.last[0].2, 3 * 400);
+        // The comparison: 8 designs (winner, start, 3 hand designs, 3 made
+        // admissible) × 2 seeds × 20 scenarios.
+        assert_eq!(observer.last[1].2, 8 * 2 * 20);
+        assert_eq!(observer.last[2].2, 20);
+        for (phase, done, total) in &observer.last {
+            assert_eq!(done, total, "{phase} ended short of its total");
+        }
     }
 
     #[test]
