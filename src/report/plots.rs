@@ -112,7 +112,7 @@ const SOLVER_STYLES: [(&str, Style); 13] = [
     ("epnp", solver_style("#E69F00", SOLID, Marker::Diamond)),
     ("epnp-gn", solver_style("#117733", DASHED, Marker::Square)),
     ("iepnp", solver_style("#999933", DASHED, Marker::Circle)),
-    ("dlt", solver_style("#DDAA33", SOLID, Marker::TriangleDown)),
+    ("dlt", solver_style("#CCBB44", SOLID, Marker::TriangleDown)),
     ("dls", solver_style("#CC6677", DASHED, Marker::Diamond)),
     ("lhm", solver_style("#882255", SOLID, Marker::Plus)),
     ("rpnp", solver_style("#AA4499", DOTTED, Marker::TriangleUp)),
@@ -590,7 +590,18 @@ fn log_range(values: impl Iterator<Item = f64>) -> Option<(f64, f64)> {
         return None;
     }
     let pad = (0.05 * (hi / lo).log10()).max(0.04);
-    Some((lo / 10f64.powf(pad), hi * 10f64.powf(pad)))
+    Some((
+        snap_log(lo / 10f64.powf(pad), f64::floor),
+        snap_log(hi * 10f64.powf(pad), f64::ceil),
+    ))
+}
+
+/// `value` rounded (by `round`, floor or ceil) to an integer multiple of its
+/// decade, so that a log axis ends on a value it can label.
+fn snap_log(value: f64, round: fn(f64) -> f64) -> f64 {
+    let decade = 10f64.powf(value.log10().floor());
+    let multiple = round(value / decade * (1.0 + 1e-12) - 2e-12).max(1.0);
+    multiple * decade
 }
 
 /// Draws the frame, grid, ticks and tick labels of a plot area.
@@ -928,8 +939,13 @@ pub fn line_plot_with_availability(
             .map(|&(x, y)| (x_scale.map(x), y_scale.map(y)))
             .collect();
         svg.polyline(&pixels, style);
+        // A model line with one point would vanish without a marker.
+        let marker = match (style.marker, pixels.len()) {
+            (Marker::None, 1) => Marker::Circle,
+            (marker, _) => marker,
+        };
         for &p in &pixels {
-            svg.marker(style.marker, p, 3.0, style.colour);
+            svg.marker(marker, p, 3.0, style.colour);
         }
     }
     svg.vertical_text(
@@ -1421,6 +1437,20 @@ mod tests {
         assert_eq!(
             labels(&log_ticks(0.21, 0.28,)),
             ["0.22", "0.24", "0.26", "0.28"]
+        );
+    }
+
+    #[test]
+    fn log_ranges_end_on_a_labelled_value() {
+        let (lo, hi) = log_range([0.113, 0.32].into_iter()).unwrap();
+        assert!(
+            (lo - 0.1).abs() < 1e-12 && (hi - 0.4).abs() < 1e-12,
+            "{lo} {hi}"
+        );
+        let (lo, hi) = log_range([3.0, 1450.0].into_iter()).unwrap();
+        assert!(
+            (lo - 2.0).abs() < 1e-12 && (hi - 2000.0).abs() < 1e-9,
+            "{lo} {hi}"
         );
     }
 
