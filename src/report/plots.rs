@@ -284,14 +284,20 @@ fn log_label(mantissa: u32, exponent: i32) -> String {
     format_fixed(value, (-exponent).max(0) as usize)
 }
 
-/// Ticks of a log axis over [lo, hi] (both positive): decades, then 1-2-5,
-/// then every integer multiple of the decade, whichever first gives at least
-/// four ticks; a span too short for that gets linear 1-2-5 ticks.
+/// Ticks of a log axis over [lo, hi] (both positive): decades when there are
+/// at least five, else 1-2-5 when that gives four, else every integer
+/// multiple of the decade when that gives three; a span too short for that
+/// gets linear 1-2-5 ticks.
 fn log_ticks(lo: f64, hi: f64) -> Vec<Tick> {
-    const SETS: [&[u32]; 3] = [&[1], &[1, 2, 5], &[1, 2, 3, 4, 5, 6, 7, 8, 9]];
+    // Each set with the fewest ticks it must give to be chosen.
+    const SETS: [(&[u32], usize); 3] = [
+        (&[1], 5),
+        (&[1, 2, 5], 4),
+        (&[1, 2, 3, 4, 5, 6, 7, 8, 9], 3),
+    ];
     let first = lo.log10().floor() as i32;
     let last = hi.log10().ceil() as i32;
-    for set in SETS {
+    for (set, fewest) in SETS {
         let mut ticks = Vec::new();
         for exponent in first..=last {
             for &mantissa in set {
@@ -310,7 +316,7 @@ fn log_ticks(lo: f64, hi: f64) -> Vec<Tick> {
                 }
             }
         }
-        if ticks.len() >= 4 {
+        if ticks.len() >= fewest {
             return ticks;
         }
     }
@@ -1427,6 +1433,11 @@ mod tests {
         assert_eq!(
             labels(&log_ticks(0.08, 0.55)),
             ["0.08", "0.09", "0.1", "0.2", "0.3", "0.4", "0.5"]
+        );
+        // Three decades: 1-2-5.
+        assert_eq!(
+            labels(&log_ticks(1.0, 2000.0)),
+            ["1", "2", "5", "10", "20", "50", "100", "200", "500", "1000", "2000"]
         );
         // Two decades: 1-2-5.
         assert_eq!(
