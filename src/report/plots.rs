@@ -112,7 +112,7 @@ const SOLVER_STYLES: [(&str, Style); 13] = [
     ("epnp", solver_style("#E69F00", SOLID, Marker::Diamond)),
     ("epnp-gn", solver_style("#117733", DASHED, Marker::Square)),
     ("iepnp", solver_style("#999933", DASHED, Marker::Circle)),
-    ("dlt", solver_style("#DDAA33", SOLID, Marker::TriangleDown)),
+    ("dlt", solver_style("#CCBB44", SOLID, Marker::TriangleDown)),
     ("dls", solver_style("#CC6677", DASHED, Marker::Diamond)),
     ("lhm", solver_style("#882255", SOLID, Marker::Plus)),
     ("rpnp", solver_style("#AA4499", DOTTED, Marker::TriangleUp)),
@@ -284,14 +284,20 @@ fn log_label(mantissa: u32, exponent: i32) -> String {
     format_fixed(value, (-exponent).max(0) as usize)
 }
 
-/// Ticks of a log axis over [lo, hi] (both positive): decades, then 1-2-5,
-/// then every integer multiple of the decade, whichever first gives at least
-/// four ticks; a span too short for that gets linear 1-2-5 ticks.
+/// Ticks of a log axis over [lo, hi] (both positive): decades when there are
+/// at least five, else 1-2-5 when that gives four, else every integer
+/// multiple of the decade when that gives three; a span too short for that
+/// gets linear 1-2-5 ticks.
 fn log_ticks(lo: f64, hi: f64) -> Vec<Tick> {
-    const SETS: [&[u32]; 3] = [&[1], &[1, 2, 5], &[1, 2, 3, 4, 5, 6, 7, 8, 9]];
+    // Each set with the fewest ticks it must give to be chosen.
+    const SETS: [(&[u32], usize); 3] = [
+        (&[1], 5),
+        (&[1, 2, 5], 4),
+        (&[1, 2, 3, 4, 5, 6, 7, 8, 9], 3),
+    ];
     let first = lo.log10().floor() as i32;
     let last = hi.log10().ceil() as i32;
-    for set in SETS {
+    for (set, fewest) in SETS {
         let mut ticks = Vec::new();
         for exponent in first..=last {
             for &mantissa in set {
@@ -310,7 +316,7 @@ fn log_ticks(lo: f64, hi: f64) -> Vec<Tick> {
                 }
             }
         }
-        if ticks.len() >= 4 {
+        if ticks.len() >= fewest {
             return ticks;
         }
     }
@@ -590,7 +596,18 @@ fn log_range(values: impl Iterator<Item = f64>) -> Option<(f64, f64)> {
         return None;
     }
     let pad = (0.05 * (hi / lo).log10()).max(0.04);
-    Some((lo / 10f64.powf(pad), hi * 10f64.powf(pad)))
+    Some((
+        snap_log(lo / 10f64.powf(pad), f64::floor),
+        snap_log(hi * 10f64.powf(pad), f64::ceil),
+    ))
+}
+
+/// `value` rounded (by `round`, floor or ceil) to an integer multiple of its
+/// decade, so that a log axis ends on a value it can label.
+fn snap_log(value: f64, round: fn(f64) -> f64) -> f64 {
+    let decade = 10f64.powf(value.log10().floor());
+    let multiple = round(value / decade * (1.0 + 1e-12) - 2e-12).max(1.0);
+    multiple * decade
 }
 
 /// Draws the frame, grid, ticks and tick labels of a plot area.
@@ -928,8 +945,13 @@ pub fn line_plot_with_availability(
             .map(|&(x, y)| (x_scale.map(x), y_scale.map(y)))
             .collect();
         svg.polyline(&pixels, style);
+        // A model line with one point would vanish without a marker.
+        let marker = match (style.marker, pixels.len()) {
+            (Marker::None, 1) => Marker::Circle,
+            (marker, _) => marker,
+        };
         for &p in &pixels {
-            svg.marker(style.marker, p, 3.0, style.colour);
+            svg.marker(marker, p, 3.0, style.colour);
         }
     }
     svg.vertical_text(
@@ -1412,6 +1434,11 @@ mod tests {
             labels(&log_ticks(0.08, 0.55)),
             ["0.08", "0.09", "0.1", "0.2", "0.3", "0.4", "0.5"]
         );
+        // Three decades: 1-2-5.
+        assert_eq!(
+            labels(&log_ticks(1.0, 2000.0)),
+            ["1", "2", "5", "10", "20", "50", "100", "200", "500", "1000", "2000"]
+        );
         // Two decades: 1-2-5.
         assert_eq!(
             labels(&log_ticks(0.3, 40.0)),
@@ -1421,6 +1448,20 @@ mod tests {
         assert_eq!(
             labels(&log_ticks(0.21, 0.28,)),
             ["0.22", "0.24", "0.26", "0.28"]
+        );
+    }
+
+    #[test]
+    fn log_ranges_end_on_a_labelled_value() {
+        let (lo, hi) = log_range([0.113, 0.32].into_iter()).unwrap();
+        assert!(
+            (lo - 0.1).abs() < 1e-12 && (hi - 0.4).abs() < 1e-12,
+            "{lo} {hi}"
+        );
+        let (lo, hi) = log_range([3.0, 1450.0].into_iter()).unwrap();
+        assert!(
+            (lo - 2.0).abs() < 1e-12 && (hi - 2000.0).abs() < 1e-9,
+            "{lo} {hi}"
         );
     }
 
