@@ -846,6 +846,7 @@ mod tests {
             solvers: vec![Solver::ParallelWeighted],
             noise: NoiseModel::default(),
             gross_threshold_deg: 10.0,
+            observation: Default::default(),
         };
         let scenarios = ScenarioGrid::new(
             Range::list(&[300.0, 600.0]),

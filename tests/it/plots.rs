@@ -233,6 +233,7 @@ fn write_reports(dir: &Path) {
             solvers: Solver::ALL.to_vec(),
             noise: Default::default(),
             gross_threshold_deg: DEFAULT_GROSS_THRESHOLD_DEG,
+            observation: Default::default(),
         },
         command: "plots test".into(),
         grid_note: None,
