@@ -19,9 +19,10 @@
 
 use super::checkpoint::{CheckpointError, Checkpoints, ResumeStatus};
 use super::compare::{compare, hand_designs};
+use super::front::{self, FrontReport, FrontSettings};
 use super::optimise::{self, Candidate, Optimiser, SearchObserver, SearchSettings};
-use super::report::{self as search_report, verdicts, SearchHeader, SearchSummary};
-use super::{Aggregate, Evaluator, ObjectiveSettings};
+use super::report::{self as search_report, verdicts, HeldOutCheck, SearchHeader, SearchSummary};
+use super::{Aggregate, AvailabilityFloor, Evaluator, ObjectiveSettings};
 use crate::camera::Camera;
 use crate::family::{Constraints, Envelope, Family, FamilyError, FamilyKind};
 use crate::layout::{Layout, LayoutError};
@@ -42,6 +43,8 @@ use std::time::Instant;
 pub const PHASE_SEARCH: &str = "searching";
 /// Progress phase of the comparison with the hand designs.
 pub const PHASE_COMPARE: &str = "comparing designs";
+/// Progress phase of the Pareto front's sweep (interruptible).
+pub const PHASE_FRONT: &str = "sweeping the front";
 /// Progress phase of the winner's sensitivity report.
 pub const PHASE_VALIDATE: &str = "validating the winner";
 
@@ -58,6 +61,44 @@ pub fn default_grid() -> ScenarioGrid {
         Range::single(0.5),
     )
     .expect("the default grid is valid")
+}
+
+/// A held-out grid beside `grid`: every range of two or more values is
+/// replaced by the midpoints of its neighbouring values, so no scenario is
+/// shared with `grid` (`200..1000` in 5 → 300, 500, 700, 900).
+pub fn held_out_grid(grid: &ScenarioGrid) -> ScenarioGrid {
+    let shift = |range: &Range| {
+        if range.values.len() < 2 {
+            range.clone()
+        } else {
+            let mids: Vec<f64> = range
+                .values
+                .windows(2)
+                .map(|w| 0.5 * (w[0] + w[1]))
+                .collect();
+            Range::list(&mids)
+        }
+    };
+    ScenarioGrid::new(
+        shift(&grid.depth_mm),
+        shift(&grid.offset_x_mm),
+        shift(&grid.offset_y_mm),
+        shift(&grid.tilt_deg),
+        shift(&grid.pan_deg),
+        shift(&grid.roll_deg),
+        grid.sigma_px.clone(),
+    )
+    .expect("midpoints of a valid grid form a valid grid")
+}
+
+/// The Pareto front of a search (`search --front`).
+#[derive(Debug, Clone)]
+pub struct FrontOutput {
+    /// How the front is swept.
+    pub settings: FrontSettings,
+    /// Directory of the members' layout files (beside the winner's:
+    /// `<dir of the layout>/<name>-front/`).
+    pub layout_dir: PathBuf,
 }
 
 /// The winner's meshes, written with `export`'s defaults.
@@ -107,6 +148,8 @@ pub struct SearchConfig {
     pub checkpoint_dir: PathBuf,
     /// Meshes of the winner, if wanted.
     pub export: Option<MeshExport>,
+    /// The Pareto front of accuracy against availability, if wanted.
+    pub front: Option<FrontOutput>,
 }
 
 impl SearchConfig {
@@ -135,7 +178,8 @@ impl SearchConfig {
                 objective: "crlb".parse().expect("a valid objective"),
                 aggregate: Aggregate::Mean,
                 translation_weight: 0.5,
-                availability_weight: 1.0,
+                availability_weight: 0.0,
+                min_availability: AvailabilityFloor::Reference,
                 trials: 20,
                 seed,
                 noise: NoiseModel::default(),
@@ -165,6 +209,7 @@ impl SearchConfig {
             layout_path,
             checkpoint_dir: dir.join("checkpoints"),
             export: None,
+            front: None,
         }
     }
 
@@ -178,6 +223,9 @@ impl SearchConfig {
             "the smallest gap and distance difference must be non-negative"
         } else if !(s.translation_weight >= 0.0 && s.availability_weight >= 0.0) {
             "objective weights must be non-negative"
+        } else if matches!(s.min_availability, AvailabilityFloor::Share(share) if !(0.0..=1.0).contains(&share))
+        {
+            "the availability floor must be a share in [0, 1]"
         } else if s.trials == 0 || self.compare_trials == 0 {
             "Monte-Carlo trials and comparison trials must be at least 1"
         } else if self.validate_solvers.is_empty() {
@@ -223,6 +271,8 @@ pub struct SearchOutcome {
     pub summary: Option<SearchSummary>,
     /// Files of the mesh export.
     pub exported: Vec<PathBuf>,
+    /// The Pareto front, when asked for.
+    pub front: Option<FrontReport>,
     /// Seconds spent optimising.
     pub search_seconds: f64,
     /// Seconds of the whole run.
@@ -397,6 +447,17 @@ pub fn run(
         constraints.envelope,
         constraints.sphere_diameter_mm,
     )?;
+    let points = family.point_count();
+    let needed = points * (points - 1) / 2;
+    if let Some(capacity) = constraints.distinct_distance_capacity() {
+        if needed > capacity {
+            return Err(SearchError::Config(format!(
+                "{points} points have {needed} pairwise distances, but the envelope holds at most {capacity} distances {} mm apart between {} mm (sphere diameter plus gap) and its diagonal; use fewer points, a larger envelope or a smaller --min-distance-diff",
+                constraints.min_distance_diff_mm,
+                constraints.sphere_diameter_mm + constraints.min_gap_mm
+            )));
+        }
+    }
     let description = family_description(&family);
     let name = &config.name;
     let seed = config.search.seed;
@@ -501,6 +562,7 @@ pub fn run(
     }
 
     let mut winner = family.layout(name, &outcome.best.params);
+    let provenance_for_front = provenance.clone();
     let mut final_provenance = provenance;
     final_provenance["score"] = outcome.best.evaluation.cost.into();
     final_provenance["status"] = if outcome.interrupted {
@@ -520,6 +582,7 @@ pub fn run(
         checkpoints: checkpoints.dir().to_path_buf(),
         summary: None,
         exported: Vec::new(),
+        front: None,
         search_seconds,
         total_seconds: search_seconds,
     };
@@ -581,6 +644,64 @@ pub fn run(
         config.objective.noise,
     )?;
     observer.progress(PHASE_COMPARE, 1, 1);
+
+    // First-order figures of the winner and the paper's biprism on a held-out
+    // grid (midpoints of the search grid's values).
+    let held_out = {
+        let grid = held_out_grid(&config.grid);
+        let first_order = evaluator
+            .on_scenarios(grid.scenarios(), &paper.positions())
+            .first_order(&paper.positions());
+        HeldOutCheck::new(
+            &grid,
+            &first_order.evaluate(&winner.positions(), &winner.point_sigmas()),
+            &first_order.evaluate(&paper.positions(), &paper.point_sigmas()),
+        )
+    };
+
+    let front = match &config.front {
+        None => None,
+        Some(output) => {
+            let front_started = Instant::now();
+            let levels_done = AtomicU64::new(0);
+            let stop = AtomicBool::new(false);
+            let (points, evaluations) = watch(
+                observer,
+                PHASE_FRONT,
+                (output.settings.levels + 1 + front::BLEND_WEIGHTS.len()) as u64,
+                || levels_done.load(Ordering::Relaxed),
+                Some(&stop),
+                || {
+                    front::sweep(
+                        &family,
+                        &evaluator,
+                        settings,
+                        &output.settings,
+                        std::slice::from_ref(&outcome.best),
+                        &stop,
+                        &levels_done,
+                    )
+                },
+            )?;
+            let hand_rows: Vec<_> = rows[paper_index..]
+                .iter()
+                .map(|r| (r.name.clone(), r.layout.clone(), r.evaluation.clone()))
+                .collect();
+            let report = front::write(
+                &config.report_dir,
+                &output.layout_dir,
+                name,
+                &family,
+                &points,
+                &evaluator.first_order(&paper.positions()),
+                &hand_rows,
+                &provenance_for_front,
+                (evaluations, front_started.elapsed().as_secs_f64()),
+                &output.settings,
+            )?;
+            Some(report)
+        }
+    };
     let summary = SearchSummary {
         header: SearchHeader {
             command: config.command.clone(),
@@ -598,6 +719,8 @@ pub fn run(
         verdicts: verdicts(&rows, paper_index, hand_range, admissible_range),
         outcome,
         designs: rows,
+        held_out,
+        front: front.clone(),
     };
     search_report::write(&config.report_dir, &summary)?;
 
@@ -659,6 +782,7 @@ pub fn run(
         result.exported = report.files.into_iter().map(|f| f.path).collect();
     }
     result.summary = Some(summary);
+    result.front = front;
     result.total_seconds = total_seconds;
     Ok(result)
 }
