@@ -13,9 +13,11 @@
 //!   [`BLEND_WEIGHTS`]: its winners are supported points of the front that
 //!   the ε-levels, whose penalty can push a warm start past the best layout
 //!   at a floor, may miss.
-//! * Every level runs the family's natural and spread starts plus the warm
-//!   starts (every earlier front member), each repaired to meet the
-//!   constraints; only layouts that meet the constraints enter the front.
+//! * Every level runs the family's natural and spread starts plus
+//!   [`WARM_STARTS`] warm starts (the front members so far that score best
+//!   under the level's objective), without the final polish, each repaired
+//!   to meet the constraints; only layouts that meet the constraints enter
+//!   the front.
 //! * Accuracy is the search objective's accuracy (1 = the reference layout);
 //!   the front also lists the first-order RMS rotation and translation on
 //!   the search grid.
@@ -43,11 +45,14 @@ impl Default for FrontSettings {
     fn default() -> Self {
         Self {
             levels: 8,
-            iterations: 3000,
+            iterations: 2000,
         }
     }
 }
 
+/// Warm starts of each level: the front members that score best under the
+/// level's objective.
+pub const WARM_STARTS: usize = 2;
 /// Availability weights of the blend levels after the ε-constraint levels.
 pub const BLEND_WEIGHTS: [f64; 4] = [0.5, 1.0, 2.0, 4.0];
 
@@ -129,6 +134,7 @@ pub fn sweep(
         starts: 2.min(base.starts.max(1)),
         start_jitter: 0.0,
         iterations: front.iterations,
+        polish_iterations: 0,
         ..base.clone()
     };
     let mut pool: Vec<FrontPoint> = offered
@@ -142,8 +148,21 @@ pub fn sweep(
     let evaluations = std::cell::Cell::new(0);
     let run_level = |floor: Option<f64>, weight: f64, pool: &[FrontPoint]| {
         let level = evaluator.with_floor(floor).with_availability_weight(weight);
-        let warm: Vec<Vec<f64>> = non_dominated(pool.to_vec())
+        // Warm starts: the front members that score best under this level's
+        // objective (its floor as an exact penalty, its weight).
+        let score = |p: &FrontPoint| {
+            let e = &p.candidate.evaluation;
+            e.accuracy
+                + weight * (1.0 - e.availability)
+                + floor.map_or(0.0, |f| {
+                    super::AVAILABILITY_PENALTY * (f - e.availability).max(0.0)
+                })
+        };
+        let mut members = non_dominated(pool.to_vec());
+        members.sort_by(|a, b| score(a).total_cmp(&score(b)));
+        let warm: Vec<Vec<f64>> = members
             .into_iter()
+            .take(WARM_STARTS)
             .map(|p| p.candidate.params)
             .collect();
         optimise::run_with_starts(
@@ -279,7 +298,7 @@ pub struct FrontReport {
 }
 
 /// The method, in words, for the reports.
-pub const METHOD: &str = "ε-constraint sweep: the search rerun with the availability floor raised in equal steps from the availability of the most accurate layout (no floor) towards 1, then with the weighted blend at availability weights 0.5, 1, 2 and 4, each level warm-started from the front so far plus the family's natural and spread starts; the floor is an exact penalty (100 per unit of missing availability, counted exactly and softly) and ranks layouts below it behind every layout above it; only layouts meeting the constraints enter, and the non-dominated ones form the front";
+pub const METHOD: &str = "ε-constraint sweep: the search rerun with the availability floor raised in equal steps from the availability of the most accurate layout (no floor) towards 1, then with the weighted blend at availability weights 0.5, 1, 2 and 4, each level warm-started from the two front members so far that score best under its objective plus the family's natural and spread starts; the floor is an exact penalty (100 per unit of missing availability, counted exactly and softly) and ranks layouts below it behind every layout above it; only layouts meeting the constraints enter, and the non-dominated ones form the front";
 
 fn first_order(evaluation: &Evaluation) -> (Option<f64>, Option<f64>) {
     evaluation
