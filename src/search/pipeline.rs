@@ -878,6 +878,24 @@ mod tests {
     }
 
     #[test]
+    fn too_many_points_for_distinct_distances_are_refused_before_the_search() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut config = small(dir.path());
+        config.family = FamilyKind::Custom {
+            count: 19,
+            start: None,
+        };
+        let error = run(&config, &mut Silent).unwrap_err();
+        assert!(
+            error.to_string().contains("171 pairwise distances")
+                && error.to_string().contains("at most 162"),
+            "{error}"
+        );
+        assert!(!config.layout_path.exists());
+        assert!(!config.checkpoint_dir.exists());
+    }
+
+    #[test]
     fn the_report_goes_beside_the_layout() {
         assert_eq!(
             report_dir_beside(Path::new("out/marker.json")),
