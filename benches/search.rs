@@ -5,36 +5,57 @@
 //! outputs go to a temporary directory instead of `layouts/` and `reports/`.
 //!
 //! Run with `cargo bench --bench search`; criterion reports the median wall
-//! time of the whole command over ten runs (about 11 s each).
+//! time of the whole command over ten runs (about 11 s each). The second
+//! benchmark adds `--front` (the ε-constraint sweep of the Pareto front);
+//! `cargo bench --bench search -- front` runs it alone.
 
 use criterion::{criterion_group, criterion_main, Criterion, SamplingMode};
 use std::process::Command;
 use std::time::Duration;
 
-fn bench_default_search(c: &mut Criterion) {
-    let dir = tempfile::tempdir().expect("a temporary directory");
-    let run = || {
+fn search_command(dir: &std::path::Path, extra: &[&str]) -> impl Fn() {
+    let dir = dir.to_path_buf();
+    let extra: Vec<String> = extra.iter().map(|s| s.to_string()).collect();
+    move || {
         let status = Command::new(env!("CARGO_BIN_EXE_layout-opt"))
             .args(["search", "--depth", "200..1000", "--quiet"])
+            .args(&extra)
             .arg("--out")
-            .arg(dir.path().join("biprism-search.json"))
+            .arg(dir.join("biprism-search.json"))
             .arg("--report")
-            .arg(dir.path().join("report"))
+            .arg(dir.join("report"))
             .arg("--checkpoint-dir")
-            .arg(dir.path().join("checkpoints"))
+            .arg(dir.join("checkpoints"))
             .status()
             .expect("layout-opt runs");
-        assert!(status.success(), "the default search failed");
-    };
+        assert!(status.success(), "the search failed");
+    }
+}
+
+fn bench_default_search(c: &mut Criterion) {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let run = search_command(dir.path(), &[]);
     let mut group = c.benchmark_group("search");
     // One run per sample: ten runs in all.
     group.sampling_mode(SamplingMode::Flat);
     group.sample_size(10);
     group.warm_up_time(Duration::from_secs(1));
     group.measurement_time(Duration::from_secs(100));
-    group.bench_function("default (search --depth 200..1000)", |b| b.iter(run));
+    group.bench_function("default (search --depth 200..1000)", |b| b.iter(&run));
     group.finish();
 }
 
-criterion_group!(benches, bench_default_search);
+fn bench_front(c: &mut Criterion) {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let run = search_command(dir.path(), &["--front"]);
+    let mut group = c.benchmark_group("search");
+    group.sampling_mode(SamplingMode::Flat);
+    group.sample_size(10);
+    group.warm_up_time(Duration::from_secs(1));
+    group.measurement_time(Duration::from_secs(600));
+    group.bench_function("front (search --depth 200..1000 --front)", |b| b.iter(&run));
+    group.finish();
+}
+
+criterion_group!(benches, bench_default_search, bench_front);
 criterion_main!(benches);

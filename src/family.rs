@@ -710,6 +710,22 @@ impl Violations {
 }
 
 impl Constraints {
+    /// How many pairwise distances, each at least a sphere diameter plus
+    /// the gap and at most the envelope's diagonal, can differ pairwise by
+    /// `min_distance_diff_mm` (None when identifiability is off): a layout of
+    /// n points needs n(n − 1)/2 of them. A necessary condition only.
+    pub fn distinct_distance_capacity(&self) -> Option<usize> {
+        if self.min_distance_diff_mm <= 0.0 {
+            return None;
+        }
+        let closest = self.sphere_diameter_mm + self.min_gap_mm;
+        let farthest = self.envelope.half().norm() * 2.0;
+        if farthest < closest {
+            return Some(0);
+        }
+        Some(((farthest - closest) / self.min_distance_diff_mm).floor() as usize + 1)
+    }
+
     /// Measures the violations of `points`.
     pub fn violations(&self, points: &[Vector3<f64>]) -> Violations {
         let mut v = Violations {
@@ -911,6 +927,20 @@ mod tests {
         assert!((v.smallest_gap_mm - 1.0).abs() < 1e-12);
         assert!(v.gap_mm >= 1.0 && v.envelope_mm >= 10.0);
         assert!(!v.describe(&constraints).is_empty());
+    }
+
+    #[test]
+    fn distinct_distance_capacity_counts_the_envelopes_room() {
+        let mut constraints = Constraints {
+            envelope: cube(100.0),
+            sphere_diameter_mm: 10.0,
+            min_gap_mm: 2.0,
+            min_distance_diff_mm: 1.0,
+        };
+        // Distances from 12 mm to the 173.2 mm diagonal, 1 mm apart: 162.
+        assert_eq!(constraints.distinct_distance_capacity(), Some(162));
+        constraints.min_distance_diff_mm = 0.0;
+        assert_eq!(constraints.distinct_distance_capacity(), None);
     }
 
     #[test]

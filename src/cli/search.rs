@@ -16,9 +16,12 @@ use layout_opt::pnp::Solver;
 use layout_opt::report::{percent_lower, Table};
 use layout_opt::scenario::ScenarioGrid;
 use layout_opt::search::compare::hand_designs;
+use layout_opt::search::front::FrontSettings;
 use layout_opt::search::optimise::{Optimiser, SearchSettings};
-use layout_opt::search::pipeline::{self, MeshExport, SearchConfig};
-use layout_opt::search::{Aggregate, Evaluator, Objective, ObjectiveSettings, Term};
+use layout_opt::search::pipeline::{self, FrontOutput, MeshExport, SearchConfig};
+use layout_opt::search::{
+    Aggregate, AvailabilityFloor, Evaluator, Objective, ObjectiveSettings, Term,
+};
 use layout_opt::sphere_image::Observation;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -79,9 +82,17 @@ pub struct SearchArgs {
     /// Weight of translation against rotation error in the objective.
     #[arg(long, default_value_t = 0.5)]
     translation_weight: f64,
-    /// Cost of losing every scenario to visibility (occlusion, leaving the image).
-    #[arg(long, default_value_t = 1.0)]
+    /// Weighted blend: cost of losing every scenario to visibility (occlusion,
+    /// leaving the image), added to the accuracy. 0 (the default) scores
+    /// accuracy alone, subject to --min-availability.
+    #[arg(long, default_value_t = 0.0)]
     availability_weight: f64,
+    /// Least share of the grid's scenarios in which every sphere is visible
+    /// and unoccluded: a share (0.6 or 60%), `reference` (the family's
+    /// reference design on the same grid: for biprism, the paper's biprism),
+    /// or `none` (availability priced by --availability-weight alone).
+    #[arg(long, default_value = "reference", value_name = "SHARE")]
+    min_availability: AvailabilityFloor,
     /// Monte-Carlo trials per scenario for mc: objectives.
     #[arg(long, default_value_t = 20)]
     trials: usize,
@@ -113,7 +124,9 @@ pub struct SearchArgs {
     /// Particles (particle swarm).
     #[arg(long, default_value_t = 32)]
     particles: usize,
-    /// Nelder–Mead polish iterations after particle swarm or annealing.
+    /// Nelder–Mead polish iterations: after particle swarm or annealing; after
+    /// Nelder–Mead, the final polish runs this many from the winner and from
+    /// three seeded copies jittered around it (0 disables).
     #[arg(long, default_value_t = 2000)]
     polish: u64,
     /// Solver of the Monte-Carlo comparison in the report.
@@ -157,6 +170,14 @@ pub struct SearchArgs {
     /// Directory of the exported meshes. Default: build/<name>/.
     #[arg(long, value_name = "DIR")]
     export_dir: Option<PathBuf>,
+    /// Also compute the Pareto front of accuracy against availability (an
+    /// ε-constraint sweep): front.json, front.csv and front.svg in the report
+    /// directory, a layout per member in <dir of the layout>/<name>-front/.
+    #[arg(long)]
+    front: bool,
+    /// Availability levels of the front's sweep above the unconstrained one.
+    #[arg(long, default_value_t = 8, value_name = "N", requires = "front")]
+    front_levels: usize,
 }
 
 /// The flags as a pipeline configuration; the default paths are relative to
@@ -217,6 +238,19 @@ fn config(args: SearchArgs, global: &GlobalOptions) -> anyhow::Result<SearchConf
             .clone()
             .unwrap_or_else(|| PathBuf::from("build").join(&name)),
     });
+    if args.front_levels == 0 {
+        anyhow::bail!("--front-levels must be at least 1");
+    }
+    let front = args.front.then(|| FrontOutput {
+        settings: FrontSettings {
+            levels: args.front_levels,
+            ..FrontSettings::default()
+        },
+        layout_dir: layout_path
+            .parent()
+            .unwrap_or(std::path::Path::new(""))
+            .join(format!("{name}-front")),
+    });
     Ok(SearchConfig {
         layout_path: layout_path.clone(),
         family,
@@ -233,6 +267,7 @@ fn config(args: SearchArgs, global: &GlobalOptions) -> anyhow::Result<SearchConf
             aggregate: args.aggregate,
             translation_weight: args.translation_weight,
             availability_weight: args.availability_weight,
+            min_availability: args.min_availability,
             trials: args.trials,
             seed: global.seed,
             noise: args.noise_model,
@@ -257,6 +292,7 @@ fn config(args: SearchArgs, global: &GlobalOptions) -> anyhow::Result<SearchConf
             .checkpoint_dir
             .unwrap_or_else(|| pipeline::checkpoint_dir_beside(&layout_path)),
         export,
+        front,
         name,
     })
 }
@@ -454,6 +490,30 @@ pub fn run(args: SearchArgs, global: &GlobalOptions) -> anyhow::Result<()> {
         percent_lower(v.rotation_reduction_vs_paper_percent[1]),
         v.availability_difference_pp
     );
+    let held = &summary.held_out;
+    println!(
+        "held-out grid ({} scenarios), first order: RMS rotation {:.4}° vs the paper biprism's {:.4}° ({:.1}% lower); availability {:.1}% vs {:.1}%; occluded {} vs {}",
+        held.scenarios,
+        held.winner_rotation_rms_deg.unwrap_or(f64::NAN),
+        held.paper_rotation_rms_deg.unwrap_or(f64::NAN),
+        held.rotation_reduction_percent.unwrap_or(f64::NAN),
+        100.0 * held.winner_availability,
+        100.0 * held.paper_availability,
+        held.winner_occluded,
+        held.paper_occluded
+    );
+    println!(
+        "objective {:.4} (accuracy {:.4}); availability floor {}: {}",
+        summary.outcome.best.evaluation.objective,
+        summary.outcome.best.evaluation.accuracy,
+        v.availability_floor
+            .map_or("none".to_string(), |f| format!("{:.1}%", 100.0 * f)),
+        if v.winner_meets_availability_floor {
+            "met"
+        } else {
+            "NOT met"
+        }
+    );
     let yes_no = |b: bool| if b { "yes" } else { "no" };
     println!(
         "winner's objective below every hand design's: {} as drawn, {} among the admissible ones ({})",
@@ -461,6 +521,41 @@ pub fn run(args: SearchArgs, global: &GlobalOptions) -> anyhow::Result<()> {
         yes_no(v.beats_admissible_hand_designs_on_objective),
         v.admissible_hand_designs.join(", ")
     );
+    if let Some(front) = &outcome.front {
+        println!(
+            "Pareto front ({} members, {} evaluations in {:.1} s; every hand design dominated: {}):",
+            front.members.len(),
+            front.evaluations,
+            front.seconds,
+            yes_no(front.dominates_every_hand_design)
+        );
+        println!(
+            "{:<30} {:>8} {:>10} {:>12} {:>14}",
+            "design", "avail %", "accuracy", "RMS rot (°)", "RMS trans (mm)"
+        );
+        let fmt = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.4}"));
+        for m in &front.members {
+            println!(
+                "{:<30} {:>8.1} {:>10.4} {:>12} {:>14}",
+                m.name,
+                100.0 * m.availability,
+                m.accuracy,
+                fmt(m.rotation_rms_deg),
+                fmt(m.translation_rms_mm)
+            );
+        }
+        for h in &front.hand_designs {
+            println!(
+                "{:<30} {:>8.1} {:>10.4} {:>12} {:>14}  dominated by {}",
+                h.name,
+                100.0 * h.availability,
+                h.accuracy,
+                fmt(h.rotation_rms_deg),
+                fmt(h.translation_rms_mm),
+                h.dominated_by.as_deref().unwrap_or("none")
+            );
+        }
+    }
     for file in &outcome.exported {
         println!("exported {}", file.display());
     }

@@ -21,18 +21,36 @@
 //! biprism scaled to the envelope), so 1.0 means "as accurate as the paper's
 //! biprism". A blend sums weighted terms.
 //!
-//! The *objective* adds `w_a · (1 − availability)`, availability being the
-//! fraction of scenarios with every sphere in front, inside the image and
-//! unoccluded, so a layout cannot win by leaving the image or hiding spheres
-//! more often. The objective counts each scenario's visibility softly, ramping
+//! *Availability* is the fraction of scenarios with every sphere in front,
+//! inside the image and unoccluded. By default it is a **constraint**: a
+//! floor ([`AvailabilityFloor`], by default the reference layout's own
+//! availability on the same grid), and the objective is accuracy alone. The
+//! floor is enforced by an exact penalty: a layout below it pays
+//! [`AVAILABILITY_PENALTY`] per unit of missing availability, counted both
+//! exactly and softly (see below) so that the optimiser sees a slope back to
+//! the feasible side, and ranks behind every layout that meets it; a layout
+//! that meets it pays nothing, so the floor does not bias the winner. The
+//! weighted blend stays available: the objective adds
+//! `w_a · (1 − availability)`, so a layout cannot win by leaving the image
+//! or hiding spheres more often. The blend counts each scenario's visibility softly, ramping
 //! from 0 to 1 as its smallest visibility margin
 //! ([`crate::scenario::visibility_margin_px`]) goes from −[`SOFT_MARGIN_PX`]
 //! to +[`SOFT_MARGIN_PX`], so that optimisers see a slope rather than a
 //! staircase of 0/1 steps; reports count visibility exactly. The *cost* the optimisers minimise adds
 //! [`CONSTRAINT_PENALTY`] per mm of constraint violation.
+//!
+//! # Books
+//! Every term keeps count of the scenarios it scored and of those it could
+//! not ([`TermValue`]): behind the camera, unusable noise (a sphere with no
+//! positive σ), or the model failing (a singular covariance, a diverging
+//! transfer model, a Monte-Carlo scenario where every trial failed). A blend
+//! scores every term on the *same* scenarios, those every term could
+//! evaluate ([`Evaluation::scored`]), so no two terms are averaged over
+//! different subsets; the reference aggregates are taken the same way.
 
 pub mod checkpoint;
 pub mod compare;
+pub mod front;
 pub mod optimise;
 pub mod pipeline;
 pub mod report;
@@ -65,6 +83,58 @@ pub const PENALTY_MARGIN_FRACTION: f64 = 0.02;
 pub const PENALTY_MARGIN_MM: f64 = 0.01;
 /// Cost of a term when no scenario has every sphere in front of the camera.
 pub const UNMEASURABLE_COST: f64 = 1e3;
+/// Cost per unit of availability below the floor (so one scenario of a
+/// 325-scenario grid costs 0.31, a third of the reference layout's accuracy).
+pub const AVAILABILITY_PENALTY: f64 = 100.0;
+
+/// The least availability a layout must reach.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum AvailabilityFloor {
+    /// No floor: availability is priced by the availability weight alone.
+    None,
+    /// The reference layout's availability on the same grid (for the
+    /// biprism family, the paper's biprism).
+    Reference,
+    /// A share of the grid's scenarios, in [0, 1].
+    Share(f64),
+}
+
+impl std::fmt::Display for AvailabilityFloor {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            AvailabilityFloor::None => f.write_str("none"),
+            AvailabilityFloor::Reference => f.write_str("reference"),
+            AvailabilityFloor::Share(share) => write!(f, "{share}"),
+        }
+    }
+}
+
+impl FromStr for AvailabilityFloor {
+    type Err = ObjectiveError;
+    fn from_str(text: &str) -> Result<Self, Self::Err> {
+        match text.trim() {
+            "none" => Ok(AvailabilityFloor::None),
+            "reference" => Ok(AvailabilityFloor::Reference),
+            other => {
+                let (number, scale) = match other.strip_suffix('%') {
+                    Some(percent) => (percent, 0.01),
+                    None => (other, 1.0),
+                };
+                let share = number
+                    .trim()
+                    .parse::<f64>()
+                    .map(|v| v * scale)
+                    .map_err(|_| ObjectiveError::BadFloor(other.to_string()))?;
+                if (0.0..=1.0).contains(&share) {
+                    Ok(AvailabilityFloor::Share(share))
+                } else {
+                    Err(ObjectiveError::BadFloor(other.to_string()))
+                }
+            }
+        }
+    }
+}
 
 /// Why an objective could not be parsed or set up.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -76,6 +146,9 @@ pub enum ObjectiveError {
     /// A weight is not positive.
     #[error("objective weights must be positive and finite, got {0}")]
     BadWeight(f64),
+    /// An availability floor is neither a share in [0, 1] nor a keyword.
+    #[error("the availability floor must be a share in [0, 1] (0.6 or 60%), 'reference' or 'none', got '{0}'")]
+    BadFloor(String),
 }
 
 /// One term of the objective.
@@ -209,6 +282,8 @@ pub struct ObjectiveSettings {
     pub translation_weight: f64,
     /// w_a: cost of losing every scenario to visibility.
     pub availability_weight: f64,
+    /// The least availability a layout must reach.
+    pub min_availability: AvailabilityFloor,
     /// Monte-Carlo trials per scenario (for `mc:` terms).
     pub trials: usize,
     /// Seed of the common random numbers.
@@ -229,8 +304,12 @@ pub struct TermValue {
     pub rotation_deg: Option<f64>,
     /// Aggregated RMS translation error, mm.
     pub translation_mm: Option<f64>,
-    /// Scenarios the term could score.
-    pub scenarios: usize,
+    /// Scenarios the term could evaluate (among those with every sphere in
+    /// front and usable noise).
+    pub evaluated: usize,
+    /// Scenarios where the term's model failed (singular covariance,
+    /// diverging transfer model, every Monte-Carlo trial failed).
+    pub failed: usize,
 }
 
 /// A scored layout.
@@ -258,8 +337,30 @@ pub struct Evaluation {
     pub outside: usize,
     /// Scenarios with a sphere behind the camera.
     pub behind: usize,
+    /// Scenarios the accuracy is aggregated over: in front, usable noise,
+    /// and evaluated by every term.
+    pub scored: usize,
+    /// In-front scenarios left out because a sphere had no positive σ.
+    pub unusable_noise: usize,
+    /// The availability floor in force (None: no floor).
+    pub availability_floor: Option<f64>,
+    /// The floor's penalty (0 when the floor is met).
+    pub floor_penalty: f64,
     /// Constraint violations.
     pub violations: Violations,
+}
+
+impl Evaluation {
+    /// The layout reaches the availability floor (or there is none).
+    pub fn meets_availability_floor(&self) -> bool {
+        self.availability_floor
+            .is_none_or(|floor| self.availability + 1e-12 >= floor)
+    }
+
+    /// Meets every constraint and the availability floor.
+    pub fn admissible(&self) -> bool {
+        self.violations.feasible() && self.meets_availability_floor()
+    }
 }
 
 /// Scores layouts on a fixed scenario grid.
@@ -273,6 +374,10 @@ pub struct Evaluator {
     penalised: Constraints,
     /// (R₀, T₀) per term, from the reference layout.
     reference: Vec<(f64, f64)>,
+    /// The reference layout's availability.
+    reference_availability: f64,
+    /// The availability floor in force.
+    floor: Option<f64>,
 }
 
 /// Per-scenario raw values of one layout: visibility flags and, per term,
@@ -284,7 +389,41 @@ struct ScenarioValues {
     occluded: usize,
     outside: usize,
     behind: usize,
-    per_term: Vec<(Vec<f64>, Vec<f64>)>,
+    unusable_noise: usize,
+    /// Per term, per scenario: (rotation, translation) when the term could
+    /// evaluate it; `None` for scenarios not in front or with unusable noise.
+    per_term: Vec<Vec<Option<(f64, f64)>>>,
+    /// Per term: scenarios in front with usable noise where the model failed.
+    failed: Vec<usize>,
+    /// Scenarios in front with usable noise.
+    usable: Vec<bool>,
+}
+
+/// One term's (rotations, translations) over the scored scenarios.
+type TermSamples = (Vec<f64>, Vec<f64>);
+
+impl ScenarioValues {
+    /// Per term, the (rotations, translations) of the scenarios that every
+    /// term evaluated: the common subset, so no two terms are averaged over
+    /// different scenarios.
+    fn common(&self) -> (usize, Vec<TermSamples>) {
+        let common: Vec<bool> = (0..self.usable.len())
+            .map(|s| self.usable[s] && self.per_term.iter().all(|t| t[s].is_some()))
+            .collect();
+        let count = common.iter().filter(|c| **c).count();
+        let per_term = self
+            .per_term
+            .iter()
+            .map(|values| {
+                values
+                    .iter()
+                    .zip(&common)
+                    .filter_map(|(v, c)| v.filter(|_| *c))
+                    .unzip()
+            })
+            .collect();
+        (count, per_term)
+    }
 }
 
 impl Evaluator {
@@ -318,13 +457,23 @@ impl Evaluator {
             camera,
             scenarios,
             reference: vec![(1.0, 1.0); settings.objective.terms.len()],
+            reference_availability: 0.0,
+            floor: None,
             settings,
             constraints,
             penalised,
         };
         let raw = evaluator.values(reference, &vec![None; reference.len()]);
+        evaluator.reference_availability =
+            raw.visible as f64 / evaluator.scenarios.len().max(1) as f64;
+        evaluator.floor = match evaluator.settings.min_availability {
+            AvailabilityFloor::None => None,
+            AvailabilityFloor::Reference => Some(evaluator.reference_availability),
+            AvailabilityFloor::Share(share) => Some(share),
+        };
         evaluator.reference = raw
-            .per_term
+            .common()
+            .1
             .into_iter()
             .map(|(mut rotation, mut translation)| {
                 let a = evaluator.settings.aggregate;
@@ -359,8 +508,70 @@ impl Evaluator {
         &self.reference
     }
 
+    /// The reference layout's availability on the grid.
+    pub fn reference_availability(&self) -> f64 {
+        self.reference_availability
+    }
+
+    /// The availability floor in force (None: no floor).
+    pub fn availability_floor(&self) -> Option<f64> {
+        self.floor
+    }
+
+    /// The same evaluator with another availability floor (the reference
+    /// aggregates are kept; an ε-constraint sweep changes only the floor).
+    pub fn with_floor(&self, floor: Option<f64>) -> Self {
+        let mut evaluator = self.clone();
+        evaluator.floor = floor;
+        evaluator.settings.min_availability = match floor {
+            Some(share) => AvailabilityFloor::Share(share),
+            None => AvailabilityFloor::None,
+        };
+        evaluator
+    }
+
+    /// The first-order (`crlb`) evaluator with this one's grid, aggregate,
+    /// weights and floor, normalised by `reference`: the figures the front
+    /// and the held-out check report whatever the objective.
+    pub fn first_order(&self, reference: &[Vector3<f64>]) -> Self {
+        let mut settings = self.settings.clone();
+        settings.objective = Objective {
+            terms: vec![(Term::Crlb, 1.0)],
+        };
+        let mut evaluator = Evaluator::new(
+            self.camera,
+            self.scenarios.clone(),
+            settings,
+            self.constraints,
+            reference,
+        );
+        evaluator.floor = self.floor;
+        evaluator
+    }
+
+    /// The same evaluator with another availability weight (the weighted
+    /// blend; the reference aggregates and the floor are kept).
+    pub fn with_availability_weight(&self, weight: f64) -> Self {
+        let mut evaluator = self.clone();
+        evaluator.settings.availability_weight = weight;
+        evaluator
+    }
+
+    /// The same evaluator on another scenario grid (a held-out grid), with
+    /// the same reference layout's aggregates recomputed there.
+    pub fn on_scenarios(&self, scenarios: Vec<Scenario>, reference: &[Vector3<f64>]) -> Self {
+        Evaluator::new(
+            self.camera,
+            scenarios,
+            self.settings.clone(),
+            self.constraints,
+            reference,
+        )
+    }
+
     fn values(&self, points: &[Vector3<f64>], point_sigma: &[Option<f64>]) -> ScenarioValues {
         let terms = &self.settings.objective.terms;
+        let n = self.scenarios.len();
         let mut values = ScenarioValues {
             visible: 0,
             soft_visible: 0.0,
@@ -368,15 +579,17 @@ impl Evaluator {
             occluded: 0,
             outside: 0,
             behind: 0,
-            per_term: vec![(Vec::new(), Vec::new()); terms.len()],
+            unusable_noise: 0,
+            per_term: vec![vec![None; n]; terms.len()],
+            failed: vec![0; terms.len()],
+            usable: vec![false; n],
         };
         let needs_models = terms
             .iter()
             .any(|(t, _)| matches!(t, Term::Crlb | Term::Transfer));
         let reference = reference_index(points);
-        let mut in_front_flags = Vec::with_capacity(self.scenarios.len());
         let mut image_bias = Vec::with_capacity(points.len());
-        for scenario in &self.scenarios {
+        for (s, scenario) in self.scenarios.iter().enumerate() {
             let pose = scenario.pose();
             let images = sphere_images(
                 &self.camera,
@@ -391,15 +604,10 @@ impl Evaluator {
             values.visible += usize::from(v.is_visible());
             let margin = visibility_margin_px(&images, &self.camera);
             values.soft_visible += (0.5 + margin / (2.0 * SOFT_MARGIN_PX)).clamp(0.0, 1.0);
-            let in_front = v.all_in_front();
-            in_front_flags.push(in_front);
-            if !in_front {
+            if !v.all_in_front() {
                 continue;
             }
             values.in_front += 1;
-            if !needs_models {
-                continue;
-            }
             let sigmas = point_sigmas(
                 &self.settings.noise,
                 scenario.sigma_px,
@@ -407,66 +615,66 @@ impl Evaluator {
                 point_sigma,
             );
             if !sigmas.iter().all(|s| *s > 0.0) {
+                values.unusable_noise += 1;
                 continue;
             }
-            for ((term, _), (rotation, translation)) in terms.iter().zip(values.per_term.iter_mut())
-            {
-                match term {
+            values.usable[s] = true;
+            if !needs_models {
+                continue;
+            }
+            for (k, (term, _)) in terms.iter().enumerate() {
+                let value = match term {
                     Term::Crlb => match self.settings.observation {
                         Observation::Centre => {
-                            if let Ok(c) = pose_covariance(&self.camera, &pose, points, &sigmas) {
-                                rotation.push(c.rms_rotation_deg());
-                                translation.push(c.rms_translation_mm());
-                            }
+                            pose_covariance(&self.camera, &pose, points, &sigmas)
+                                .ok()
+                                .map(|c| (c.rms_rotation_deg(), c.rms_translation_mm()))
                         }
+                        // The bias of ellipse-centre observations adds to
+                        // the random part in quadrature (an RMS error).
                         Observation::EllipseCentre => {
                             let radius_mm = 0.5 * self.constraints.sphere_diameter_mm;
-                            if ellipse_centre_bias_px_into(
+                            ellipse_centre_bias_px_into(
                                 &self.camera,
                                 &pose,
                                 points,
                                 radius_mm,
                                 &mut image_bias,
                             )
-                            .is_err()
-                            {
-                                continue;
-                            }
-                            if let Ok((Some(c), bias)) = pose_covariance_and_bias(
-                                &self.camera,
-                                &pose,
-                                points,
-                                &sigmas,
-                                &image_bias,
-                            ) {
-                                rotation.push(c.rms_rotation_deg().hypot(bias.rotation_deg()));
-                                translation
-                                    .push(c.rms_translation_mm().hypot(bias.translation_norm_mm()));
-                            }
+                            .ok()
+                            .and_then(|()| {
+                                match pose_covariance_and_bias(
+                                    &self.camera,
+                                    &pose,
+                                    points,
+                                    &sigmas,
+                                    &image_bias,
+                                ) {
+                                    Ok((Some(c), bias)) => Some((
+                                        c.rms_rotation_deg().hypot(bias.rotation_deg()),
+                                        c.rms_translation_mm().hypot(bias.translation_norm_mm()),
+                                    )),
+                                    _ => None,
+                                }
+                            })
                         }
                     },
                     Term::Transfer => {
                         let p = transfer::predict(&self.camera, &pose, points, reference, &sigmas);
-                        if let (Some(r), Some(t)) = (p.rms_rotation_deg, p.rms_translation_mm) {
-                            rotation.push(r);
-                            translation.push(t);
-                        }
+                        p.rms_rotation_deg.zip(p.rms_translation_mm)
                     }
-                    Term::MonteCarlo(_) => {}
-                }
+                    Term::MonteCarlo(_) => continue,
+                };
+                values.failed[k] += usize::from(value.is_none());
+                values.per_term[k][s] = value;
             }
         }
-        for ((term, _), (rotation, translation)) in terms.iter().zip(values.per_term.iter_mut()) {
+        for (k, (term, _)) in terms.iter().enumerate() {
             let Term::MonteCarlo(solver) = term else {
                 continue;
             };
-            let in_front: Vec<Scenario> = self
-                .scenarios
-                .iter()
-                .zip(&in_front_flags)
-                .filter(|(_, v)| **v)
-                .map(|(s, _)| *s)
-                .collect();
+            let usable: Vec<usize> = (0..n).filter(|&s| values.usable[s]).collect();
+            let in_front: Vec<Scenario> = usable.iter().map(|&s| self.scenarios[s]).collect();
             let target = Target {
                 camera: &self.camera,
                 object: points,
@@ -481,15 +689,19 @@ impl Evaluator {
                 gross_threshold_deg: DEFAULT_GROSS_THRESHOLD_DEG,
                 observation: self.settings.observation,
             };
-            if let Ok(outcomes) = montecarlo::run(&target, &in_front, &config, &|_| {}) {
-                for outcome in outcomes {
-                    if let Some(result) =
-                        outcome.solvers.first().filter(|r| r.rotation_deg.count > 0)
-                    {
-                        rotation.push(result.rotation_deg.rms);
-                        translation.push(result.translation_mm.rms);
+            match montecarlo::run(&target, &in_front, &config, &|_| {}) {
+                Ok(outcomes) => {
+                    for (&s, outcome) in usable.iter().zip(outcomes) {
+                        let value = outcome
+                            .solvers
+                            .first()
+                            .filter(|r| r.rotation_deg.count > 0)
+                            .map(|r| (r.rotation_deg.rms, r.translation_mm.rms));
+                        values.failed[k] += usize::from(value.is_none());
+                        values.per_term[k][s] = value;
                     }
                 }
+                Err(_) => values.failed[k] += usable.len(),
             }
         }
         values
@@ -507,15 +719,22 @@ impl Evaluator {
         let w_t = self.settings.translation_weight;
         let mut accuracy = 0.0;
         let mut terms = Vec::with_capacity(values.per_term.len());
-        for (((term, weight), (mut rotation, mut translation)), (r0, t0)) in self
-            .settings
-            .objective
-            .terms
-            .iter()
-            .zip(values.per_term)
-            .zip(&self.reference)
+        let (scored, common) = values.common();
+        for ((((term, weight), (mut rotation, mut translation)), (r0, t0)), (evaluated, failed)) in
+            self.settings
+                .objective
+                .terms
+                .iter()
+                .zip(common)
+                .zip(&self.reference)
+                .zip(
+                    values
+                        .per_term
+                        .iter()
+                        .map(|t| t.iter().flatten().count())
+                        .zip(&values.failed),
+                )
         {
-            let scenarios = rotation.len();
             let r = self.settings.aggregate.apply(&mut rotation);
             let t = self.settings.aggregate.apply(&mut translation);
             accuracy += weight
@@ -527,7 +746,8 @@ impl Evaluator {
                 term: *term,
                 rotation_deg: r,
                 translation_mm: t,
-                scenarios,
+                evaluated,
+                failed: *failed,
             });
         }
         let scenarios = self.scenarios.len().max(1) as f64;
@@ -535,8 +755,9 @@ impl Evaluator {
         let soft_availability = values.soft_visible / scenarios;
         let violations = self.constraints.violations(points);
         let objective = accuracy + self.settings.availability_weight * (1.0 - soft_availability);
+        let floor_penalty = self.floor_penalty(availability, soft_availability);
         Evaluation {
-            cost: objective + self.penalty(points),
+            cost: objective + self.penalty(points) + floor_penalty,
             objective,
             accuracy,
             terms,
@@ -547,7 +768,24 @@ impl Evaluator {
             occluded: values.occluded,
             outside: values.outside,
             behind: values.behind,
+            scored,
+            unusable_noise: values.unusable_noise,
+            availability_floor: self.floor,
+            floor_penalty,
             violations,
+        }
+    }
+
+    /// The floor's exact penalty: zero when `availability` reaches the floor,
+    /// otherwise [`AVAILABILITY_PENALTY`] times the exact shortfall plus the
+    /// soft one (the slope back to the feasible side).
+    fn floor_penalty(&self, availability: f64, soft_availability: f64) -> f64 {
+        match self.floor {
+            Some(floor) if availability + 1e-12 < floor => {
+                AVAILABILITY_PENALTY
+                    * ((floor - availability) + (floor - soft_availability).max(0.0))
+            }
+            _ => 0.0,
         }
     }
 }
@@ -577,6 +815,7 @@ mod tests {
                 aggregate: Aggregate::Mean,
                 translation_weight: 0.5,
                 availability_weight: 2.0,
+                min_availability: AvailabilityFloor::None,
                 trials: 20,
                 seed: 1,
                 noise: NoiseModel::default(),
@@ -645,6 +884,81 @@ mod tests {
                 .to_string(),
             "crlb:0.5+mc:ml:0.5"
         );
+    }
+
+    #[test]
+    fn the_floor_is_the_references_availability_and_only_binds_below_it() {
+        let mut e = evaluator("crlb");
+        e = Evaluator::new(
+            e.camera,
+            e.scenarios.clone(),
+            ObjectiveSettings {
+                min_availability: AvailabilityFloor::Reference,
+                availability_weight: 0.0,
+                ..e.settings.clone()
+            },
+            e.constraints,
+            &crate::synthetic::biprism_points(50.0),
+        );
+        let paper = crate::synthetic::biprism_points(50.0);
+        let score = e.evaluate(&paper, &[None; 7]);
+        assert_eq!(e.availability_floor(), Some(score.availability));
+        assert!(
+            score.availability < 1.0,
+            "the grid must cost the biprism views"
+        );
+        assert!(score.meets_availability_floor());
+        assert_eq!(score.floor_penalty, 0.0);
+        assert_eq!(score.objective, score.accuracy);
+        let strict = e.with_floor(Some(1.0));
+        let below = strict.evaluate(&paper, &[None; 7]);
+        assert!(!below.meets_availability_floor() && !below.admissible());
+        assert!(
+            below.floor_penalty >= AVAILABILITY_PENALTY * (1.0 - below.availability),
+            "{}",
+            below.floor_penalty
+        );
+        assert_eq!(below.cost, score.cost + below.floor_penalty);
+        assert_eq!(
+            e.with_floor(None)
+                .evaluate(&paper, &[None; 7])
+                .floor_penalty,
+            0.0
+        );
+    }
+
+    #[test]
+    fn floors_parse() {
+        assert_eq!("reference".parse(), Ok(AvailabilityFloor::Reference));
+        assert_eq!("none".parse(), Ok(AvailabilityFloor::None));
+        assert_eq!("0.6".parse(), Ok(AvailabilityFloor::Share(0.6)));
+        assert_eq!("60%".parse(), Ok(AvailabilityFloor::Share(0.6)));
+        assert!(matches!(
+            "1.5".parse::<AvailabilityFloor>(),
+            Err(ObjectiveError::BadFloor(_))
+        ));
+        assert!("most".parse::<AvailabilityFloor>().is_err());
+    }
+
+    #[test]
+    fn every_term_keeps_books_and_a_blend_scores_one_subset() {
+        let e = evaluator("crlb:0.5+transfer:0.5");
+        // A layout whose transfer model cannot use every scenario: a flat one.
+        for points in [
+            crate::synthetic::biprism_points(50.0),
+            crate::synthetic::biprism_points(20.0),
+        ] {
+            let score = e.evaluate(&points, &[None; 7]);
+            let usable = score.in_front - score.unusable_noise;
+            assert_eq!(score.behind + score.in_front, e.scenarios().len());
+            for term in &score.terms {
+                assert_eq!(term.evaluated + term.failed, usable, "{term:?}");
+                assert!(score.scored <= term.evaluated);
+            }
+            // Neither term fails on more scenarios than the other leaves out.
+            let failed: usize = score.terms.iter().map(|t| t.failed).sum();
+            assert!(score.scored + failed >= usable);
+        }
     }
 
     #[test]

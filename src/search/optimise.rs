@@ -57,6 +57,14 @@ pub const BOUND_PENALTY: f64 = 100.0;
 const START_STREAM: u64 = 0x5EA2C4;
 /// Random stream of particle swarm.
 const SWARM_STREAM: u64 = 0x5EA2C5;
+/// Random stream of the final polish's jittered starts.
+const POLISH_STREAM: u64 = 0x5EA2C7;
+/// Starts of the final polish after Nelder–Mead (the best layout itself and
+/// jittered copies), each with `polish_iterations` iterations: basin hopping
+/// around the winner, which steadies it across seeds.
+pub const FINAL_POLISH_STARTS: usize = 4;
+/// Least jitter of the final polish's starts, fraction of each range.
+pub const FINAL_POLISH_JITTER: f64 = 0.005;
 /// Random stream of annealing.
 const ANNEAL_STREAM: u64 = 0x5EA2C6;
 /// Nelder–Mead's initial simplex steps this fraction of each range.
@@ -171,9 +179,10 @@ pub struct Candidate {
 }
 
 impl Candidate {
-    /// Feasible before infeasible, then lower cost, then lower start index.
+    /// Admissible (constraints met, availability floor reached) before
+    /// inadmissible, then lower cost, then lower start index.
     fn better_than(&self, other: &Candidate) -> bool {
-        let infeasible = |c: &Candidate| !c.evaluation.violations.feasible();
+        let infeasible = |c: &Candidate| !c.evaluation.admissible();
         infeasible(self)
             .cmp(&infeasible(other))
             .then(self.evaluation.cost.total_cmp(&other.evaluation.cost))
@@ -614,11 +623,11 @@ fn run_start<'a>(
     shared: &'a Shared<'a>,
     point_sigma: &'a [Option<f64>],
     bounds: &'a (Vec<f64>, Vec<f64>),
-    start: usize,
+    (start, extra): (usize, &[Vec<f64>]),
     checkpoints: Option<&Checkpoints>,
 ) -> Result<Option<Candidate>, argmin::core::Error> {
     let (lower, upper) = (&bounds.0, &bounds.1);
-    let initial = start_point(family, settings, bounds, start);
+    let initial = start_point(family, settings, bounds, start, extra);
     let start_state = Arc::new(Mutex::new(StartState {
         best_params: None,
         anneal_rng: stream_rng(settings.seed, ANNEAL_STREAM, start as u64),
@@ -727,7 +736,14 @@ fn start_point(
     settings: &SearchSettings,
     (lower, upper): &(Vec<f64>, Vec<f64>),
     start: usize,
+    extra: &[Vec<f64>],
 ) -> Vec<f64> {
+    if let Some(point) = start
+        .checked_sub(settings.starts)
+        .and_then(|k| extra.get(k))
+    {
+        return family.clamp(point);
+    }
     match start {
         0 => family.initial(),
         1 => family.spread(),
@@ -763,6 +779,29 @@ pub fn run(
     observer: Arc<dyn SearchObserver + Send>,
     checkpoints: Option<&Checkpoints>,
 ) -> Result<SearchOutcome, SearchError> {
+    run_with_starts(
+        family,
+        evaluator,
+        settings,
+        &[],
+        stop,
+        observer,
+        checkpoints,
+    )
+}
+
+/// [`run`] with further start points after the settings' own starts (warm
+/// starts: an ε-constraint sweep starts each level from the previous
+/// level's winner). They are starts `settings.starts…` in the outcome.
+pub fn run_with_starts(
+    family: &Family,
+    evaluator: &Evaluator,
+    settings: &SearchSettings,
+    extra: &[Vec<f64>],
+    stop: &AtomicBool,
+    observer: Arc<dyn SearchObserver + Send>,
+    checkpoints: Option<&Checkpoints>,
+) -> Result<SearchOutcome, SearchError> {
     settings.check()?;
     let bounds = family.bounds();
     let point_sigma = family.layout("", &family.initial()).point_sigmas();
@@ -774,7 +813,8 @@ pub fn run(
         halted: Arc::new(AtomicBool::new(false)),
         start_states: Mutex::new(Vec::new()),
     };
-    let results: Vec<Result<Option<Candidate>, argmin::core::Error>> = (0..settings.starts)
+    let results: Vec<Result<Option<Candidate>, argmin::core::Error>> = (0..settings.starts
+        + extra.len())
         .into_par_iter()
         .map(|start| {
             // A start that would begin after a stop does not begin at all.
@@ -788,7 +828,7 @@ pub fn run(
                 &shared,
                 &point_sigma,
                 &bounds,
-                start,
+                (start, extra),
                 checkpoints,
             );
             if result.is_ok() {
@@ -798,20 +838,43 @@ pub fn run(
         })
         .collect();
     let interrupted = stop.load(Ordering::Relaxed);
-    let mut starts = Vec::with_capacity(results.len());
-    for (start, result) in results.into_iter().enumerate() {
-        match result {
-            Ok(Some(candidate)) => starts.push(candidate),
-            Ok(None) => {}
-            // A start ended by a stop keeps no result of its own.
-            Err(error) if interrupted && error.is::<Halted>() => {}
-            Err(error) => {
-                return Err(SearchError::Optimiser {
-                    start,
-                    message: error.to_string(),
+    let mut starts = collect_starts(results, interrupted, 0)?;
+    // The final polish: Nelder–Mead again from the best layout and from
+    // points jittered around it, each with a fresh simplex (see
+    // [`FINAL_POLISH_STARTS`]).
+    let first_stage = starts.len();
+    let mut interrupted = interrupted;
+    if !interrupted && settings.optimiser == Optimiser::NelderMead && settings.polish_iterations > 0
+    {
+        if let Some(best) = best_of(&starts) {
+            let points = final_polish_points(family, settings, &bounds, &best.params);
+            let polish = SearchSettings {
+                starts: 0,
+                iterations: settings.polish_iterations,
+                ..settings.clone()
+            };
+            let offset = settings.starts + extra.len();
+            let results: Vec<_> = (0..points.len())
+                .into_par_iter()
+                .map(|k| {
+                    run_start(
+                        family,
+                        evaluator,
+                        &polish,
+                        &shared,
+                        &point_sigma,
+                        &bounds,
+                        (k, &points),
+                        None,
+                    )
                 })
-            }
+                .collect();
+            interrupted = stop.load(Ordering::Relaxed);
+            starts.extend(collect_starts(results, interrupted, offset)?);
         }
+    }
+    for (k, candidate) in starts.iter_mut().enumerate().skip(first_stage) {
+        candidate.start = settings.starts + extra.len() + k - first_stage;
     }
     // After an interruption a start's own best may be missing; the shared
     // tracker still has the best layout seen anywhere.
@@ -821,10 +884,7 @@ pub fn run(
             .into_inner()
             .expect("no panics while holding the tracker")
     } else {
-        starts.iter().fold(None::<Candidate>, |best, c| match best {
-            Some(b) if !c.better_than(&b) => Some(b),
-            _ => Some(c.clone()),
-        })
+        best_of(&starts)
     }
     .ok_or(SearchError::InterruptedEmpty)?;
     let evaluations = shared
@@ -846,6 +906,63 @@ pub fn run(
         evaluations_this_run: shared.evaluations.load(Ordering::Relaxed),
         interrupted,
     })
+}
+
+/// The best of `candidates` by [`Candidate::better_than`].
+fn best_of(candidates: &[Candidate]) -> Option<Candidate> {
+    candidates
+        .iter()
+        .fold(None::<Candidate>, |best, c| match best {
+            Some(b) if !c.better_than(&b) => Some(b),
+            _ => Some(c.clone()),
+        })
+}
+
+/// Each start's result, in start order (`offset` numbers them in errors).
+fn collect_starts(
+    results: Vec<Result<Option<Candidate>, argmin::core::Error>>,
+    interrupted: bool,
+    offset: usize,
+) -> Result<Vec<Candidate>, SearchError> {
+    let mut starts = Vec::with_capacity(results.len());
+    for (start, result) in results.into_iter().enumerate() {
+        match result {
+            Ok(Some(candidate)) => starts.push(candidate),
+            Ok(None) => {}
+            // A start ended by a stop keeps no result of its own.
+            Err(error) if interrupted && error.is::<Halted>() => {}
+            Err(error) => {
+                return Err(SearchError::Optimiser {
+                    start: offset + start,
+                    message: error.to_string(),
+                })
+            }
+        }
+    }
+    Ok(starts)
+}
+
+/// The final polish's start points: the best parameters, then
+/// [`FINAL_POLISH_STARTS`] − 1 seeded points within ± half the start jitter
+/// (at least [`FINAL_POLISH_JITTER`]) of each parameter's range around them.
+fn final_polish_points(
+    family: &Family,
+    settings: &SearchSettings,
+    (lower, upper): &(Vec<f64>, Vec<f64>),
+    best: &[f64],
+) -> Vec<Vec<f64>> {
+    let jitter = (0.5 * settings.start_jitter).max(FINAL_POLISH_JITTER);
+    let mut points = vec![best.to_vec()];
+    for k in 1..FINAL_POLISH_STARTS {
+        let mut rng = stream_rng(settings.seed, POLISH_STREAM, k as u64);
+        let jittered: Vec<f64> = best
+            .iter()
+            .zip(lower.iter().zip(upper))
+            .map(|(c, (lo, hi))| c + jitter * (hi - lo) * rng.random_range(-1.0..=1.0))
+            .collect();
+        points.push(family.clamp(&jittered));
+    }
+    points
 }
 
 #[cfg(test)]
@@ -893,6 +1010,7 @@ mod tests {
                 aggregate: Aggregate::Mean,
                 translation_weight: 0.5,
                 availability_weight: 2.0,
+                min_availability: crate::search::AvailabilityFloor::None,
                 trials: 10,
                 seed: 1,
                 noise: NoiseModel::default(),
@@ -929,7 +1047,7 @@ mod tests {
     }
 
     #[test]
-    fn every_optimiser_improves_on_a_shrunken_start_and_is_deterministic() {
+    fn every_optimiser_keeps_a_near_optimal_start_and_is_deterministic() {
         let (family, evaluator) = setup();
         for optimiser in Optimiser::ALL {
             let settings = two_starts(optimiser, 40, 8, 40, 5);
@@ -952,6 +1070,49 @@ mod tests {
     }
 
     #[test]
+    fn nelder_mead_improves_on_a_biprism_shrunk_to_30_percent_of_the_envelope() {
+        let (_, evaluator) = setup();
+        let envelope = Envelope::new([100.0; 3]).unwrap();
+        // The paper's biprism fills the envelope with 50 mm arms: 15 mm is 30%.
+        let shrunk = crate::layout::Layout {
+            name: "shrunk".into(),
+            points: crate::synthetic::biprism(15.0)
+                .into_iter()
+                .map(|(name, p)| crate::layout::LayoutPoint::new(name, p))
+                .collect(),
+            sphere_diameter_mm: 10.0,
+            family: None,
+            provenance: None,
+        };
+        let family = Family::new(
+            FamilyKind::Custom {
+                count: 0,
+                start: Some(shrunk.clone()),
+            },
+            envelope,
+            10.0,
+        )
+        .unwrap();
+        let start = evaluator.evaluate(&shrunk.positions(), &[None; 7]);
+        assert!(start.accuracy > 2.5, "not a poor start: {}", start.accuracy);
+        // One start: the shrunken layout itself (the natural start).
+        let settings = SearchSettings {
+            starts: 1,
+            ..two_starts(Optimiser::NelderMead, 800, 2, 0, 3)
+        };
+        let stop = AtomicBool::new(false);
+        let outcome = run(&family, &evaluator, &settings, &stop, Arc::new(Quiet), None).unwrap();
+        let best = &outcome.best.evaluation;
+        assert!(best.admissible());
+        assert!(
+            best.accuracy < 0.5 * start.accuracy,
+            "from {} only to {}",
+            start.accuracy,
+            best.accuracy
+        );
+    }
+
+    #[test]
     fn jittered_starts_stay_near_the_spread_start_and_are_seeded() {
         let (family, _) = setup();
         let bounds = family.bounds();
@@ -963,8 +1124,8 @@ mod tests {
         };
         let mut moved = false;
         for start in 2..6 {
-            let point = start_point(&family, &settings, &bounds, start);
-            assert_eq!(point, start_point(&family, &settings, &bounds, start));
+            let point = start_point(&family, &settings, &bounds, start, &[]);
+            assert_eq!(point, start_point(&family, &settings, &bounds, start, &[]));
             for (k, x) in point.iter().enumerate() {
                 let range = bounds.1[k] - bounds.0[k];
                 assert!((bounds.0[k]..=bounds.1[k]).contains(x));
@@ -976,7 +1137,7 @@ mod tests {
         // Without jitter the same starts are uniform draws within bounds.
         settings.start_jitter = 0.0;
         let far = (2..6).any(|start| {
-            let point = start_point(&family, &settings, &bounds, start);
+            let point = start_point(&family, &settings, &bounds, start, &[]);
             point
                 .iter()
                 .zip(&spread)

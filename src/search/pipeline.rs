@@ -22,9 +22,10 @@
 
 use super::checkpoint::{CheckpointError, Checkpoints, ResumeStatus};
 use super::compare::{compare, hand_designs, CompareProgress};
+use super::front::{self, FrontReport, FrontSettings};
 use super::optimise::{self, Candidate, Optimiser, SearchObserver, SearchSettings};
-use super::report::{self as search_report, verdicts, SearchHeader, SearchSummary};
-use super::{Aggregate, Evaluator, ObjectiveSettings};
+use super::report::{self as search_report, verdicts, HeldOutCheck, SearchHeader, SearchSummary};
+use super::{Aggregate, AvailabilityFloor, Evaluator, ObjectiveSettings};
 use crate::camera::Camera;
 use crate::family::{Constraints, Envelope, Family, FamilyError, FamilyKind};
 use crate::files::{self, LockError};
@@ -51,6 +52,8 @@ pub const PHASE_COMPARE: &str = "comparison";
 pub const PHASE_VALIDATE: &str = "validation";
 /// Progress phase of the optional mesh export (one step).
 pub const PHASE_EXPORT: &str = "export";
+/// Progress phase of the Pareto front's sweep: its levels.
+pub const PHASE_FRONT: &str = "front";
 
 /// The default scenario grid: depths 200…1000 mm (5 values), X offsets
 /// 0…100 mm, tilt −60°…60° in 10° steps, σ 0.5 px.
@@ -65,6 +68,44 @@ pub fn default_grid() -> ScenarioGrid {
         Range::single(0.5),
     )
     .expect("the default grid is valid")
+}
+
+/// A held-out grid beside `grid`: every range of two or more values is
+/// replaced by the midpoints of its neighbouring values, so no scenario is
+/// shared with `grid` (`200..1000` in 5 → 300, 500, 700, 900).
+pub fn held_out_grid(grid: &ScenarioGrid) -> ScenarioGrid {
+    let shift = |range: &Range| {
+        if range.values.len() < 2 {
+            range.clone()
+        } else {
+            let mids: Vec<f64> = range
+                .values
+                .windows(2)
+                .map(|w| 0.5 * (w[0] + w[1]))
+                .collect();
+            Range::list(&mids)
+        }
+    };
+    ScenarioGrid::new(
+        shift(&grid.depth_mm),
+        shift(&grid.offset_x_mm),
+        shift(&grid.offset_y_mm),
+        shift(&grid.tilt_deg),
+        shift(&grid.pan_deg),
+        shift(&grid.roll_deg),
+        grid.sigma_px.clone(),
+    )
+    .expect("midpoints of a valid grid form a valid grid")
+}
+
+/// The Pareto front of a search (`search --front`).
+#[derive(Debug, Clone)]
+pub struct FrontOutput {
+    /// How the front is swept.
+    pub settings: FrontSettings,
+    /// Directory of the members' layout files (beside the winner's:
+    /// `<dir of the layout>/<name>-front/`).
+    pub layout_dir: PathBuf,
 }
 
 /// The winner's meshes, written with `export`'s defaults.
@@ -117,6 +158,8 @@ pub struct SearchConfig {
     pub checkpoint_dir: PathBuf,
     /// Meshes of the winner, if wanted.
     pub export: Option<MeshExport>,
+    /// The Pareto front of accuracy against availability, if wanted.
+    pub front: Option<FrontOutput>,
 }
 
 impl SearchConfig {
@@ -145,7 +188,8 @@ impl SearchConfig {
                 objective: "crlb".parse().expect("a valid objective"),
                 aggregate: Aggregate::Mean,
                 translation_weight: 0.5,
-                availability_weight: 1.0,
+                availability_weight: 0.0,
+                min_availability: AvailabilityFloor::Reference,
                 trials: 20,
                 seed,
                 noise: NoiseModel::default(),
@@ -176,6 +220,7 @@ impl SearchConfig {
             checkpoint_dir: checkpoint_dir_beside(&layout_path),
             layout_path,
             export: None,
+            front: None,
         }
     }
 
@@ -189,6 +234,9 @@ impl SearchConfig {
             "the smallest gap and distance difference must be non-negative"
         } else if !(s.translation_weight >= 0.0 && s.availability_weight >= 0.0) {
             "objective weights must be non-negative"
+        } else if matches!(s.min_availability, AvailabilityFloor::Share(share) if !(0.0..=1.0).contains(&share))
+        {
+            "the availability floor must be a share in [0, 1]"
         } else if s.trials == 0 || self.compare_trials == 0 {
             "Monte-Carlo trials and comparison trials must be at least 1"
         } else if self.validate_solvers.is_empty() {
@@ -264,6 +312,8 @@ pub struct SearchOutcome {
     pub summary: Option<SearchSummary>,
     /// Files of the mesh export.
     pub exported: Vec<PathBuf>,
+    /// The Pareto front, when asked for.
+    pub front: Option<FrontReport>,
     /// Seconds spent optimising.
     pub search_seconds: f64,
     /// Seconds of the whole run.
@@ -551,15 +601,13 @@ fn unsatisfiable(family: &Family, constraints: &Constraints) -> Option<String> {
         ));
     }
     let distances = points * (points - 1) / 2;
-    let spread_needed = (distances - 1) as f64 * constraints.min_distance_diff_mm;
-    if spread_needed > diagonal - closest {
-        return Some(format!(
-            "{points} points have {distances} pairwise distances, which must differ by {} mm from each other and lie between {closest} mm and the envelope's diagonal, {diagonal:.1} mm: that needs {spread_needed:.1} mm of range, and there are {:.1} mm",
+    match constraints.distinct_distance_capacity() {
+        Some(capacity) if distances > capacity => Some(format!(
+            "{points} points have {distances} pairwise distances, but the envelope holds at most {capacity} distances {} mm apart between {closest} mm (sphere diameter plus gap) and its diagonal, {diagonal:.1} mm; use fewer points, a larger envelope or a smaller --min-distance-diff",
             constraints.min_distance_diff_mm,
-            diagonal - closest
-        ));
+        )),
+        _ => None,
     }
-    None
 }
 
 /// Removes what a killed run may have left of the outputs' temporaries and
@@ -748,6 +796,7 @@ pub fn run(
         checkpoints: checkpoints.dir().to_path_buf(),
         summary: None,
         exported: Vec::new(),
+        front: None,
         search_seconds,
         total_seconds: search_seconds,
     };
@@ -789,6 +838,7 @@ pub fn run(
     ));
 
     let mut winner = family.layout(name, &outcome.best.params);
+    let provenance_for_front = provenance.clone();
     let mut final_provenance = provenance;
     final_provenance["score"] = best_cost.into();
     final_provenance["status"] = STATUS_FINISHED.into();
@@ -871,6 +921,70 @@ pub fn run(
         designs.len(),
         seeds.len()
     ));
+
+    // First-order figures of the winner and the paper's biprism on a held-out
+    // grid (midpoints of the search grid's values).
+    let held_out = {
+        let grid = held_out_grid(&config.grid);
+        let first_order = evaluator
+            .on_scenarios(grid.scenarios(), &paper.positions())
+            .first_order(&paper.positions());
+        HeldOutCheck::new(
+            &grid,
+            &first_order.evaluate(&winner.positions(), &winner.point_sigmas()),
+            &first_order.evaluate(&paper.positions(), &paper.point_sigmas()),
+        )
+    };
+
+    let front = match &config.front {
+        None => None,
+        Some(output) => {
+            let front_started = Instant::now();
+            let levels_done = AtomicU64::new(0);
+            let (points, evaluations) = watch(
+                observer,
+                PHASE_FRONT,
+                (output.settings.levels + 1 + front::BLEND_WEIGHTS.len()) as u64,
+                || levels_done.load(Ordering::Relaxed),
+                Some(&stop),
+                || {
+                    front::sweep(
+                        &family,
+                        &evaluator,
+                        settings,
+                        &output.settings,
+                        std::slice::from_ref(&outcome.best),
+                        &stop,
+                        &levels_done,
+                    )
+                },
+            )?;
+            if stop.load(Ordering::Relaxed) {
+                return interrupted(
+                    result,
+                    PHASE_FRONT,
+                    "interrupted in the front's sweep: the search's winner, report not written",
+                );
+            }
+            let hand_rows: Vec<_> = rows[paper_index..]
+                .iter()
+                .map(|r| (r.name.clone(), r.layout.clone(), r.evaluation.clone()))
+                .collect();
+            let report = front::write(
+                &config.report_dir,
+                &output.layout_dir,
+                name,
+                &family,
+                &points,
+                &evaluator.first_order(&paper.positions()),
+                &hand_rows,
+                &provenance_for_front,
+                (evaluations, front_started.elapsed().as_secs_f64()),
+                &output.settings,
+            )?;
+            Some(report)
+        }
+    };
     let summary = SearchSummary {
         header: SearchHeader {
             command: config.command.clone(),
@@ -888,6 +1002,8 @@ pub fn run(
         verdicts: verdicts(&rows, paper_index, hand_range, admissible_range),
         outcome,
         designs: rows,
+        held_out,
+        front: front.clone(),
     };
 
     let validation_config = MonteCarloConfig {
@@ -983,6 +1099,7 @@ pub fn run(
     }
     result.winner = winner;
     result.summary = Some(summary);
+    result.front = front;
     result.total_seconds = started.elapsed().as_secs_f64();
     Ok(result)
 }
@@ -1273,6 +1390,24 @@ mod tests {
         ));
         // Nothing was created for a refused configuration.
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
+    }
+
+    #[test]
+    fn too_many_points_for_distinct_distances_are_refused_before_the_search() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut config = small(dir.path());
+        config.family = FamilyKind::Custom {
+            count: 19,
+            start: None,
+        };
+        let error = run(&config, &mut Silent).unwrap_err();
+        assert!(
+            error.to_string().contains("171 pairwise distances")
+                && error.to_string().contains("at most 162"),
+            "{error}"
+        );
+        assert!(!config.layout_path.exists());
+        assert!(!config.checkpoint_dir.exists());
     }
 
     #[test]

@@ -5,8 +5,9 @@
 //! independent validation seed.
 
 use super::compare::DesignRow;
+use super::front::{self, FrontReport};
 use super::optimise::{SearchOutcome, SearchSettings};
-use super::ObjectiveSettings;
+use super::{AvailabilityFloor, Evaluation, ObjectiveSettings, AVAILABILITY_PENALTY};
 use crate::camera::Camera;
 use crate::family::Constraints;
 use crate::report::{percent_lower, plots, significant, write_text, ReportError, Table};
@@ -71,6 +72,62 @@ pub struct Verdicts {
     pub admissible_hand_designs: Vec<String>,
     /// Whether the winner meets every constraint.
     pub winner_feasible: bool,
+    /// The availability floor in force (None: no floor).
+    pub availability_floor: Option<f64>,
+    /// Whether the winner reaches it.
+    pub winner_meets_availability_floor: bool,
+}
+
+/// First-order figures of the winner and the paper's biprism on a held-out
+/// grid: scenarios the search never saw.
+#[derive(Debug, Clone, Serialize)]
+pub struct HeldOutCheck {
+    /// The held-out grid, in words.
+    pub grid: String,
+    /// Its scenarios.
+    pub scenarios: usize,
+    /// Winner's first-order RMS rotation, degrees (every in-front scenario).
+    pub winner_rotation_rms_deg: Option<f64>,
+    /// Paper biprism's first-order RMS rotation, degrees.
+    pub paper_rotation_rms_deg: Option<f64>,
+    /// 1 − winner / paper, %.
+    pub rotation_reduction_percent: Option<f64>,
+    /// Winner's first-order RMS translation, mm.
+    pub winner_translation_rms_mm: Option<f64>,
+    /// Paper biprism's first-order RMS translation, mm.
+    pub paper_translation_rms_mm: Option<f64>,
+    /// Winner's availability.
+    pub winner_availability: f64,
+    /// Paper biprism's availability.
+    pub paper_availability: f64,
+    /// Winner's occluded scenarios.
+    pub winner_occluded: usize,
+    /// Paper biprism's occluded scenarios.
+    pub paper_occluded: usize,
+}
+
+impl HeldOutCheck {
+    /// The check from first-order evaluations of the winner and the paper's
+    /// biprism on `grid`.
+    pub fn new(grid: &ScenarioGrid, winner: &Evaluation, paper: &Evaluation) -> Self {
+        let rotation = |e: &Evaluation| e.terms.first().and_then(|t| t.rotation_deg);
+        let translation = |e: &Evaluation| e.terms.first().and_then(|t| t.translation_mm);
+        Self {
+            grid: grid_text(grid),
+            scenarios: grid.len(),
+            winner_rotation_rms_deg: rotation(winner),
+            paper_rotation_rms_deg: rotation(paper),
+            rotation_reduction_percent: rotation(winner)
+                .zip(rotation(paper))
+                .map(|(w, p)| 100.0 * (1.0 - w / p)),
+            winner_translation_rms_mm: translation(winner),
+            paper_translation_rms_mm: translation(paper),
+            winner_availability: winner.availability,
+            paper_availability: paper.availability,
+            winner_occluded: winner.occluded,
+            paper_occluded: paper.occluded,
+        }
+    }
 }
 
 /// Everything in the report.
@@ -84,6 +141,10 @@ pub struct SearchSummary {
     pub designs: Vec<DesignRow>,
     /// The acceptance claims.
     pub verdicts: Verdicts,
+    /// The winner and the paper's biprism on a held-out grid.
+    pub held_out: HeldOutCheck,
+    /// The Pareto front, when asked for.
+    pub front: Option<FrontReport>,
 }
 
 /// Computes the verdicts: rows are winner, start, then the hand designs with
@@ -135,6 +196,8 @@ pub fn verdicts(
             .all(|r| winner.evaluation.objective < r.evaluation.objective),
         admissible_hand_designs: admissible_rows.iter().map(|r| r.name.clone()).collect(),
         winner_feasible: winner.evaluation.violations.feasible(),
+        availability_floor: winner.evaluation.availability_floor,
+        winner_meets_availability_floor: winner.evaluation.meets_availability_floor(),
     }
 }
 
@@ -189,6 +252,8 @@ fn designs_table(summary: &SearchSummary) -> Table {
         "accuracy (1 = paper biprism)".into(),
         "availability %".into(),
         "occluded scenarios".into(),
+        "scored scenarios (of in front)".into(),
+        "per term: evaluated / failed".into(),
         "constraints".into(),
     ];
     for seed in seeds {
@@ -209,6 +274,12 @@ fn designs_table(summary: &SearchSummary) -> Table {
             significant(Some(e.accuracy), 4),
             format!("{:.1}", 100.0 * e.availability),
             e.occluded.to_string(),
+            format!("{} ({})", e.scored, e.in_front),
+            e.terms
+                .iter()
+                .map(|t| format!("{}: {} / {}", t.term, t.evaluated, t.failed))
+                .collect::<Vec<_>>()
+                .join("; "),
             if problems.is_empty() {
                 "met".into()
             } else {
@@ -253,6 +324,20 @@ fn markdown(summary: &SearchSummary, table: &Table) -> String {
         h.objective.objective, h.objective.aggregate, h.objective.translation_weight, h.objective.availability_weight,
         h.objective.noise.describe(), h.objective.seed
     );
+    let floor = match (h.objective.min_availability, v.availability_floor) {
+        (AvailabilityFloor::None, _) | (_, None) => {
+            "none (availability priced by the availability weight alone)".to_string()
+        }
+        (AvailabilityFloor::Reference, Some(f)) => format!(
+            "{:.1}% of the scenarios: the paper's biprism's availability on this grid",
+            100.0 * f
+        ),
+        (AvailabilityFloor::Share(_), Some(f)) => format!("{:.1}% of the scenarios", 100.0 * f),
+    };
+    let _ = writeln!(
+        out,
+        "| availability floor | {floor}; enforced by an exact penalty ({AVAILABILITY_PENALTY} per unit of missing availability, counted exactly and by the soft visibility ramp so the optimiser sees a slope; zero above the floor), and layouts below it rank behind every layout above it |"
+    );
     let further_starts = if h.search.start_jitter > 0.0 {
         format!(
             "within ± {} of each parameter's range around the spread start",
@@ -286,6 +371,21 @@ fn markdown(summary: &SearchSummary, table: &Table) -> String {
         significant(Some(o.best.evaluation.objective), 4),
         significant(Some(o.best.evaluation.accuracy), 4),
         100.0 * o.best.evaluation.availability
+    );
+    let b = &summary.designs[0].evaluation;
+    let _ = writeln!(
+        out,
+        "Books of the winner's objective: {} scenarios, {} with every sphere in front ({} behind the camera), {} left out for unusable noise, {} scored by every term; {}. Accuracy is aggregated over the scenarios every term scored, never over different subsets per term.\n",
+        h.grid.len(),
+        b.in_front,
+        b.behind,
+        b.unusable_noise,
+        b.scored,
+        b.terms
+            .iter()
+            .map(|t| format!("`{}` evaluated {} and failed on {}", t.term, t.evaluated, t.failed))
+            .collect::<Vec<_>>()
+            .join(", ")
     );
     let _ = writeln!(out, "## Designs on the same scenarios and draws\n");
     let _ = writeln!(out, "The objective is accuracy (1 = the paper's biprism; scored on every scenario with all spheres in front) plus the availability term, without constraint penalties; lower is better. Monte-Carlo columns pool every scenario (\"all\"), the design's own visible scenarios, and the scenarios visible to both the design and the winner, where the two are compared like for like.\n");
@@ -326,6 +426,39 @@ fn markdown(summary: &SearchSummary, table: &Table) -> String {
         ),
     ]);
     verdicts.row([
+        "winner reaches the availability floor".to_string(),
+        yes(v.winner_meets_availability_floor).to_string(),
+    ]);
+    let held = &summary.held_out;
+    verdicts.row([
+        format!(
+            "first-order RMS rotation at least 40% below the paper's biprism on a held-out grid ({} scenarios: {})",
+            held.scenarios, held.grid
+        ),
+        match held.rotation_reduction_percent {
+            Some(r) => format!(
+                "{} ° vs {} °, {r:.1}% lower: {}",
+                significant(held.winner_rotation_rms_deg, 4),
+                significant(held.paper_rotation_rms_deg, 4),
+                yes(r >= 40.0)
+            ),
+            None => "not measurable".to_string(),
+        },
+    ]);
+    verdicts.row([
+        "availability and occlusions on the held-out grid no worse than the paper's biprism"
+            .to_string(),
+        format!(
+            "{:.1}% vs {:.1}%, {} vs {} occluded: {}",
+            100.0 * held.winner_availability,
+            100.0 * held.paper_availability,
+            held.winner_occluded,
+            held.paper_occluded,
+            yes(held.winner_availability >= held.paper_availability
+                && held.winner_occluded <= held.paper_occluded)
+        ),
+    ]);
+    verdicts.row([
         "occlusions no more frequent than the paper's biprism".to_string(),
         yes(v.occlusion_no_more_frequent).to_string(),
     ]);
@@ -334,6 +467,19 @@ fn markdown(summary: &SearchSummary, table: &Table) -> String {
         yes(v.winner_feasible).to_string(),
     ]);
     out.push_str(&verdicts.markdown());
+    if let Some(f) = &summary.front {
+        let _ = writeln!(out, "\n## Pareto front: accuracy against availability\n");
+        let _ = writeln!(
+            out,
+            "{} ({} evaluations, {:.1} s). Every hand design has a front member at least as good on accuracy and availability: {}. Data in [front.json](front.json) and [front.csv](front.csv).\n",
+            front::METHOD,
+            f.evaluations,
+            f.seconds,
+            yes(f.dominates_every_hand_design)
+        );
+        out.push_str(&front::table(f).markdown());
+        let _ = writeln!(out, "\n![front](front.svg)");
+    }
     let _ = writeln!(out, "\n## Winner\n");
     let mut points = Table::new(["point", "x (mm)", "y (mm)", "z (mm)"]);
     for p in &summary.designs[0].layout.points {

@@ -336,3 +336,53 @@ fn out_elsewhere_puts_the_report_beside_the_layout() {
     assert!(!checkout.path().join("reports").exists());
     assert!(!checkout.path().join("layouts").exists());
 }
+
+#[test]
+fn front_writes_members_that_meet_the_constraints_and_rank_the_hand_designs() {
+    let dir = tempfile::tempdir().unwrap();
+    run_search(dir.path(), "2", &["--front", "--front-levels", "2"])
+        .success()
+        .stdout(predicate::str::contains("Pareto front"));
+    let front: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(dir.path().join("report/front.json")).unwrap(),
+    )
+    .unwrap();
+    assert!(dir.path().join("report/front.csv").exists());
+    assert!(dir.path().join("report/front.svg").exists());
+    let members = front["members"].as_array().unwrap();
+    assert!(!members.is_empty());
+    let constraints = layout_opt::family::Constraints {
+        envelope: layout_opt::family::Envelope::new([100.0; 3]).unwrap(),
+        sphere_diameter_mm: 10.0,
+        min_gap_mm: 2.0,
+        min_distance_diff_mm: 1.0,
+    };
+    let mut last = f64::NEG_INFINITY;
+    for member in members {
+        let path = Path::new(member["layout"].as_str().unwrap());
+        // Beside the winner's layout file, in <name>-front/.
+        assert_eq!(path.parent().unwrap(), dir.path().join("t-front"));
+        let layout = layout_opt::layout::Layout::load(path).unwrap();
+        assert!(constraints.violations(&layout.positions()).feasible());
+        let availability = member["availability"].as_f64().unwrap();
+        assert!(
+            availability >= last,
+            "members are not in availability order"
+        );
+        last = availability;
+        assert!(member["rotation_rms_deg"].as_f64().unwrap() > 0.0);
+        assert!(member["translation_rms_mm"].as_f64().unwrap() > 0.0);
+    }
+    // Non-dominated: along increasing availability, accuracy only worsens.
+    let accuracy: Vec<f64> = members
+        .iter()
+        .map(|m| m["accuracy"].as_f64().unwrap())
+        .collect();
+    assert!(accuracy.windows(2).all(|w| w[1] > w[0]), "{accuracy:?}");
+    let hand = front["hand_designs"].as_array().unwrap();
+    assert!(hand.iter().any(|h| h["name"] == "paper-biprism"));
+    assert!(hand.iter().any(|h| h["name"] == "paper-biprism-admissible"));
+    let report = std::fs::read_to_string(dir.path().join("report/report.md")).unwrap();
+    assert!(report.contains("## Pareto front"));
+    assert!(report.contains("availability floor"));
+}
