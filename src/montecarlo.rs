@@ -25,6 +25,47 @@
 //!   once on the noise-free observations ([`SolverOutcome::systematic`]). A
 //!   scenario with a sphere not wholly in front of the camera (no ellipse)
 //!   counts that sphere as behind the camera and runs no trials.
+//!
+//! ```
+//! use layout_opt::camera::Camera;
+//! use layout_opt::layout::Layout;
+//! use layout_opt::montecarlo::{self, MonteCarloConfig, Target, DEFAULT_GROSS_THRESHOLD_DEG};
+//! use layout_opt::pnp::Solver;
+//! use layout_opt::scenario::{Range, ScenarioGrid};
+//! use layout_opt::sphere_image::Observation;
+//!
+//! let camera = Camera::paper();
+//! let layout = Layout::paper_biprism();
+//! let (object, sigmas) = (layout.positions(), layout.point_sigmas());
+//! let target = Target {
+//!     camera: &camera,
+//!     object: &object,
+//!     sphere_diameter_mm: layout.sphere_diameter_mm,
+//!     point_sigma_px: &sigmas,
+//! };
+//! let single = Range::single;
+//! let grid = ScenarioGrid::new(
+//!     "400,800".parse()?, single(0.0), single(0.0), single(20.0),
+//!     single(0.0), single(0.0), single(0.5),
+//! )?;
+//! let config = MonteCarloConfig {
+//!     trials: 200,
+//!     seed: 7,
+//!     solvers: vec![Solver::Ml],
+//!     noise: Default::default(),
+//!     gross_threshold_deg: DEFAULT_GROSS_THRESHOLD_DEG,
+//!     observation: Observation::Centre,
+//! };
+//! let outcomes = montecarlo::run(&target, &grid.scenarios(), &config, &|_| {})?;
+//! // The maximum-likelihood solver reaches the first-order (Cramér–Rao)
+//! // limit: 200 trials measure its RMS rotation error to a few percent.
+//! for outcome in &outcomes {
+//!     let predicted = outcome.first_order.unwrap().rms_rotation_deg;
+//!     let measured = outcome.solvers[0].rotation_deg.rms;
+//!     assert!((measured / predicted - 1.0).abs() < 0.2, "{measured} vs {predicted}");
+//! }
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
 
 use crate::camera::Camera;
 use crate::error_model::first_order::pose_covariance_and_bias;

@@ -6,7 +6,7 @@ use super::{progress, GlobalOptions};
 use clap::Args;
 use layout_opt::report::Table;
 use layout_opt::reproduce::pipeline::{self, ReproduceConfig, ReproduceOutcome};
-use layout_opt::reproduce::{self, claims::Verdict, Config, Experiment, REFERENCE_THREADS};
+use layout_opt::reproduce::{self, Config, Experiment, Verdict, REFERENCE_THREADS};
 use std::path::PathBuf;
 
 /// Flags of `reproduce`.

@@ -15,12 +15,10 @@ use layout_opt::noise::NoiseModel;
 use layout_opt::pnp::Solver;
 use layout_opt::report::{percent_lower, Table};
 use layout_opt::scenario::ScenarioGrid;
-use layout_opt::search::compare::hand_designs;
-use layout_opt::search::front::FrontSettings;
-use layout_opt::search::optimise::{Optimiser, SearchSettings};
 use layout_opt::search::pipeline::{self, FrontOutput, MeshExport, SearchConfig};
 use layout_opt::search::{
-    Aggregate, AvailabilityFloor, Evaluator, Objective, ObjectiveSettings, Term,
+    hand_designs, Aggregate, AvailabilityFloor, Evaluator, FrontSettings, Objective,
+    ObjectiveSettings, Optimiser, SearchSettings, Term,
 };
 use layout_opt::sphere_image::Observation;
 use std::path::PathBuf;

@@ -35,18 +35,19 @@
 //! same seed at any thread count; timings (`timing.csv`, `timing_claims.csv`,
 //! `timing.json`) and wall times (`run.json`) are machine-dependent.
 
-pub mod claims;
+pub(crate) mod claims;
 mod depth;
 mod engine;
 mod noise;
 mod off_axis;
-pub mod panel;
+pub(crate) mod panel;
 mod points;
 mod protocol;
-pub mod stats;
+pub(crate) mod stats;
 mod tilt;
 mod timing;
 
+pub use claims::{Claim, Verdict};
 pub use engine::GROSS_ERROR_DEG;
 pub use timing::{TimingResult, TimingRow};
 
@@ -54,7 +55,7 @@ use crate::camera::Camera;
 use crate::montecarlo::MonteCarloError;
 use crate::pnp::Solver;
 use crate::report::{write_text, ReportError, Table};
-use claims::{Claim, Verdict};
+
 use engine::{Context, Progress};
 use panel::{Metric, Panel};
 use serde::Serialize;

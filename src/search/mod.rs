@@ -47,13 +47,44 @@
 //! scores every term on the *same* scenarios, those every term could
 //! evaluate ([`Evaluation::scored`]), so no two terms are averaged over
 //! different subsets; the reference aggregates are taken the same way.
+//!
+//! ```
+//! use layout_opt::layout::Layout;
+//! use layout_opt::search::pipeline::SearchConfig;
+//! use layout_opt::search::Evaluator;
+//!
+//! // The default search's settings; nothing is written until a run.
+//! let config = SearchConfig::new("doc", &std::env::temp_dir());
+//! let paper = Layout::paper_biprism();
+//! let evaluator = Evaluator::new(
+//!     config.camera,
+//!     config.grid.scenarios(),
+//!     config.objective.clone(),
+//!     config.constraints,
+//!     &paper.positions(),
+//! );
+//! // Accuracy is relative to the reference layout: 1 for itself, more
+//! // (worse) for the same shape at half the size.
+//! let itself = evaluator.evaluate(&paper.positions(), &paper.point_sigmas());
+//! assert!((itself.accuracy - 1.0).abs() < 1e-9);
+//! let half: Vec<_> = paper.positions().iter().map(|p| p * 0.5).collect();
+//! assert!(evaluator.evaluate(&half, &paper.point_sigmas()).accuracy > 1.5);
+//! ```
 
-pub mod checkpoint;
-pub mod compare;
-pub mod front;
-pub mod optimise;
+pub(crate) mod checkpoint;
+pub(crate) mod compare;
+pub(crate) mod front;
+pub(crate) mod optimise;
 pub mod pipeline;
-pub mod report;
+pub(crate) mod report;
+
+pub use checkpoint::CheckpointError;
+pub use compare::{hand_designs, DesignRow, MonteCarloFigures, PooledFigures};
+pub use front::{FrontEntry, FrontReport, FrontSettings, HandEntry};
+pub use optimise::{
+    Candidate, Optimiser, SearchError, SearchOutcome as OptimiseOutcome, SearchSettings,
+};
+pub use report::{HeldOutCheck, SearchHeader, SearchSummary, Verdicts};
 
 use crate::camera::Camera;
 use crate::error_model::first_order::{pose_covariance, pose_covariance_and_bias};
