@@ -1,9 +1,10 @@
 //! Binary STL for printers (`stl_io`): millimetres, in the print frame —
-//! Z up, the mount axis pointing down onto the bed
-//! ([`super::geometry::print_rotation`]), a pure rotation of the marker
-//! frame so that sphere centres keep their distances and map exactly.
+//! Z up, the base pointing down onto the bed
+//! ([`super::geometry::print_rotation`] of [`super::Marker::down`]) and
+//! shifted along Z so that the lowest point lies on the bed at z = 0: a
+//! rigid motion of the marker frame, so that sphere centres keep their
+//! distances and map exactly ([`Solid::print_transform`]).
 
-use super::geometry::print_rotation;
 use super::{write_file, ExportError, Format, MeshWriter, Solid};
 use std::path::{Path, PathBuf};
 
@@ -17,8 +18,8 @@ impl MeshWriter for StlWriter {
     }
 
     fn write(&self, solid: &Solid, dir: &Path) -> Result<Vec<PathBuf>, ExportError> {
-        let rotation = print_rotation(solid.marker.mount);
-        let mesh = solid.mesh.transformed(|p| rotation * p);
+        let (rotation, shift) = solid.print_transform();
+        let mesh = solid.mesh.transformed(|p| rotation * p + shift);
         let triangles: Vec<stl_io::Triangle> = (0..mesh.triangles.len())
             .map(|f| {
                 let normal = mesh.face_cross(f).normalize();

@@ -647,8 +647,7 @@ pub fn run(
     if let Some(export) = &config.export {
         let options = ExportOptions {
             formats: export.formats.clone(),
-            marker: Default::default(),
-            resolution_mm: None,
+            ..Default::default()
         };
         let report = crate::mesh::export(&winner, &options, &export.dir).map_err(|source| {
             SearchError::Export {
