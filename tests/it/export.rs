@@ -266,6 +266,12 @@ fn file_frames_are_as_documented() {
         print_rotation(Axis::POS_Z),
         rows([[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, -1.0]])
     );
+    let raw = std::fs::read(dir.path().join("biprism-paper.stl")).unwrap();
+    let header = String::from_utf8_lossy(&raw[..80]);
+    assert!(
+        header.contains("part biprism-paper; units mm"),
+        "the STL header names the part and its units: {header}"
+    );
     let mut file = std::fs::File::open(dir.path().join("biprism-paper.stl")).unwrap();
     let stl = stl_io::read_stl(&mut file).unwrap();
     let lowest_z = stl
