@@ -1196,7 +1196,9 @@ impl Marker {
         )
     }
 
-    /// The part's extents in the print frame (x, y, z), mm.
+    /// The part's extents in the print frame (x, y, z), mm, from
+    /// [`Marker::bounds`] (so at most the blend depth too large: the bed
+    /// check errs on the safe side).
     pub fn print_size_mm(&self) -> [f64; 3] {
         let (lo, hi) = self.bounds();
         let size = print_rotation(self.down).abs() * (hi - lo);

@@ -390,7 +390,7 @@ pub struct ExportReport {
     pub overhang: quality::Overhang,
     /// How the spheres are held.
     pub structure: geometry::Structure,
-    /// The part's extents in the print frame, mm.
+    /// The mesh's extents in the print frame, mm.
     pub print_size_mm: [f64; 3],
     /// The build volume it was checked against, mm.
     pub bed_mm: [f64; 3],
@@ -473,7 +473,13 @@ pub fn export(
         occlusion_allowed: options.allow_occlusion,
         overhang,
         structure: solid.marker.structure,
-        print_size_mm: solid.marker.print_size_mm(),
+        print_size_mm: {
+            // The mesh's own extents (the design's bounds are padded by
+            // the most blending could add).
+            let [lo, hi] = solid.report.bounds_mm;
+            let size = rotation.abs() * (Vector3::from(hi) - Vector3::from(lo));
+            [size.x, size.y, size.z]
+        },
         bed_mm: options.marker.bed.0,
         strut_diameter_mm: options.marker.strut_diameter_mm,
         min_feature_mm: options.marker.min_feature_mm,
