@@ -6,7 +6,9 @@ use super::{progress, GlobalOptions};
 use anyhow::Context;
 use clap::Args;
 use layout_opt::layout::{Layout, ObjImport};
-use layout_opt::mesh::geometry::{DEFAULT_MIN_FEATURE_MM, DEFAULT_STRUT_DIAMETER_MM};
+use layout_opt::mesh::geometry::{
+    Bed, Structure, DEFAULT_MIN_FEATURE_MM, DEFAULT_STRUT_DIAMETER_MM, DEFAULT_VIEW_CONE_DEG,
+};
 use layout_opt::mesh::{export, Axis, ExportOptions, Format, MarkerOptions, MountHoles};
 use std::path::{Path, PathBuf};
 use std::time::Duration;
@@ -59,6 +61,24 @@ pub struct ExportArgs {
     /// Sphere diameter, mm: for OBJ point sets, or to override the layout's.
     #[arg(long, value_name = "MM")]
     sphere_diameter: Option<f64>,
+    /// How the spheres are held: pillars (prints without support material:
+    /// a base plate behind the spheres on the bed, a support rising to each
+    /// sphere) or routed (the earlier strut tree with a stub and a small
+    /// plate along --mount; needs support material).
+    #[arg(long, value_name = "KIND", default_value = "pillars")]
+    structure: Structure,
+    /// Half-angle of the cone of viewing directions around --view, degrees:
+    /// supports are chosen so as not to cover spheres from it, and a strut
+    /// that does is an error unless --allow-occlusion.
+    #[arg(long, value_name = "DEG", default_value_t = DEFAULT_VIEW_CONE_DEG)]
+    view_cone: f64,
+    /// Write the files even when a strut covers a sphere from the view cone.
+    #[arg(long)]
+    allow_occlusion: bool,
+    /// The printer's build volume X,Y,Z, mm; a part that does not fit is an
+    /// error.
+    #[arg(long, value_name = "X,Y,Z", default_value = "250,210,210")]
+    bed: Bed,
 }
 
 fn load_layout(args: &ExportArgs) -> anyhow::Result<(Layout, String)> {
@@ -111,8 +131,12 @@ pub fn run(args: ExportArgs, global: &GlobalOptions) -> anyhow::Result<()> {
             view: args.view,
             mount: args.mount,
             mount_holes: args.mount_holes.clone(),
+            structure: args.structure,
+            view_cone_deg: args.view_cone,
+            bed: args.bed,
         },
         resolution_mm: args.resolution,
+        allow_occlusion: args.allow_occlusion,
     };
     let bar = progress::bar(1, "exporting", global.quiet);
     bar.enable_steady_tick(Duration::from_millis(100));
@@ -141,21 +165,53 @@ pub fn run(args: ExportArgs, global: &GlobalOptions) -> anyhow::Result<()> {
             megabytes(file.bytes)
         );
     }
-    let covered: Vec<String> = report
+    let strut_covered = |fraction: f64, sphere: &str| {
+        (fraction > 0.0).then(|| format!("{sphere} {:.1} %", 100.0 * fraction))
+    };
+    let main: Vec<String> = report
         .main_view_coverage
         .iter()
-        .filter(|c| c.covered_by_struts > 0.0)
-        .map(|c| format!("{} {:.1} %", c.sphere, 100.0 * c.covered_by_struts))
+        .filter_map(|c| strut_covered(c.covered_by_struts, &c.sphere))
         .collect();
-    println!(
-        "main view ({}): {}; identification margin {:.3} mm",
-        report.view,
+    let cone: Vec<String> = report
+        .main_view_coverage
+        .iter()
+        .filter_map(|c| strut_covered(c.cone_covered_by_struts, &c.sphere))
+        .collect();
+    let verdict = |covered: &[String]| {
         if covered.is_empty() {
             "no strut covers a sphere".to_string()
         } else {
             format!("struts cover {}", covered.join(", "))
+        }
+    };
+    println!(
+        "main view ({}): {}; view cone ±{}°: {}{}; identification margin {:.3} mm",
+        report.view,
+        verdict(&main),
+        report.view_cone_deg,
+        verdict(&cone),
+        if report.occlusion_allowed && !cone.is_empty() {
+            " (allowed by --allow-occlusion)"
+        } else {
+            ""
         },
         report.identification_margin_mm
+    );
+    let o = &report.overhang;
+    let [x, y, z] = report.print_size_mm;
+    println!(
+        "print ({}): {x:.1} × {y:.1} × {z:.1} mm on a {} × {} × {} mm bed, lowest point at z = 0; overhangs steeper than {}° from vertical: {:.1} mm² (plus {:.1} mm² of sphere undersides); support estimate {:.0} mm³ ({:.1} % of the part); {:.0} mm² on the bed",
+        report.structure,
+        report.bed_mm[0],
+        report.bed_mm[1],
+        report.bed_mm[2],
+        o.limit_deg,
+        o.area_mm2,
+        o.sphere_area_mm2,
+        o.support_estimate_mm3,
+        100.0 * o.support_estimate_mm3 / t.signed_volume_mm3,
+        o.bed_contact_mm2,
     );
     Ok(())
 }

@@ -67,6 +67,30 @@ pub const PLATE_THICKNESS_MM: f64 = 4.0;
 pub const PLATE_MIN_SIDE_MM: f64 = 24.0;
 /// Radius of the base plate's rounded edges, mm.
 pub const PLATE_ROUNDING_MM: f64 = 1.5;
+/// Half-angle of the cone under each sphere of a printable part, between
+/// its flank and the vertical, degrees: the flank then faces down at
+/// 90° minus this from the vertical, within [`MAX_OVERHANG_DEG`].
+pub const TEARDROP_HALF_ANGLE_DEG: f64 = 40.0;
+/// Steepest overhang a printer makes without support, from the vertical,
+/// degrees.
+pub const MAX_OVERHANG_DEG: f64 = 45.0;
+/// Slants from the vertical that a support may take, degrees, in order of
+/// preference (each at most [`MAX_OVERHANG_DEG`] less a margin).
+pub const SUPPORT_SLANTS_DEG: &[f64] = &[0.0, 10.0, 20.0, 30.0, 35.0];
+/// Directions around the vertical tried for a slanted support.
+pub const SUPPORT_AZIMUTHS: usize = 16;
+/// Default half-angle of the cone of viewing directions around the main
+/// view over which no strut may cover a sphere, degrees.
+pub const DEFAULT_VIEW_CONE_DEG: f64 = 20.0;
+/// Default build volume of the printer (x, y, z), mm.
+pub const DEFAULT_BED_MM: [f64; 3] = [250.0, 210.0, 210.0];
+/// Spacing of the points of a support tested against the view cone, mm.
+const SUPPORT_SAMPLE_MM: f64 = 0.5;
+/// Edge rounding of the base plate of a printable part, mm: its rim on the
+/// bed overhangs by more than 45° only in the lowest 1 − cos 45° of it
+/// (0.29 mm, within the first layer,
+/// [`super::quality::FIRST_LAYER_MM`]).
+pub const PILLAR_PLATE_ROUNDING_MM: f64 = 1.0;
 /// Smallest angle between two struts that meet at a foot, degrees.
 pub const MIN_JUNCTION_ANGLE_DEG: f64 = 40.0;
 /// Floor on sin(θ/2) of the angle θ between two struts at a junction when
@@ -169,6 +193,89 @@ pub enum GeometryError {
     /// Unknown axis name.
     #[error("unknown axis \"{0}\": expected one of +x, -x, +y, -y, +z, -z")]
     BadAxis(String),
+    /// Unknown structure name.
+    #[error("unknown structure \"{0}\": expected pillars or routed")]
+    BadStructure(String),
+    /// The part is larger than the printer's build volume.
+    #[error("the part ({:.1} × {:.1} × {:.1} mm, print frame) does not fit the build volume {} × {} × {} mm (--bed); scale the layout down or give the printer's build volume", size_mm[0], size_mm[1], size_mm[2], bed_mm[0], bed_mm[1], bed_mm[2])]
+    DoesNotFitBed {
+        /// Part extents in the print frame (x, y, z), mm.
+        size_mm: [f64; 3],
+        /// Build volume, mm.
+        bed_mm: [f64; 3],
+    },
+    /// The bed size is not three positive numbers.
+    #[error("--bed must be three positive sizes X,Y,Z in mm (e.g. 250,210,210), got \"{0}\"")]
+    BadBed(String),
+}
+
+/// How the spheres are held.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Structure {
+    /// Printable without support material: a base plate behind every
+    /// sphere (on the bed), a support rising from it to each sphere, every
+    /// support at most [`MAX_OVERHANG_DEG`] less a margin from the vertical,
+    /// a cone under each sphere; the camera sees every sphere in front of
+    /// its own support.
+    Pillars,
+    /// The earlier structure: posts to a back plane, back struts to a hub,
+    /// a stub along the mount axis to a small plate. Needs support material
+    /// to print.
+    Routed,
+}
+
+impl Structure {
+    /// Its CLI name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Structure::Pillars => "pillars",
+            Structure::Routed => "routed",
+        }
+    }
+}
+
+impl fmt::Display for Structure {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl FromStr for Structure {
+    type Err = GeometryError;
+    fn from_str(text: &str) -> Result<Structure, GeometryError> {
+        match text.trim().to_ascii_lowercase().as_str() {
+            "pillars" => Ok(Structure::Pillars),
+            "routed" => Ok(Structure::Routed),
+            _ => Err(GeometryError::BadStructure(text.to_string())),
+        }
+    }
+}
+
+/// A printer's build volume (x, y, z), mm.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Bed(pub [f64; 3]);
+
+impl Default for Bed {
+    fn default() -> Self {
+        Bed(DEFAULT_BED_MM)
+    }
+}
+
+impl FromStr for Bed {
+    type Err = GeometryError;
+    /// `X,Y,Z` in mm.
+    fn from_str(text: &str) -> Result<Bed, GeometryError> {
+        let bad = || GeometryError::BadBed(text.to_string());
+        let values: Vec<f64> = text
+            .split(',')
+            .map(|v| v.trim().parse::<f64>().map_err(|_| bad()))
+            .collect::<Result<_, _>>()?;
+        match values[..] {
+            [x, y, z] if [x, y, z].iter().all(|v| v.is_finite() && *v > 0.0) => Ok(Bed([x, y, z])),
+            _ => Err(bad()),
+        }
+    }
 }
 
 /// One of the six signed object axes.
@@ -304,6 +411,13 @@ pub struct MarkerOptions {
     pub mount: Axis,
     /// Optional screw holes through the base plate.
     pub mount_holes: Option<MountHoles>,
+    /// How the spheres are held.
+    pub structure: Structure,
+    /// Half-angle of the cone of viewing directions around `view` over
+    /// which supports are chosen not to cover spheres, degrees.
+    pub view_cone_deg: f64,
+    /// The printer's build volume; a part that does not fit is an error.
+    pub bed: Bed,
 }
 
 impl Default for MarkerOptions {
@@ -314,6 +428,9 @@ impl Default for MarkerOptions {
             view: Axis::POS_Z,
             mount: Axis::NEG_Y,
             mount_holes: None,
+            structure: Structure::Pillars,
+            view_cone_deg: DEFAULT_VIEW_CONE_DEG,
+            bed: Bed::default(),
         }
     }
 }
@@ -432,6 +549,20 @@ pub struct Marker {
     pub view: Axis,
     /// Mount axis.
     pub mount: Axis,
+    /// How the spheres are held.
+    pub structure: Structure,
+    /// The axis that points down onto the print bed: the mount axis for
+    /// [`Structure::Routed`], the view for [`Structure::Pillars`] (the base
+    /// plate lies behind the spheres).
+    pub down: Axis,
+    /// For [`Structure::Pillars`], the cone under each sphere: (tip,
+    /// tip radius), the tip on the sphere's vertical axis below it.
+    pub teardrops: Vec<Option<(Vector3<f64>, f64)>>,
+    /// For [`Structure::Pillars`], the bed plane: the solid is cut flat at
+    /// `p · down = level`.
+    pub bed_level: Option<f64>,
+    /// Half-angle of the view cone the supports were chosen for, degrees.
+    pub view_cone_deg: f64,
     /// The junctions, each a smooth union of the parts that meet there.
     junctions: Vec<Junction>,
 }
@@ -474,6 +605,12 @@ impl Marker {
             if !(value.is_finite() && value > 0.0) {
                 return Err(GeometryError::BadOption { option, value });
             }
+        }
+        if !(options.view_cone_deg.is_finite() && (0.0..80.0).contains(&options.view_cone_deg)) {
+            return Err(GeometryError::BadOption {
+                option: "--view-cone (degrees, 0 to below 80)",
+                value: options.view_cone_deg,
+            });
         }
         let min_feature = options.min_feature_mm;
         if options.strut_diameter_mm < min_feature {
@@ -534,9 +671,31 @@ impl Marker {
             feet: Vec::new(),
             struts: Vec::new(),
         };
-        router.posts_and_links()?;
-        let hub = router.back_plane()?;
-        let plate = router.stub_and_plate(hub, options.mount_holes.as_ref());
+        let (hub, plate, teardrops, bed_level, down) = match options.structure {
+            Structure::Routed => {
+                router.posts_and_links()?;
+                let hub = router.back_plane()?;
+                let plate = router.stub_and_plate(hub, options.mount_holes.as_ref());
+                (hub, plate, Vec::new(), None, options.mount)
+            }
+            Structure::Pillars => {
+                let tab_side = if options.mount == options.view {
+                    let v = options.view.vector();
+                    let k = (0..3)
+                        .find(|&k| v[k] == 0.0)
+                        .expect("an axis is perpendicular");
+                    Axis::new(k, false)
+                } else {
+                    options.mount
+                };
+                let (plate, teardrops, bed_level) = router.pillars(
+                    options.view_cone_deg.to_radians(),
+                    tab_side.vector(),
+                    options.mount_holes.as_ref(),
+                )?;
+                (0, plate, teardrops, Some(bed_level), options.view)
+            }
+        };
         let Router { feet, struts, .. } = router;
 
         let blend_mm = blend_radius(strut_radius, min_feature);
@@ -553,11 +712,17 @@ impl Marker {
             min_feature_mm: min_feature,
             view: options.view,
             mount: options.mount,
+            structure: options.structure,
+            down,
+            teardrops,
+            bed_level,
+            view_cone_deg: options.view_cone_deg,
             junctions: Vec::new(),
         };
         marker.junctions = marker.build_junctions();
         marker.check_clearances()?;
         marker.check_sphere_junctions()?;
+        marker.check_bed(&options.bed)?;
         Ok(marker)
     }
 
@@ -591,7 +756,7 @@ impl Marker {
                 .filter(|s| s.ends.contains(&Node::Foot(k)))
                 .map(|s| s.radius)
                 .fold(0.0, f64::max),
-            Node::Plate => self.plate.half_extents.dot(&self.mount.vector().abs()),
+            Node::Plate => self.plate.half_extents.dot(&self.down.vector().abs()),
         }
     }
 
@@ -649,6 +814,15 @@ impl Marker {
             if exposed < 2.0 * self.blend_mm + self.min_feature_mm {
                 let (a, b) = (position(strut.ends[0]), position(strut.ends[1]));
                 let (ra, rb) = (root(&mut parent, a), root(&mut parent, b));
+                parent[ra] = rb;
+            }
+        }
+        if self.structure == Structure::Pillars {
+            // Every support foot stands on the plate: one junction.
+            let plate = position(Node::Plate);
+            for k in 0..self.feet.len() {
+                let foot = position(Node::Foot(k));
+                let (ra, rb) = (root(&mut parent, foot), root(&mut parent, plate));
                 parent[ra] = rb;
             }
         }
@@ -736,11 +910,13 @@ impl Marker {
             })
         };
         for &i in &junction.spheres {
-            blend(sdf::ball(
-                p,
-                &self.spheres[i].centre,
-                self.spheres[i].radius,
-            ));
+            let sphere = &self.spheres[i];
+            blend(match self.teardrops.get(i).copied().flatten() {
+                Some((tip, tip_radius)) => {
+                    sdf::round_cone(p, &sphere.centre, sphere.radius, &tip, tip_radius)
+                }
+                None => sdf::ball(p, &sphere.centre, sphere.radius),
+            });
         }
         if junction.plate {
             blend(self.plate_sample(p));
@@ -752,8 +928,10 @@ impl Marker {
         if junction.plate {
             // The bed face stays flat: the stub's fillet must not bulge
             // through the plate.
-            let m = self.mount.vector();
-            let bed = self.plate.centre.dot(&m) + self.plate.half_extents.dot(&m.abs());
+            let m = self.down.vector();
+            let bed = self
+                .bed_level
+                .unwrap_or(self.plate.centre.dot(&m) + self.plate.half_extents.dot(&m.abs()));
             sdf::max(value, sdf::half_space(p, &m, bed))
         } else {
             value
@@ -780,7 +958,10 @@ impl Marker {
             }
             best = sdf::min(best, self.junction_sample(junction, p));
         }
-        best
+        match self.bed_level {
+            Some(level) => sdf::max(best, sdf::half_space(p, &self.down.vector(), level)),
+            None => best,
+        }
     }
 
     /// The signed distance alone.
@@ -812,7 +993,18 @@ impl Marker {
             .map(|j| self.blend_depth(j))
             .fold(0.0, f64::max);
         let margin = Vector3::repeat(depth);
-        (lo - margin, hi + margin)
+        let (mut lo, mut hi) = (lo - margin, hi + margin);
+        if let Some(level) = self.bed_level {
+            // The solid ends at the bed plane: p · down ≤ level.
+            let down = self.down.vector();
+            let k = down.iamax();
+            if down[k] > 0.0 {
+                hi[k] = hi[k].min(level);
+            } else {
+                lo[k] = lo[k].max(-level);
+            }
+        }
+        (lo, hi)
     }
 
     /// The most a junction's smooth union can lie below its members'
@@ -828,6 +1020,11 @@ impl Marker {
     /// axes, whose tangent strip runs diagonally across the grid.
     pub fn tangent_planes(&self) -> [Vec<(f64, bool)>; 3] {
         let mut planes: [Vec<(f64, bool)>; 3] = Default::default();
+        if let Some(level) = self.bed_level {
+            let down = self.down.vector();
+            let k = down.iamax();
+            planes[k].push((level * down[k], false));
+        }
         for strut in &self.struts {
             let d = strut.b - strut.a;
             let length = d.norm();
@@ -980,6 +1177,48 @@ impl Marker {
             }
         }
         blobs
+    }
+
+    /// The level `p · down` of the face that lies on the bed: the most any
+    /// point of the solid reaches along [`Marker::down`].
+    pub fn bed_face_level(&self) -> f64 {
+        let m = self.down.vector();
+        self.bed_level
+            .unwrap_or(self.plate.centre.dot(&m) + self.plate.half_extents.dot(&m.abs()))
+    }
+
+    /// The marker → print frame motion `p ↦ R·p + shift` of the STL: Z up,
+    /// [`Marker::down`] pointing onto the bed, the bed face at z = 0.
+    pub fn print_transform(&self) -> (Matrix3<f64>, Vector3<f64>) {
+        (
+            print_rotation(self.down),
+            Vector3::new(0.0, 0.0, self.bed_face_level()),
+        )
+    }
+
+    /// The part's extents in the print frame (x, y, z), mm, from
+    /// [`Marker::bounds`] (so at most the blend depth too large: the bed
+    /// check errs on the safe side).
+    pub fn print_size_mm(&self) -> [f64; 3] {
+        let (lo, hi) = self.bounds();
+        let size = print_rotation(self.down).abs() * (hi - lo);
+        [size.x, size.y, size.z]
+    }
+
+    /// The part must fit the build volume, turned on the bed if need be.
+    fn check_bed(&self, bed: &Bed) -> Result<(), GeometryError> {
+        let size_mm = self.print_size_mm();
+        let [x, y, z] = bed.0;
+        let fits = size_mm[2] <= z
+            && ((size_mm[0] <= x && size_mm[1] <= y) || (size_mm[1] <= x && size_mm[0] <= y));
+        if fits {
+            Ok(())
+        } else {
+            Err(GeometryError::DoesNotFitBed {
+                size_mm,
+                bed_mm: bed.0,
+            })
+        }
     }
 
     /// Struts that meet at a sphere must part before they leave it:
@@ -1302,6 +1541,288 @@ impl Router<'_> {
         Ok(hub)
     }
 
+    /// [`Structure::Pillars`]: a cone under every sphere, a support from its
+    /// tip down to the base plate (or onto a sphere behind), and the plate
+    /// behind every sphere, perpendicular to the view, on the bed. Supports
+    /// are chosen back to front: straight down when that keeps clear of
+    /// the other parts and covers no sphere from the view cone (of
+    /// half-angle `cone_rad`), else the slant and direction (or the sphere
+    /// to stand on) that covers least. Returns the plate, the cones and
+    /// the bed level (along the view).
+    #[allow(clippy::type_complexity)]
+    fn pillars(
+        &mut self,
+        cone_rad: f64,
+        tab_side: Vector3<f64>,
+        holes: Option<&MountHoles>,
+    ) -> Result<(Plate, Vec<Option<(Vector3<f64>, f64)>>, f64), GeometryError> {
+        let v = self.view;
+        let count = self.spheres.len();
+        let (radius, strut_radius) = (self.radius, self.strut_radius);
+        let drop_length = (radius - strut_radius) / TEARDROP_HALF_ANGLE_DEG.to_radians().sin();
+        let tips: Vec<Vector3<f64>> = self
+            .spheres
+            .iter()
+            .map(|s| s.centre + v * drop_length)
+            .collect();
+        let depth = |p: &Vector3<f64>| p.dot(&v);
+        let inner = tips.iter().map(depth).fold(f64::NEG_INFINITY, f64::max)
+            + strut_radius
+            + 2.0 * self.blend
+            + self.clearance;
+        let growth = junction_growth(self.blend);
+        let directions = view_cone_directions(&v, cone_rad, 2, 12);
+        let kv = v.iamax();
+        let unit = |k: usize| Vector3::from_fn(|r, _| if r == k { 1.0 } else { 0.0 });
+        let (e1, e2) = (unit((kv + 1) % 3), unit((kv + 2) % 3));
+        let mut order: Vec<usize> = (0..count).collect();
+        order.sort_by(|&a, &b| {
+            depth(&self.spheres[b].centre).total_cmp(&depth(&self.spheres[a].centre))
+        });
+        // Each sphere's support: its end and the sphere it stands on, if any.
+        let mut supports: Vec<Option<(Vector3<f64>, Option<usize>)>> = vec![None; count];
+        let hits = |q: &Vector3<f64>, d: &Vector3<f64>, centre: &Vector3<f64>, r: f64| {
+            let w = centre - q;
+            let t = w.dot(d);
+            if t < 0.0 {
+                w.norm_squared() < r * r
+            } else {
+                w.norm_squared() - t * t < r * r
+            }
+        };
+        let centroid = self.spheres.iter().map(|s| s.centre).sum::<Vector3<f64>>() / count as f64;
+        for &i in &order {
+            let tip = tips[i];
+            // Slanted supports try directions towards the middle of the
+            // layout first, which keeps the plate small.
+            let inward = centroid - self.spheres[i].centre;
+            let phi_inward = inward.dot(&e2).atan2(inward.dot(&e1));
+            let mut candidates: Vec<(Vector3<f64>, Option<usize>)> = Vec::new();
+            for &slant_deg in SUPPORT_SLANTS_DEG {
+                let slant = slant_deg.to_radians();
+                let azimuths = if slant_deg == 0.0 {
+                    1
+                } else {
+                    SUPPORT_AZIMUTHS
+                };
+                for a in 0..azimuths {
+                    // 0, +1, −1, +2, −2, … steps away from inward.
+                    let step = a.div_ceil(2) as f64 * if a % 2 == 1 { 1.0 } else { -1.0 };
+                    let phi = phi_inward + std::f64::consts::TAU * step / azimuths as f64;
+                    let direction =
+                        v * slant.cos() + (e1 * phi.cos() + e2 * phi.sin()) * slant.sin();
+                    candidates.push((
+                        tip + direction * ((inner - depth(&tip)) / slant.cos()),
+                        None,
+                    ));
+                }
+            }
+            let steepest = SUPPORT_SLANTS_DEG
+                .iter()
+                .fold(0.0f64, |m, &s| m.max(s))
+                .to_radians();
+            for j in 0..count {
+                if j == i
+                    || supports[j].is_none()
+                    || supports
+                        .iter()
+                        .any(|s| matches!(s, Some((_, Some(k))) if *k == j))
+                {
+                    continue;
+                }
+                let offset = self.spheres[j].centre - tip;
+                let along = offset.dot(&v);
+                let across = (offset - v * along).norm();
+                if along > radius + strut_radius + 2.0 * self.blend
+                    && across <= along * steepest.tan()
+                {
+                    candidates.push((self.spheres[j].centre, Some(j)));
+                }
+            }
+            // Feet within the layout's footprint (grown by a sphere
+            // diameter) first, which keeps the plate small; any foot only
+            // when none of those is feasible.
+            let footprint = |p: &Vector3<f64>| {
+                [e1, e2].iter().all(|e| {
+                    let (lo, hi) = self
+                        .spheres
+                        .iter()
+                        .map(|s| s.centre.dot(e))
+                        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), x| {
+                            (lo.min(x), hi.max(x))
+                        });
+                    (lo - 2.0 * radius..=hi + 2.0 * radius).contains(&p.dot(e))
+                })
+            };
+            let (inside, outside): (Vec<_>, Vec<_>) =
+                candidates.into_iter().partition(|(end, _)| footprint(end));
+            let mut best: Option<(f64, Vector3<f64>, Option<usize>)> = None;
+            for (end, onto) in inside.into_iter().chain(outside) {
+                if best.is_some() && !footprint(&end) {
+                    break;
+                }
+                // Clear of every other sphere and its cone, and of every
+                // support chosen so far (but the one it stands on).
+                let clear_spheres = (0..count).filter(|&k| k != i && Some(k) != onto).all(|k| {
+                    segment_distance(&tip, &end, &self.spheres[k].centre, &tips[k])
+                        - radius
+                        - strut_radius
+                        >= self.clearance + growth
+                });
+                let clear_supports =
+                    (0..count)
+                        .filter(|&k| k != i && Some(k) != onto)
+                        .all(|k| match supports[k] {
+                            Some((other_end, _)) => {
+                                segment_distance(&tip, &end, &tips[k], &other_end)
+                                    - 2.0 * strut_radius
+                                    >= self.clearance + growth
+                            }
+                            None => true,
+                        });
+                if !(clear_spheres && clear_supports) {
+                    continue;
+                }
+                // How much it covers: sample points along it, rays towards
+                // every other sphere in the cone that its own sphere does
+                // not shadow.
+                let length = (end - tip).norm();
+                let steps = (length / SUPPORT_SAMPLE_MM).ceil().max(1.0) as usize;
+                let mut covered = 0usize;
+                for step in 0..=steps {
+                    let q = tip + (end - tip) * (step as f64 / steps as f64);
+                    for d in &directions {
+                        if hits(&q, &(-d), &self.spheres[i].centre, radius - strut_radius) {
+                            continue;
+                        }
+                        covered += (0..count)
+                            .filter(|&k| {
+                                k != i
+                                    && hits(&q, d, &self.spheres[k].centre, radius + strut_radius)
+                            })
+                            .count();
+                    }
+                }
+                let score = covered as f64 * length / steps as f64;
+                if best.as_ref().is_none_or(|b| score < b.0) {
+                    best = Some((score, end, onto));
+                }
+                if score == 0.0 {
+                    break;
+                }
+            }
+            let Some((_, end, onto)) = best else {
+                return Err(GeometryError::RoutingFailed {
+                    from: format!("sphere {}", self.spheres[i].name),
+                    reason: "no support down to the base plate or onto a sphere behind it, at most 35 degrees from the view, keeps clear of the other spheres and supports (--structure routed may route it)".into(),
+                });
+            };
+            supports[i] = Some((end, onto));
+        }
+        // The struts, and feet on the plate.
+        for i in 0..count {
+            let (end, onto) = supports[i].expect("every sphere has a support");
+            match onto {
+                Some(j) => self.struts.push(Strut {
+                    kind: StrutKind::Link,
+                    ends: [Node::Sphere(i), Node::Sphere(j)],
+                    a: tips[i],
+                    b: end,
+                    radius: strut_radius,
+                }),
+                None => {
+                    self.feet.push(Foot {
+                        position: end,
+                        sphere: i,
+                    });
+                    self.struts.push(Strut {
+                        kind: StrutKind::Post,
+                        ends: [Node::Sphere(i), Node::Foot(self.feet.len() - 1)],
+                        a: tips[i],
+                        b: end,
+                        radius: strut_radius,
+                    });
+                }
+            }
+        }
+        // The plate: the feet's footprint with a margin for the fillets, at
+        // least PLATE_MIN_SIDE_MM, and a tab for the screw holes on the
+        // mount side (two holes) or on both sides (four).
+        let margin = strut_radius + self.blend + self.clearance + PLATE_ROUNDING_MM;
+        let thickness = PLATE_THICKNESS_MM;
+        let mut lo = [f64::INFINITY; 2];
+        let mut hi = [f64::NEG_INFINITY; 2];
+        for foot in &self.feet {
+            for (k, e) in [e1, e2].iter().enumerate() {
+                lo[k] = lo[k].min(foot.position.dot(e) - margin);
+                hi[k] = hi[k].max(foot.position.dot(e) + margin);
+            }
+        }
+        for k in 0..2 {
+            let grow = (PLATE_MIN_SIDE_MM - (hi[k] - lo[k])).max(0.0);
+            lo[k] -= 0.5 * grow;
+            hi[k] += 0.5 * grow;
+        }
+        let mut hole_centres: Vec<[f64; 2]> = Vec::new();
+        let hole_radius = 0.5 * holes.map_or(0.0, |h| h.diameter_mm);
+        if let Some(spec) = holes {
+            let wall = hole_radius.max(2.0 * self.clearance);
+            let tab = 2.0 * (hole_radius + wall);
+            // The tab axis (0 or 1) and side; the holes spread across it.
+            let axis = if tab_side.dot(&e1) != 0.0 { 0 } else { 1 };
+            let positive = tab_side.dot(if axis == 0 { &e1 } else { &e2 }) > 0.0;
+            let other = 1 - axis;
+            let spread = 0.25 * (hi[other] - lo[other]);
+            let mid = 0.5 * (hi[other] + lo[other]);
+            let mut sides = vec![positive];
+            if spec.count == 4 {
+                sides.push(!positive);
+            }
+            for side in sides {
+                let at = if side {
+                    hi[axis] += tab;
+                    hi[axis] - 0.5 * tab
+                } else {
+                    lo[axis] -= tab;
+                    lo[axis] + 0.5 * tab
+                };
+                for across in [mid - spread, mid + spread] {
+                    let mut c = [0.0; 2];
+                    c[axis] = at;
+                    c[other] = across;
+                    hole_centres.push(c);
+                }
+            }
+        }
+        let bed_level = inner + thickness;
+        // The bed face's rounded rim rises no more than one layer before it
+        // is steep enough to print (PILLAR_PLATE_ROUNDING_MM).
+        let depth_mid = inner + 0.5 * thickness;
+        let point = |a: f64, b: f64, d: f64| e1 * a + e2 * b + v * d;
+        let centre = point(0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), depth_mid);
+        let half_extents = (point(
+            0.5 * (hi[0] - lo[0]),
+            0.5 * (hi[1] - lo[1]),
+            0.5 * thickness,
+        ))
+        .abs();
+        let plate = Plate {
+            centre,
+            half_extents,
+            rounding: PILLAR_PLATE_ROUNDING_MM,
+            holes: hole_centres
+                .iter()
+                .map(|c| Hole {
+                    centre: point(c[0], c[1], inner + 0.5 * thickness),
+                    axis: v,
+                    radius: hole_radius,
+                })
+                .collect(),
+        };
+        let teardrops = tips.iter().map(|&tip| Some((tip, strut_radius))).collect();
+        Ok((plate, teardrops, bed_level))
+    }
+
     /// Step 3: the stub and the base plate with its holes.
     fn stub_and_plate(&mut self, hub: usize, holes: Option<&MountHoles>) -> Plate {
         let mount_foot = self.mount_foot(hub);
@@ -1393,6 +1914,34 @@ impl Router<'_> {
                 .collect(),
         }
     }
+}
+
+/// The main view `view` and rings of directions around it out to
+/// `half_angle_rad`: `rings` rings at equal steps of angle, the outermost
+/// with `azimuths` directions and the inner ones with proportionally fewer
+/// (at least four).
+pub fn view_cone_directions(
+    view: &Vector3<f64>,
+    half_angle_rad: f64,
+    rings: usize,
+    azimuths: usize,
+) -> Vec<Vector3<f64>> {
+    let mut directions = vec![*view];
+    if half_angle_rad <= 0.0 || rings == 0 {
+        return directions;
+    }
+    let k = view.iamax();
+    let unit = |k: usize| Vector3::from_fn(|r, _| if r == k { 1.0 } else { 0.0 });
+    let (e1, e2) = (unit((k + 1) % 3), unit((k + 2) % 3));
+    for ring in 1..=rings {
+        let polar = half_angle_rad * ring as f64 / rings as f64;
+        let n = (azimuths * ring / rings).max(4);
+        for a in 0..n {
+            let phi = std::f64::consts::TAU * a as f64 / n as f64;
+            directions.push(view * polar.cos() + (e1 * phi.cos() + e2 * phi.sin()) * polar.sin());
+        }
+    }
+    directions
 }
 
 /// The fillet radius at junctions: the strut diameter, and at least the
@@ -1545,7 +2094,11 @@ mod tests {
 
     #[test]
     fn paper_biprism_routing() {
-        let marker = Marker::design(&Layout::paper_biprism(), &MarkerOptions::default()).unwrap();
+        let routed = MarkerOptions {
+            structure: Structure::Routed,
+            ..MarkerOptions::default()
+        };
+        let marker = Marker::design(&Layout::paper_biprism(), &routed).unwrap();
         let names: Vec<String> = (0..marker.struts.len())
             .map(|s| marker.strut_name(s))
             .collect();
@@ -1560,6 +2113,33 @@ mod tests {
             let p = s.centre + Vector3::new(s.radius, 0.0, 0.0);
             assert_eq!(marker.signed_distance(&p), 0.0, "{}", s.name);
         }
+    }
+
+    #[test]
+    fn paper_biprism_pillars() {
+        let marker = Marker::design(&Layout::paper_biprism(), &MarkerOptions::default()).unwrap();
+        assert_eq!(marker.down, Axis::POS_Z);
+        // Every support leaves its sphere's cone tip at most 35° from the
+        // view, and the plate lies behind every sphere.
+        for strut in &marker.struts {
+            let d = (strut.b - strut.a).normalize();
+            assert!(d.z >= 35f64.to_radians().cos() - 1e-12, "{strut:?}");
+        }
+        let level = marker.bed_level.unwrap();
+        for s in &marker.spheres {
+            assert!(s.centre.z + s.radius < level - PLATE_THICKNESS_MM);
+        }
+        assert!("pillars".parse::<Structure>().unwrap() == Structure::Pillars);
+        assert_eq!(
+            "tree".parse::<Structure>().unwrap_err().to_string(),
+            "unknown structure \"tree\": expected pillars or routed"
+        );
+        assert_eq!(
+            "200,200,180".parse::<Bed>().unwrap().0,
+            [200.0, 200.0, 180.0]
+        );
+        assert!("200,200".parse::<Bed>().is_err());
+        assert!("200,-1,180".parse::<Bed>().is_err());
     }
 
     #[test]

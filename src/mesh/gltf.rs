@@ -2,7 +2,7 @@
 //!
 //! As the glTF specification requires: metres, Y up
 //! ([`super::geometry::gltf_rotation`]: the print frame turned Y-up, so the
-//! mount axis points down), counter-clockwise front faces, one mesh with
+//! base points down, [`super::Marker::down`]), counter-clockwise front faces, one mesh with
 //! float POSITION (with its `min`/`max`, required for positions), unit
 //! NORMAL and unsigned-int indices, in buffer views aligned to four bytes.
 
@@ -26,7 +26,7 @@ pub struct GltfWriter {
 
 /// The binary buffer and the JSON document that describes it.
 fn encode(solid: &Solid, buffer_uri: Option<String>) -> (json::Root, Vec<u8>) {
-    let rotation = gltf_rotation(solid.marker.mount);
+    let rotation = gltf_rotation(solid.marker.down);
     let positions: Vec<[f32; 3]> = solid
         .mesh
         .positions

@@ -1,7 +1,12 @@
 //! Printable marker meshes (docs/formats.md, "Report files", `export`): one
-//! watertight, outward-wound, manifold solid — a sphere per feature point,
-//! struts to a hub, a mounting stub and base plate — written as STL, OBJ,
-//! glTF or GLB, with a fabrication sheet.
+//! watertight, outward-wound, manifold solid — a sphere per feature point
+//! on a support rising from a base plate behind them all, which prints
+//! without support material standing on the plate
+//! ([`geometry::Structure::Pillars`]; the earlier strut tree is
+//! [`geometry::Structure::Routed`]) — written as STL, OBJ, glTF or GLB,
+//! with a fabrication sheet, and checked by ray casting over a cone of
+//! viewing directions ([`quality::view_coverage`]) and for overhangs
+//! ([`quality::overhang`]).
 //!
 //! The pipeline ([`build`], then [`export`]):
 //! 1. [`geometry::Marker::design`] routes the struts and checks every
@@ -18,12 +23,14 @@
 //! **Frames.** Sphere centres sit exactly at the layout's coordinates (mm)
 //! in the marker frame.
 //! * OBJ: the marker frame, millimetres.
-//! * STL: the print frame ([`geometry::print_rotation`]): millimetres,
-//!   Z up, the mount axis pointing down onto the bed; a pure rotation of the
-//!   marker frame (for the default mount −y: (x, y, z) → (x, −z, y)).
+//! * STL: the print frame ([`Marker::print_transform`]): millimetres,
+//!   Z up, [`Marker::down`] (the view for pillars, the mount axis for the
+//!   routed structure) pointing onto the bed, the bed face at z = 0; a
+//!   rotation of the marker frame and a shift along Z.
 //! * glTF / GLB: metres, Y up ([`geometry::gltf_rotation`]): the print
-//!   frame turned Y-up, so again the mount axis points down; for the default
-//!   mount −y this is the marker frame itself, scaled to metres.
+//!   frame turned Y-up (without the shift), so again [`Marker::down`]
+//!   points down; for a routed part with mount −y this is the marker frame
+//!   itself, scaled to metres.
 
 pub mod extract;
 pub mod geometry;
@@ -89,6 +96,20 @@ pub enum ExportError {
         path: PathBuf,
         /// The cause.
         source: std::io::Error,
+    },
+    /// A strut covers a sphere from the view cone.
+    #[error("{} covers {:.1} % of sphere {sphere} seen {angle_deg:.0} degrees off the main view ({view}); the camera would lose that sphere. Try another --view, a smaller --view-cone, --structure, or pass --allow-occlusion", if *main_view { "in the main view a strut" } else { "a strut" }, 100.0 * fraction)]
+    Occluded {
+        /// The sphere.
+        sphere: String,
+        /// Fraction of its disc covered.
+        fraction: f64,
+        /// Angle of the viewing direction from the main view, degrees.
+        angle_deg: f64,
+        /// The main view.
+        view: Axis,
+        /// Whether it happens in the main view itself.
+        main_view: bool,
     },
     /// glTF serialisation failed.
     #[error("cannot encode glTF: {0}")]
@@ -171,6 +192,9 @@ pub struct ExportOptions {
     /// Grid spacing, mm; `None`: [`DEFAULT_RESOLUTION_MM`], or finer when
     /// a feature needs it.
     pub resolution_mm: Option<f64>,
+    /// Write the files even when a strut covers a sphere from the view
+    /// cone (else that is [`ExportError::Occluded`]).
+    pub allow_occlusion: bool,
 }
 
 impl Default for ExportOptions {
@@ -179,6 +203,7 @@ impl Default for ExportOptions {
             formats: Format::ALL.to_vec(),
             marker: MarkerOptions::default(),
             resolution_mm: None,
+            allow_occlusion: false,
         }
     }
 }
@@ -219,6 +244,14 @@ pub struct Solid {
 }
 
 impl Solid {
+    /// The marker → STL (print) frame motion `p ↦ R·p + shift`: the
+    /// rotation [`geometry::print_rotation`] of the axis that points onto
+    /// the bed, then a shift along Z that puts the bed face at z = 0
+    /// ([`Marker::bed_face_level`]).
+    pub fn print_transform(&self) -> (nalgebra::Matrix3<f64>, Vector3<f64>) {
+        self.marker.print_transform()
+    }
+
     /// The layout's name as used in file names: characters other than
     /// ASCII letters, digits, `.`, `_` and `-` become `_`.
     pub fn name(&self) -> String {
@@ -346,8 +379,21 @@ pub struct ExportReport {
     pub files: Vec<WrittenFile>,
     /// The smallest difference between two pairwise sphere distances, mm.
     pub identification_margin_mm: f64,
-    /// How much the marker hides each sphere in the main view.
+    /// How much the marker hides each sphere, in the main view and over
+    /// the view cone.
     pub main_view_coverage: Vec<quality::Coverage>,
+    /// Half-angle of the view cone, degrees.
+    pub view_cone_deg: f64,
+    /// Whether a strut covering a sphere was allowed (`--allow-occlusion`).
+    pub occlusion_allowed: bool,
+    /// Overhangs as printed.
+    pub overhang: quality::Overhang,
+    /// How the spheres are held.
+    pub structure: geometry::Structure,
+    /// The mesh's extents in the print frame, mm.
+    pub print_size_mm: [f64; 3],
+    /// The build volume it was checked against, mm.
+    pub bed_mm: [f64; 3],
     /// Strut diameter, mm.
     pub strut_diameter_mm: f64,
     /// Minimum feature size, mm.
@@ -373,6 +419,18 @@ pub fn export(
         return Err(ExportError::NoFormat);
     }
     let solid = build(layout, options)?;
+    let coverage = quality::view_coverage(&solid.marker, options.marker.view_cone_deg);
+    if !options.allow_occlusion {
+        check_occlusion(&solid.marker, &coverage)?;
+    }
+    let (rotation, shift) = solid.print_transform();
+    let overhang = quality::overhang(
+        &solid.marker,
+        &solid.mesh,
+        &rotation,
+        &shift,
+        geometry::MAX_OVERHANG_DEG,
+    );
     std::fs::create_dir_all(out_dir).map_err(|source| ExportError::Io {
         path: out_dir.to_path_buf(),
         source,
@@ -394,7 +452,6 @@ pub fn export(
             });
         }
     }
-    let coverage = quality::main_view_coverage(&solid.marker);
     let start = Instant::now();
     let sheet_files = sheet::write(&solid, &coverage, out_dir)?;
     let seconds = start.elapsed().as_secs_f64();
@@ -412,10 +469,22 @@ pub fn export(
         files,
         identification_margin_mm: sheet::identification_margin(&solid.marker).0,
         main_view_coverage: coverage,
+        view_cone_deg: options.marker.view_cone_deg,
+        occlusion_allowed: options.allow_occlusion,
+        overhang,
+        structure: solid.marker.structure,
+        print_size_mm: {
+            // The mesh's own extents (the design's bounds are padded by
+            // the most blending could add).
+            let [lo, hi] = solid.report.bounds_mm;
+            let size = rotation.abs() * (Vector3::from(hi) - Vector3::from(lo));
+            [size.x, size.y, size.z]
+        },
+        bed_mm: options.marker.bed.0,
         strut_diameter_mm: options.marker.strut_diameter_mm,
         min_feature_mm: options.marker.min_feature_mm,
         view: options.marker.view,
-        mount: options.marker.mount,
+        mount: solid.marker.mount,
         mount_holes: options.marker.mount_holes.clone(),
     };
     let json_path = out_dir.join(format!("{}-export.json", solid.name()));
@@ -431,6 +500,44 @@ pub fn export(
         last.bytes = json.len() as u64;
     }
     Ok(report)
+}
+
+/// The sphere a strut covers most, in the main view or from the view cone,
+/// as an error. A sphere that another sphere covers from some direction of
+/// the cone is left out: every support of the sphere in front passes in
+/// front of it close to that direction (the paper's biprism seen along z
+/// hides O0 and P1 behind P3), so that is the layout's own occlusion,
+/// reported but not an error.
+fn check_occlusion(marker: &Marker, coverage: &[quality::Coverage]) -> Result<(), ExportError> {
+    let worst = coverage
+        .iter()
+        .filter(|c| c.cone_covered_by_spheres == 0.0)
+        .filter(|c| c.cone_covered_by_struts > 0.0)
+        .max_by(|a, b| {
+            a.cone_covered_by_struts
+                .total_cmp(&b.cone_covered_by_struts)
+        });
+    match worst {
+        None => Ok(()),
+        Some(c) => {
+            let main_view = c.covered_by_struts > 0.0;
+            let (fraction, angle_deg) = if main_view {
+                (c.covered_by_struts, 0.0)
+            } else {
+                (
+                    c.cone_covered_by_struts,
+                    quality::angle_from_view_deg(marker, &c.cone_worst_direction),
+                )
+            };
+            Err(ExportError::Occluded {
+                sphere: c.sphere.clone(),
+                fraction,
+                angle_deg,
+                view: marker.view,
+                main_view,
+            })
+        }
+    }
 }
 
 fn file_size(path: &Path) -> u64 {

@@ -107,6 +107,47 @@ pub fn rounded_box(
     }
 }
 
+/// Round cone: the convex hull of the ball of radius `radius_a` around `a`
+/// and the smaller ball of radius `radius_b` around `b` (`radius_a ≥
+/// radius_b`, `|b − a| > radius_a − radius_b`): two balls joined by the cone
+/// tangent to both. Its flank makes the angle `asin((radius_a − radius_b) /
+/// |b − a|)` with the axis. Exact outside; inside, the distance to the
+/// nearest of the two spheres and the flank selected by the point's
+/// projection onto the flank (Quilez, "Distance functions", round cone).
+pub fn round_cone(
+    p: &Vector3<f64>,
+    a: &Vector3<f64>,
+    radius_a: f64,
+    b: &Vector3<f64>,
+    radius_b: f64,
+) -> Sample {
+    let axis_vector = b - a;
+    let length = axis_vector.norm();
+    let axis = axis_vector / length;
+    let rel = p - a;
+    let along = rel.dot(&axis);
+    let radial_vector = rel - axis * along;
+    let radial = radial_vector.norm();
+    let radial_unit = any_unit(radial_vector);
+    // The flank's outward normal in the (along, radial) half-plane, and its
+    // direction from the tangent point on ball a to that on ball b.
+    let sine = ((radius_a - radius_b) / length).clamp(-1.0, 1.0);
+    let cosine = (1.0 - sine * sine).sqrt();
+    let (normal_along, normal_radial) = (sine, cosine);
+    let position_on_flank =
+        (along - radius_a * normal_along) * cosine - (radial - radius_a * normal_radial) * sine;
+    if position_on_flank <= 0.0 {
+        ball(p, a, radius_a)
+    } else if position_on_flank >= length * cosine {
+        ball(p, b, radius_b)
+    } else {
+        Sample {
+            value: along * normal_along + radial * normal_radial - radius_a,
+            gradient: axis * normal_along + radial_unit * normal_radial,
+        }
+    }
+}
+
 /// Quadratic polynomial smooth minimum with blend radius `blend_mm`: equal
 /// to `min(a, b)` where the two differ by more than `blend_mm`, and at most
 /// `blend_mm / 4` below it where they are close, which rounds the crease
@@ -232,6 +273,7 @@ mod tests {
             check_gradient(|q| capsule(q, &a, &b, 1.5), p);
             check_gradient(|q| cylinder(q, &c, &Vector3::y(), 0.7), p);
             check_gradient(|q| rounded_box(q, &c, &half, 1.0), p);
+            check_gradient(|q| round_cone(q, &a, 3.0, &b, 1.0), p);
             check_gradient(
                 |q| smooth_min(ball(q, &c, 2.0), capsule(q, &a, &b, 1.5), 2.0),
                 p,
@@ -247,6 +289,26 @@ mod tests {
                 p,
             );
         }
+    }
+
+    #[test]
+    fn round_cone_values() {
+        // Ball of 5 at the origin, ball of 1 at z = 8: flank at asin(0.5).
+        let a = Vector3::zeros();
+        let b = Vector3::new(0.0, 0.0, 8.0);
+        let f = |p: Vector3<f64>| round_cone(&p, &a, 5.0, &b, 1.0).value;
+        assert_relative_eq!(f(Vector3::new(0.0, 0.0, -7.0)), 2.0, epsilon = 1e-12);
+        assert_relative_eq!(f(Vector3::new(0.0, 0.0, 11.0)), 2.0, epsilon = 1e-12);
+        assert_relative_eq!(f(Vector3::new(0.0, 6.0, 0.0)), 1.0, epsilon = 1e-12);
+        // The flank's tangent point on ball a lies at angle 30° past the
+        // equator towards b; a point 1 mm out along its normal.
+        let n = Vector3::new(0.0, 30f64.to_radians().cos(), 30f64.to_radians().sin());
+        assert_relative_eq!(f(n * 6.0), 1.0, epsilon = 1e-12);
+        // Halfway along the flank, 2 mm out.
+        let tangent_a = n * 5.0;
+        let tangent_b = b + n * 1.0;
+        let mid = 0.5 * (tangent_a + tangent_b) + n * 2.0;
+        assert_relative_eq!(f(mid), 2.0, epsilon = 1e-12);
     }
 
     #[test]

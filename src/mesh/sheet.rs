@@ -58,7 +58,11 @@ pub fn write(
     let svg = dir.join(format!("{name}-views.svg"));
     write_file(&md, markdown(solid, coverage, &svg).as_bytes())?;
     write_file(&csv, &csv_table(&solid.marker))?;
-    write_file(&svg, views_svg(&solid.marker).as_bytes())?;
+    let [lo, hi] = solid.report.bounds_mm;
+    write_file(
+        &svg,
+        views_svg(&solid.marker, (Vector3::from(lo), Vector3::from(hi))).as_bytes(),
+    )?;
     Ok(vec![md, csv, svg])
 }
 
@@ -158,33 +162,72 @@ fn markdown(solid: &Solid, coverage: &[Coverage], svg: &Path) -> String {
         .iter()
         .find(|s| s.kind == super::geometry::StrutKind::Stub)
         .map_or(0.0, |s| 2.0 * s.radius);
-    let _ = writeln!(
-        md,
-        "- Struts: {:.2} diameter, filleted with radius {:.2}; mounting stub {:.2} diameter along {}; base plate {:.1} × {:.1} × {:.1}",
-        strut,
-        marker.blend_mm,
-        stub,
-        marker.mount,
-        2.0 * marker.plate.half_extents.x,
-        2.0 * marker.plate.half_extents.y,
-        2.0 * marker.plate.half_extents.z
-    );
-    match &marker.mount_holes {
-        Some(h) => {
+    match marker.structure {
+        super::geometry::Structure::Pillars => {
             let _ = writeln!(
                 md,
-                "- Mounting holes: {} × {} clearance, {:.1} diameter (ISO 273 medium), through the plate along {}",
-                h.count, h.screw, h.diameter_mm, marker.mount
+                "- Structure: pillars. Base plate {:.1} × {:.1} × {:.1} behind every sphere (along the view {}); a support {:.2} in diameter rises from it to each sphere (at most {}° from the vertical), widening under the sphere into a cone of half-angle {}°; fillets of radius {:.2}",
+                2.0 * marker.plate.half_extents.x,
+                2.0 * marker.plate.half_extents.y,
+                2.0 * marker.plate.half_extents.z,
+                marker.view,
+                strut,
+                super::geometry::SUPPORT_SLANTS_DEG.iter().fold(0.0f64, |m, &s| m.max(s)),
+                super::geometry::TEARDROP_HALF_ANGLE_DEG,
+                marker.blend_mm,
             );
+            let _ = writeln!(
+                md,
+                "- Print orientation: the STL as written: base plate face down on the bed (z = 0), spheres up. Supports: none needed (no downward-facing surface steeper than {}° from the vertical above the first layer). Suggested layer height 0.2 mm or finer (0.1 mm for spheres of 6 mm or less)",
+                super::geometry::MAX_OVERHANG_DEG
+            );
+            match &marker.mount_holes {
+                Some(h) => {
+                    let _ = writeln!(
+                        md,
+                        "- Mounting holes: {} × {} clearance, {:.1} diameter (ISO 273 medium), through the plate along {}, in a tab on its {} side",
+                        h.count, h.screw, h.diameter_mm, marker.view, marker.mount
+                    );
+                }
+                None => {
+                    let _ = writeln!(md, "- Mounting holes: none (glue or clamp the plate)");
+                }
+            }
         }
-        None => {
-            let _ = writeln!(md, "- Mounting holes: none");
+        super::geometry::Structure::Routed => {
+            let _ = writeln!(
+                md,
+                "- Struts: {:.2} diameter, filleted with radius {:.2}; mounting stub {:.2} diameter along {}; base plate {:.1} × {:.1} × {:.1}",
+                strut,
+                marker.blend_mm,
+                stub,
+                marker.mount,
+                2.0 * marker.plate.half_extents.x,
+                2.0 * marker.plate.half_extents.y,
+                2.0 * marker.plate.half_extents.z
+            );
+            match &marker.mount_holes {
+                Some(h) => {
+                    let _ = writeln!(
+                        md,
+                        "- Mounting holes: {} × {} clearance, {:.1} diameter (ISO 273 medium), through the plate along {}",
+                        h.count, h.screw, h.diameter_mm, marker.mount
+                    );
+                }
+                None => {
+                    let _ = writeln!(md, "- Mounting holes: none");
+                }
+            }
+            let _ = writeln!(
+                md,
+                "- Print orientation: the STL as written, plate on the bed; this structure needs support material"
+            );
         }
     }
     let _ = writeln!(
         md,
-        "- Main viewing direction: {} (every post runs straight back along it, hidden behind its sphere; the back struts and mount lie behind all spheres)",
-        marker.view
+        "- Main viewing direction: {} (every sphere stands in front of its own support; the base plate lies behind all spheres); view cone checked: ±{}°",
+        marker.view, marker.view_cone_deg
     );
     let _ = writeln!(
         md,
@@ -222,12 +265,12 @@ fn markdown(solid: &Solid, coverage: &[Coverage], svg: &Path) -> String {
     let _ = writeln!(
         md,
         "| `.stl` | mm | print frame, Z up, mount axis down: {} |",
-        frame_rows(&print_rotation(marker.mount))
+        frame_rows(&print_rotation(marker.down))
     );
     let _ = writeln!(
         md,
         "| `.gltf`, `.glb` | m | glTF, Y up, mount axis down: {} |",
-        frame_rows(&gltf_rotation(marker.mount))
+        frame_rows(&gltf_rotation(marker.down))
     );
     let _ = writeln!(
         md,
@@ -307,8 +350,10 @@ fn views(marker: &Marker) -> [View; 3] {
     })
 }
 
-fn views_svg(marker: &Marker) -> String {
-    let (lo, hi) = marker.bounds();
+/// The three views, dimensioned with the mesh's own bounds `(lo, hi)`
+/// (marker frame, mm): the analytic [`Marker::bounds`] are padded by the
+/// most blending could add, which overstates the part.
+fn views_svg(marker: &Marker, (lo, hi): (Vector3<f64>, Vector3<f64>)) -> String {
     let views = views(marker);
     let extent = |v: &View| {
         let a = [lo.dot(&v.right), hi.dot(&v.right)];

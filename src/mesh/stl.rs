@@ -1,9 +1,11 @@
 //! Binary STL for printers (`stl_io`): millimetres, in the print frame —
-//! Z up, the mount axis pointing down onto the bed
-//! ([`super::geometry::print_rotation`]), a pure rotation of the marker
-//! frame so that sphere centres keep their distances and map exactly.
+//! Z up, the base pointing down onto the bed
+//! ([`super::geometry::print_rotation`] of [`super::Marker::down`]) and
+//! shifted along Z so that the lowest point lies on the bed at z = 0: a
+//! rigid motion of the marker frame, so that sphere centres keep their
+//! distances and map exactly ([`Solid::print_transform`]). The 80-byte
+//! header names the part and its units ([`header`]).
 
-use super::geometry::print_rotation;
 use super::{write_file, ExportError, Format, MeshWriter, Solid};
 use std::path::{Path, PathBuf};
 
@@ -17,8 +19,8 @@ impl MeshWriter for StlWriter {
     }
 
     fn write(&self, solid: &Solid, dir: &Path) -> Result<Vec<PathBuf>, ExportError> {
-        let rotation = print_rotation(solid.marker.mount);
-        let mesh = solid.mesh.transformed(|p| rotation * p);
+        let (rotation, shift) = solid.print_transform();
+        let mesh = solid.mesh.transformed(|p| rotation * p + shift);
         let triangles: Vec<stl_io::Triangle> = (0..mesh.triangles.len())
             .map(|f| {
                 let normal = mesh.face_cross(f).normalize();
@@ -35,8 +37,35 @@ impl MeshWriter for StlWriter {
             path: dir.to_path_buf(),
             source,
         })?;
+        bytes[..80].copy_from_slice(&header(&solid.marker.name));
         let path = dir.join(format!("{}.stl", solid.name()));
         write_file(&path, &bytes)?;
         Ok(vec![path])
+    }
+}
+
+/// The 80-byte binary STL header: the part's name and units, padded with
+/// spaces (never starting with `solid`, which readers take for ASCII STL).
+pub fn header(part_name: &str) -> [u8; 80] {
+    let text = format!("layout-opt part {part_name}; units mm; Z up");
+    let mut header = [b' '; 80];
+    for (slot, byte) in header.iter_mut().zip(text.bytes()) {
+        *slot = byte;
+    }
+    header
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_header_names_the_part_and_its_units() {
+        let header = header("biprism-paper");
+        let text = std::str::from_utf8(&header).unwrap();
+        assert!(text.starts_with("layout-opt part biprism-paper; units mm; Z up"));
+        assert!(!text.starts_with("solid"));
+        let long = "x".repeat(200);
+        assert_eq!(super::header(&long).len(), 80);
     }
 }

@@ -1070,8 +1070,7 @@ pub fn run(
         observer.progress(PHASE_EXPORT, 0, 1);
         let options = ExportOptions {
             formats: export.formats.clone(),
-            marker: Default::default(),
-            resolution_mm: None,
+            ..Default::default()
         };
         let report = crate::mesh::export(&winner, &options, &export.dir).map_err(|source| {
             SearchError::Export {

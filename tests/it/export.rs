@@ -68,6 +68,7 @@ fn options_with(
             ..Default::default()
         },
         resolution_mm: None,
+        allow_occlusion: true,
     }
 }
 
@@ -227,7 +228,12 @@ fn random_layouts_export_sound_meshes() {
             2 => (Axis::POS_X, Axis::NEG_Z, None),
             _ => (Axis::POS_Z, Axis::POS_Z, Some("M4x4")),
         };
-        options_with(Format::ALL.to_vec(), view, mount, holes)
+        let mut options = options_with(Format::ALL.to_vec(), view, mount, holes);
+        if case % 4 == 3 {
+            // The earlier routed structure stays tested.
+            options.marker.structure = layout_opt::mesh::geometry::Structure::Routed;
+        }
+        options
     };
     for case in 0..12 {
         let count = 4 + (case as usize * 5) % 7; // 4..=10 points
@@ -252,7 +258,20 @@ fn file_frames_are_as_documented() {
         ..Default::default()
     };
     export(&layout, &options, dir.path()).unwrap();
-    // Raw STL: Z up, the plate (mount −y) at the bottom.
+    // Raw STL: Z up, the base plate behind the spheres (view +z) on the bed
+    // at z = 0: (x, −y, −z) shifted up by the bed face's depth.
+    let marker = Marker::design(&layout, &options.marker).unwrap();
+    assert_eq!(marker.down, Axis::POS_Z);
+    assert_eq!(
+        print_rotation(Axis::POS_Z),
+        rows([[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, -1.0]])
+    );
+    let raw = std::fs::read(dir.path().join("biprism-paper.stl")).unwrap();
+    let header = String::from_utf8_lossy(&raw[..80]);
+    assert!(
+        header.contains("part biprism-paper; units mm"),
+        "the STL header names the part and its units: {header}"
+    );
     let mut file = std::fs::File::open(dir.path().join("biprism-paper.stl")).unwrap();
     let stl = stl_io::read_stl(&mut file).unwrap();
     let lowest_z = stl
@@ -265,9 +284,13 @@ fn file_frames_are_as_documented() {
         .iter()
         .map(|v| v[2])
         .fold(f32::NEG_INFINITY, f32::max);
-    assert!((highest_z - 55.0).abs() < 1e-3, "P5's top at +55 mm");
-    assert!(lowest_z < -60.0, "the plate at the bottom, {lowest_z}");
-    // Raw glTF: metres, Y up, P5's top at 0.055 m.
+    assert!(lowest_z.abs() < 0.01, "the plate on the bed, {lowest_z}");
+    let level = marker.bed_face_level() as f32;
+    assert!(
+        (highest_z - (level + 55.0)).abs() < 1e-3,
+        "P3's top (z = −55 mm) highest: {highest_z}"
+    );
+    // Raw glTF: metres, Y up, P3's top at 0.055 m.
     let gltf = std::fs::read(dir.path().join("biprism-paper.gltf")).unwrap();
     let document = gltf::Gltf::from_slice(&gltf).unwrap();
     let accessor = document.accessors().next().unwrap();
@@ -321,5 +344,152 @@ fn struts_cover_no_sphere_of_the_shipped_layouts_in_the_main_view() {
         for coverage in quality::main_view_coverage(&marker) {
             assert_eq!(coverage.covered_by_struts, 0.0, "{file}: {coverage:?}");
         }
+    }
+}
+
+/// An eight-point layout that is not a family member.
+fn custom_eight() -> Layout {
+    let points = [
+        [0.0, 0.0, 0.0],
+        [45.0, 5.0, -30.0],
+        [-40.0, 35.0, -10.0],
+        [10.0, -45.0, 20.0],
+        [-30.0, -25.0, 40.0],
+        [35.0, 40.0, 25.0],
+        [-5.0, 15.0, -45.0],
+        [25.0, -15.0, 45.0],
+    ];
+    Layout {
+        name: "custom-8".into(),
+        points: points
+            .iter()
+            .enumerate()
+            .map(|(i, p)| layout_opt::layout::LayoutPoint::new(format!("S{i}"), (*p).into()))
+            .collect(),
+        sphere_diameter_mm: 10.0,
+        family: None,
+        provenance: None,
+    }
+}
+
+#[test]
+fn printable_parts_stand_on_the_bed_without_support() {
+    let layouts = [
+        Layout::load(&layouts_dir().join("biprism-paper.json")).unwrap(),
+        Layout::load(&layouts_dir().join("tetrahedron.json")).unwrap(),
+        Layout::load(&layouts_dir().join("biprism-search.json")).unwrap(),
+        custom_eight(),
+    ];
+    for layout in &layouts {
+        let dir = tempfile::tempdir().unwrap();
+        let options = ExportOptions {
+            formats: vec![Format::Stl],
+            ..Default::default()
+        };
+        let start = std::time::Instant::now();
+        let report =
+            export(layout, &options, dir.path()).unwrap_or_else(|e| panic!("{}: {e}", layout.name));
+        let seconds = start.elapsed().as_secs_f64();
+        let volume = report.mesh.topology.signed_volume_mm3;
+        let o = &report.overhang;
+        println!(
+            "{}: volume {volume:.0} mm³, overhang {:.1} mm² (+{:.1} on spheres), support estimate {:.0} mm³, {seconds:.2} s",
+            layout.name, o.area_mm2, o.sphere_area_mm2, o.support_estimate_mm3
+        );
+        assert!(
+            o.support_estimate_mm3 <= 0.02 * volume,
+            "{}: support {:.0} mm³ for {volume:.0} mm³",
+            layout.name,
+            o.support_estimate_mm3
+        );
+        assert!(
+            o.bed_contact_mm2 > 500.0,
+            "{}: stands on its plate",
+            layout.name
+        );
+        let mut file =
+            std::fs::File::open(dir.path().join(format!("{}.stl", layout.name))).unwrap();
+        let stl = stl_io::read_stl(&mut file).unwrap();
+        let lowest = stl
+            .vertices
+            .iter()
+            .map(|v| v[2])
+            .fold(f32::INFINITY, f32::min);
+        assert!(
+            lowest.abs() < 0.01,
+            "{}: lowest point at z = {lowest}",
+            layout.name
+        );
+        // Every sphere that no other sphere hides from the view cone is
+        // covered by no strut from it.
+        for c in &report.main_view_coverage {
+            if c.cone_covered_by_spheres == 0.0 {
+                assert_eq!(c.cone_covered_by_struts, 0.0, "{}: {c:?}", layout.name);
+            }
+        }
+    }
+}
+
+#[test]
+fn a_part_larger_than_the_bed_is_refused() {
+    let mut layout = Layout::paper_biprism();
+    for p in &mut layout.points {
+        p.position *= 10.0;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let error = export(&layout, &ExportOptions::default(), dir.path()).unwrap_err();
+    let text = error.to_string();
+    assert!(
+        text.contains("does not fit the build volume 250 × 210 × 210 mm"),
+        "{text}"
+    );
+    assert_eq!(
+        std::fs::read_dir(dir.path()).unwrap().count(),
+        0,
+        "nothing written"
+    );
+}
+
+#[test]
+fn drawing_dimensions_match_the_mesh() {
+    let layout = Layout::load(&layouts_dir().join("tetrahedron.json")).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let options = ExportOptions {
+        formats: vec![Format::Obj],
+        ..Default::default()
+    };
+    export(&layout, &options, dir.path()).unwrap();
+    let mesh = read_obj(&dir.path().join("tetrahedron.obj"));
+    let lo = mesh
+        .positions
+        .iter()
+        .fold(nalgebra::Vector3::repeat(f64::INFINITY), |a, p| a.inf(p));
+    let hi = mesh
+        .positions
+        .iter()
+        .fold(nalgebra::Vector3::repeat(f64::NEG_INFINITY), |a, p| {
+            a.sup(p)
+        });
+    let extents = hi - lo;
+    let svg = std::fs::read_to_string(dir.path().join("tetrahedron-views.svg")).unwrap();
+    // The overall dimensions: the numbers written as dimension texts.
+    let numbers: Vec<f64> = svg
+        .split(r#"text-anchor="middle""#)
+        .skip(1)
+        .filter_map(|rest| {
+            let text = rest.split_once('>')?.1.split_once('<')?.0;
+            text.trim().parse::<f64>().ok()
+        })
+        .collect();
+    assert_eq!(
+        numbers.len(),
+        6,
+        "width and height of three views: {numbers:?}"
+    );
+    for n in &numbers {
+        assert!(
+            extents.iter().any(|e| (e - n).abs() <= 0.1),
+            "dimension {n} matches no extent of the mesh {extents:?}"
+        );
     }
 }

@@ -3,7 +3,7 @@
 //! with code independent of the library's own topology counts.
 
 use layout_opt::layout::{Layout, LayoutPoint};
-use layout_opt::mesh::geometry::{gltf_rotation, print_rotation, Marker, Node};
+use layout_opt::mesh::geometry::{gltf_rotation, Marker, Node, TEARDROP_HALF_ANGLE_DEG};
 use layout_opt::synthetic::stream_rng;
 use nalgebra::{Matrix3, Matrix4, Vector3, Vector4};
 use rand::Rng;
@@ -21,12 +21,13 @@ pub struct ReadBack {
 pub fn read_stl(path: &Path, marker: &Marker) -> ReadBack {
     let mut file = std::fs::File::open(path).unwrap();
     let mesh = stl_io::read_stl(&mut file).unwrap();
-    let back = print_rotation(marker.mount).transpose();
+    let (rotation, shift) = marker.print_transform();
+    let back = rotation.transpose();
     ReadBack {
         positions: mesh
             .vertices
             .iter()
-            .map(|v| back * Vector3::new(v[0] as f64, v[1] as f64, v[2] as f64))
+            .map(|v| back * (Vector3::new(v[0] as f64, v[1] as f64, v[2] as f64) - shift))
             .collect(),
         triangles: mesh.faces.iter().map(|f| f.vertices).collect(),
     }
@@ -113,7 +114,7 @@ pub fn read_gltf(path: &Path, marker: &Marker) -> ReadBack {
         assert_eq!(max[k].as_f64().unwrap() as f32, hi, "POSITION max");
     }
     let indices: Vec<u32> = reader.read_indices().expect("indices").into_u32().collect();
-    let back = gltf_rotation(marker.mount).transpose();
+    let back = gltf_rotation(marker.down).transpose();
     ReadBack {
         positions: positions
             .iter()
@@ -357,6 +358,16 @@ pub fn sphere_fits(marker: &Marker, mesh: &ReadBack) -> Vec<(String, f64, f64, u
                         reach + 10f64.to_radians(),
                     )
                 })
+                .chain(
+                    // The cone under a sphere of a printable part meets it
+                    // TEARDROP_HALF_ANGLE_DEG short of its equator.
+                    marker.teardrops.get(i).copied().flatten().map(|(tip, _)| {
+                        (
+                            (tip - sphere.centre).normalize(),
+                            (90.0 - TEARDROP_HALF_ANGLE_DEG + 10.0).to_radians(),
+                        )
+                    }),
+                )
                 .collect();
             let near: Vec<Vector3<f64>> = mesh
                 .positions
