@@ -9,9 +9,9 @@ use layout_opt::layout::{Layout, ObjImport};
 use layout_opt::mesh::geometry::{
     Bed, Structure, DEFAULT_MIN_FEATURE_MM, DEFAULT_STRUT_DIAMETER_MM, DEFAULT_VIEW_CONE_DEG,
 };
-use layout_opt::mesh::{export, Axis, ExportOptions, Format, MarkerOptions, MountHoles};
+use layout_opt::mesh::pipeline::{self, ExportConfig};
+use layout_opt::mesh::{Axis, ExportOptions, Format, MarkerOptions, MountHoles};
 use std::path::{Path, PathBuf};
-use std::time::Duration;
 
 /// Flags of `export`.
 #[derive(Debug, Args)]
@@ -138,10 +138,14 @@ pub fn run(args: ExportArgs, global: &GlobalOptions) -> anyhow::Result<()> {
         resolution_mm: args.resolution,
         allow_occlusion: args.allow_occlusion,
     };
-    let bar = progress::bar(1, "exporting", global.quiet);
-    bar.enable_steady_tick(Duration::from_millis(100));
-    let result = export(&layout, &options, &args.out);
-    bar.finish_and_clear();
+    let config = ExportConfig {
+        layout,
+        options,
+        out_dir: args.out.clone(),
+    };
+    let mut bars = progress::Bars::new(global.quiet);
+    let result = pipeline::run(&config, &mut bars);
+    bars.finish();
     let report = result.with_context(|| format!("cannot export {source}"))?;
 
     let m = &report.mesh;

@@ -91,11 +91,6 @@ impl Grid {
     pub fn position(&self, coordinate: [f64; 3]) -> Vector3<f64> {
         self.origin + Vector3::from(coordinate) * self.spacing
     }
-
-    /// Total number of samples.
-    pub fn samples(&self) -> u64 {
-        self.points.iter().map(|&p| p as u64).product()
-    }
 }
 
 /// Candidate shifts of the grid per cell, tried by [`best_shift`].
