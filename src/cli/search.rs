@@ -527,32 +527,36 @@ pub fn run(args: SearchArgs, global: &GlobalOptions) -> anyhow::Result<()> {
             front.seconds,
             yes_no(front.dominates_every_hand_design)
         );
-        println!(
-            "{:<30} {:>8} {:>10} {:>12} {:>14}",
-            "design", "avail %", "accuracy", "RMS rot (°)", "RMS trans (mm)"
-        );
+        let mut table = Table::new([
+            "design",
+            "avail %",
+            "accuracy",
+            "RMS rot (°)",
+            "RMS trans (mm)",
+            "dominated by",
+        ]);
         let fmt = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.4}"));
         for m in &front.members {
-            println!(
-                "{:<30} {:>8.1} {:>10.4} {:>12} {:>14}",
-                m.name,
-                100.0 * m.availability,
-                m.accuracy,
+            table.row([
+                m.name.clone(),
+                format!("{:.1}", 100.0 * m.availability),
+                format!("{:.4}", m.accuracy),
                 fmt(m.rotation_rms_deg),
-                fmt(m.translation_rms_mm)
-            );
+                fmt(m.translation_rms_mm),
+                String::new(),
+            ]);
         }
         for h in &front.hand_designs {
-            println!(
-                "{:<30} {:>8.1} {:>10.4} {:>12} {:>14}  dominated by {}",
-                h.name,
-                100.0 * h.availability,
-                h.accuracy,
+            table.row([
+                h.name.clone(),
+                format!("{:.1}", 100.0 * h.availability),
+                format!("{:.4}", h.accuracy),
                 fmt(h.rotation_rms_deg),
                 fmt(h.translation_rms_mm),
-                h.dominated_by.as_deref().unwrap_or("none")
-            );
+                h.dominated_by.clone().unwrap_or_else(|| "none".into()),
+            ]);
         }
+        print!("{}", table.console());
     }
     for file in &outcome.exported {
         println!("exported {}", file.display());
