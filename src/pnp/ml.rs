@@ -109,14 +109,31 @@ fn normal_equations(
 /// Levenberg–Marquardt refinement of `start` on the reprojection error.
 /// Never returns a pose with a higher cost than `start`.
 pub fn refine(start: &Pose, object: &[Vector3<f64>], image: &[Vector2<f64>]) -> Pose {
+    levenberg_marquardt(
+        start,
+        |pose| normal_equations(pose, object, image),
+        |pose| cost(pose, object, image),
+    )
+}
+
+/// The Levenberg–Marquardt loop shared by [`refine`] and the sphere-model
+/// fit ([`super::ml_sphere`]): Gauss–Newton normal equations `(JᵀJ, Jᵀr)`
+/// over the pose's six local parameters ([`perturb`]), damped on the
+/// diagonal (Marquardt's scaling) until a step lowers `cost`. Never returns
+/// a pose with a higher cost than `start`.
+pub(crate) fn levenberg_marquardt(
+    start: &Pose,
+    normal_equations: impl Fn(&Pose) -> (SMatrix<f64, 6, 6>, SMatrix<f64, 6, 1>),
+    cost: impl Fn(&Pose) -> f64,
+) -> Pose {
     let mut pose = *start;
-    let mut current = cost(&pose, object, image);
+    let mut current = cost(&pose);
     if !current.is_finite() {
         return pose;
     }
     let mut damping = INITIAL_DAMPING;
     for _ in 0..MAX_ITERATIONS {
-        let (normal, gradient) = normal_equations(&pose, object, image);
+        let (normal, gradient) = normal_equations(&pose);
         let mut improved = false;
         // Raise the damping until a step lowers the cost (or give up).
         for _ in 0..MAX_DAMPING_TRIES {
@@ -130,7 +147,7 @@ pub fn refine(start: &Pose, object: &[Vector3<f64>], image: &[Vector2<f64>]) -> 
                 continue;
             };
             let candidate = perturb(&pose, &step);
-            let candidate_cost = cost(&candidate, object, image);
+            let candidate_cost = cost(&candidate);
             if candidate_cost <= current {
                 let decrease = current - candidate_cost;
                 pose = candidate;

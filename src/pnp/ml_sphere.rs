@@ -18,21 +18,15 @@
 //!
 //! Start: the best SQPnP candidate on the ellipse centres (as [`super::ml`];
 //! the displacement is a fraction of a pixel, well inside the basin).
-//! Damping, tolerances and the parameterisation `R ← exp([ω]×) R`,
-//! `t ← t + δt` are [`super::ml`]'s; nothing is allocated per iteration.
+//! The Levenberg–Marquardt loop, its damping, tolerances and the
+//! parameterisation `R ← exp([ω]×) R`, `t ← t + δt` are [`super::ml`]'s;
+//! nothing is allocated per iteration.
 
-use super::ml::{COST_TOLERANCE, INITIAL_DAMPING, MAX_ITERATIONS, STEP_TOLERANCE};
+use super::ml::levenberg_marquardt;
 use super::{best_candidate, sqpnp, PnpError};
-use crate::pose::{perturb, Pose};
+use crate::pose::Pose;
 use crate::sphere_image::ellipse_centre_jacobian;
 use nalgebra::{SMatrix, Vector2, Vector3};
-
-/// Damping increases tried per iteration before giving up.
-const MAX_DAMPING_TRIES: usize = 12;
-/// Smallest diagonal entry Marquardt's scaling multiplies.
-const DIAGONAL_FLOOR: f64 = 1e-30;
-/// Smallest damping factor.
-const MIN_DAMPING: f64 = 1e-12;
 
 /// Why the sphere-model fit failed.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -111,50 +105,11 @@ pub fn refine(
     image: &[Vector2<f64>],
     radius_mm: f64,
 ) -> Pose {
-    let mut pose = *start;
-    let mut current = cost(&pose, object, image, radius_mm);
-    if !current.is_finite() {
-        return pose;
-    }
-    let mut damping = INITIAL_DAMPING;
-    for _ in 0..MAX_ITERATIONS {
-        let (normal, gradient) = normal_equations(&pose, object, image, radius_mm);
-        let mut improved = false;
-        for _ in 0..MAX_DAMPING_TRIES {
-            let mut damped = normal;
-            for d in 0..6 {
-                damped[(d, d)] += damping * normal[(d, d)].max(DIAGONAL_FLOOR);
-            }
-            let Some(step) = damped.cholesky().map(|c| -c.solve(&gradient)) else {
-                damping *= 10.0;
-                continue;
-            };
-            let candidate = perturb(&pose, &step);
-            let candidate_cost = cost(&candidate, object, image, radius_mm);
-            if candidate_cost <= current {
-                let decrease = current - candidate_cost;
-                pose = candidate;
-                let previous = current;
-                current = candidate_cost;
-                damping = (damping / 10.0).max(MIN_DAMPING);
-                improved = true;
-                let rotation_step = step.fixed_rows::<3>(0).norm();
-                let translation_step = step.fixed_rows::<3>(3).norm();
-                if decrease <= COST_TOLERANCE * previous
-                    || (rotation_step <= STEP_TOLERANCE
-                        && translation_step <= STEP_TOLERANCE * pose.translation.norm())
-                {
-                    return pose;
-                }
-                break;
-            }
-            damping *= 10.0;
-        }
-        if !improved {
-            break;
-        }
-    }
-    pose
+    levenberg_marquardt(
+        start,
+        |pose| normal_equations(pose, object, image, radius_mm),
+        |pose| cost(pose, object, image, radius_mm),
+    )
 }
 
 /// ML with the sphere model: the best SQPnP candidate on the ellipse centres
@@ -179,7 +134,7 @@ pub fn solve(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::pose::rotation_error_deg;
+    use crate::pose::{perturb, rotation_error_deg};
     use crate::sphere_image::ellipse_centre_normalised;
     use nalgebra::Rotation3;
 
