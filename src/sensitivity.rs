@@ -1307,7 +1307,7 @@ mod tests {
 /// into the directory the configuration names, with progress through an
 /// [`Observer`](crate::observer::Observer).
 pub mod pipeline {
-    use super::{run as analyse, write_report, Analysis, SensitivityError};
+    use super::{run_until, write_report, Analysis, SensitivityError};
     use crate::camera::Camera;
     use crate::layout::Layout;
     use crate::montecarlo::MonteCarloConfig;
@@ -1315,7 +1315,7 @@ pub mod pipeline {
     use crate::report::{write_text, ReportError};
     use crate::scenario::ScenarioGrid;
     use std::path::PathBuf;
-    use std::sync::atomic::{AtomicU64, Ordering};
+    use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
     use std::time::Instant;
 
     /// Progress phase of the Monte-Carlo run (one step per scenario).
@@ -1353,7 +1353,10 @@ pub mod pipeline {
 
     /// Validates [`SensitivityConfig::layout`] and writes its report, with
     /// `run.json` (timing, threads, solves, the grid note), into
-    /// [`SensitivityConfig::out_dir`].
+    /// [`SensitivityConfig::out_dir`]. An observer that asks to stop ends the
+    /// Monte-Carlo run within a trial; the result is then
+    /// `SensitivityError::MonteCarlo(MonteCarloError::Interrupted)` and no
+    /// report is written.
     pub fn run(
         config: &SensitivityConfig,
         observer: &mut impl Observer,
@@ -1365,21 +1368,23 @@ pub mod pipeline {
             ));
         }
         let done = AtomicU64::new(0);
+        let stop = AtomicBool::new(false);
         let started = Instant::now();
         let validation = watch(
             observer,
             PHASE,
             config.grid.len() as u64,
             || done.load(Ordering::Relaxed),
-            None,
+            Some(&stop),
             || {
-                analyse(
+                run_until(
                     &config.layout,
                     &config.camera,
                     &config.grid,
                     &config.monte_carlo,
                     &config.command,
                     &|finished| done.store(finished as u64, Ordering::Relaxed),
+                    &stop,
                 )
             },
         )?;
@@ -1453,6 +1458,48 @@ pub mod pipeline {
                 run(&config, &mut Silent),
                 Err(SensitivityError::Config(_))
             ));
+        }
+
+        /// Asks to stop from the start.
+        struct Stopped;
+        impl Observer for Stopped {
+            fn interrupted(&self) -> bool {
+                true
+            }
+        }
+
+        #[test]
+        fn a_stop_ends_the_run_without_a_report() {
+            let dir = tempfile::tempdir().unwrap();
+            let config = SensitivityConfig {
+                layout: Layout::paper_biprism(),
+                camera: Camera::paper(),
+                // Enough work that the stop, polled every 20 ms, comes first.
+                grid: ScenarioGrid::paper_protocol(2.0),
+                monte_carlo: MonteCarloConfig {
+                    trials: 200,
+                    seed: 1,
+                    solvers: vec![Solver::ParallelWeighted, Solver::Ml],
+                    noise: Default::default(),
+                    gross_threshold_deg: crate::montecarlo::DEFAULT_GROSS_THRESHOLD_DEG,
+                    observation: Default::default(),
+                },
+                command: "test".into(),
+                grid_note: None,
+                out_dir: dir.path().join("report"),
+            };
+            // A run that ignored the stop would finish with Ok.
+            let result = run(&config, &mut Stopped);
+            assert!(
+                matches!(
+                    result,
+                    Err(SensitivityError::MonteCarlo(
+                        crate::montecarlo::MonteCarloError::Interrupted
+                    ))
+                ),
+                "{result:?}"
+            );
+            assert!(!config.out_dir.exists());
         }
     }
 }

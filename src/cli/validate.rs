@@ -7,13 +7,13 @@ use super::{progress, GlobalOptions};
 use anyhow::Context;
 use clap::Args;
 use layout_opt::layout::Layout;
-use layout_opt::montecarlo::{MonteCarloConfig, DEFAULT_GROSS_THRESHOLD_DEG};
+use layout_opt::montecarlo::{MonteCarloConfig, MonteCarloError, DEFAULT_GROSS_THRESHOLD_DEG};
 use layout_opt::noise::NoiseModel;
 use layout_opt::pnp::Solver;
 use layout_opt::report::Table;
 use layout_opt::scenario::ScenarioGrid;
-use layout_opt::sensitivity;
 use layout_opt::sensitivity::pipeline::{self, SensitivityConfig, SensitivityOutcome};
+use layout_opt::sensitivity::{self, SensitivityError};
 use layout_opt::sphere_image::Observation;
 use std::path::PathBuf;
 
@@ -125,6 +125,7 @@ pub fn run(args: ValidateArgs, global: &GlobalOptions) -> anyhow::Result<()> {
     if let Some(note) = &tilt_note {
         println!("note: {note}");
     }
+    progress::catch_ctrl_c();
     if !global.quiet {
         // Every run is estimated (the calibration takes a fraction of a
         // second); only the slow ones say so.
@@ -150,6 +151,10 @@ pub fn run(args: ValidateArgs, global: &GlobalOptions) -> anyhow::Result<()> {
     let mut bars = progress::Bars::new(global.quiet);
     let result = pipeline::run(&config, &mut bars);
     bars.finish();
+    if let Err(SensitivityError::MonteCarlo(MonteCarloError::Interrupted)) = result {
+        eprintln!("interrupted: no report written");
+        std::process::exit(super::search::EXIT_INTERRUPTED);
+    }
     let SensitivityOutcome {
         validation,
         solves,

@@ -345,3 +345,32 @@ fn unwritable_outputs_and_refused_flags_fail_before_any_work() {
         );
     }
 }
+
+/// `validate` honours Ctrl-C too: status 130 and no report.
+#[test]
+fn ctrl_c_ends_validate_with_130_and_no_report() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("report");
+    let layout = Path::new(env!("CARGO_MANIFEST_DIR")).join("layouts/biprism-paper.json");
+    let mut command = Command::new(env!("CARGO_BIN_EXE_layout-opt"));
+    command
+        .current_dir(dir.path())
+        .arg("validate")
+        .arg(&layout)
+        .args(["--solvers", "parallel-weighted", "--trials", "100000"])
+        .arg("--out")
+        .arg(&out);
+    // The estimate (printed before a run this long) says the run has begun.
+    let mut run = Running::start(command);
+    run.wait_for_line("estimate");
+    std::thread::sleep(Duration::from_millis(200));
+    let (code, elapsed, stderr) = run.interrupt();
+    eprintln!("validate: ended {} ms after SIGINT", elapsed.as_millis());
+    assert_eq!(code, Some(130), "{stderr}");
+    assert!(elapsed < STOP_WITHIN, "took {elapsed:?} to stop");
+    assert!(
+        stderr.contains("interrupted: no report written"),
+        "{stderr}"
+    );
+    assert!(!out.join("report.md").exists());
+}
