@@ -69,7 +69,8 @@ pub(crate) fn watch<T: Send>(
 
 /// Runs `work` on a scoped thread while this thread calls `report` on
 /// `observer` every few milliseconds (and once at the end) and, when `stop`
-/// is given, sets it once the observer is [`Observer::interrupted`].
+/// is given, sets it once the observer is [`Observer::interrupted`], also
+/// before the work starts (so work asked to stop at once never begins).
 pub(crate) fn relay<O: Observer, T: Send>(
     observer: &mut O,
     report: impl Fn(&mut O),
@@ -77,6 +78,11 @@ pub(crate) fn relay<O: Observer, T: Send>(
     work: impl FnOnce() -> T + Send,
 ) -> T {
     const POLL: std::time::Duration = std::time::Duration::from_millis(20);
+    if let Some(stop) = stop {
+        if observer.interrupted() {
+            stop.store(true, Ordering::SeqCst);
+        }
+    }
     std::thread::scope(|scope| {
         let handle = scope.spawn(work);
         while !handle.is_finished() {

@@ -1159,9 +1159,12 @@ mod tests {
         assert_eq!(summary.designs[0].name, "t");
     }
 
-    /// Interrupts as soon as `phase` has made progress.
+    /// Interrupts as soon as `phase` has made progress or, with
+    /// `at_start`, as soon as it begins (a phase shorter than the
+    /// observer's polling interval could otherwise end before a stop lands).
     struct StopIn {
         phase: &'static str,
+        at_start: bool,
         progressed: bool,
         phases: Vec<String>,
     }
@@ -1170,8 +1173,16 @@ mod tests {
         fn new(phase: &'static str) -> Self {
             Self {
                 phase,
+                at_start: false,
                 progressed: false,
                 phases: Vec::new(),
+            }
+        }
+
+        fn at_start(phase: &'static str) -> Self {
+            Self {
+                at_start: true,
+                ..Self::new(phase)
             }
         }
     }
@@ -1185,7 +1196,7 @@ mod tests {
             if self.phases.last().is_none_or(|p| p != phase) {
                 self.phases.push(phase.to_string());
             }
-            self.progressed |= phase == self.phase && done > 0;
+            self.progressed |= phase == self.phase && (self.at_start || done > 0);
         }
         fn interrupted(&self) -> bool {
             self.progressed
@@ -1222,7 +1233,7 @@ mod tests {
         let layout_bytes = std::fs::read(&config.layout_path).unwrap();
         let report_bytes = std::fs::read(config.report_dir.join("summary.json")).unwrap();
         for phase in [PHASE_COMPARE, PHASE_VALIDATE] {
-            let mut observer = StopIn::new(phase);
+            let mut observer = StopIn::at_start(phase);
             let outcome = run(&config, &mut observer).unwrap();
             assert!(outcome.interrupted, "{phase}");
             assert_eq!(outcome.interrupted_phase.as_deref(), Some(phase));
