@@ -14,9 +14,11 @@ use std::process::{Child, Command, Stdio};
 use std::sync::mpsc::{channel, Receiver};
 use std::time::{Duration, Instant};
 
-/// The longest a run may take to end after SIGINT. The target is 1 s; the
-/// margin is for a loaded 2-core machine running other builds.
-const STOP_WITHIN: Duration = Duration::from_millis(2500);
+/// The longest a run may take to end after SIGINT. The target is 1 s, and
+/// the runs here end in 50–80 ms (printed); the bound is loose so that a
+/// loaded machine cannot fail it, while a run that ignored the stop would
+/// take minutes.
+const STOP_WITHIN: Duration = Duration::from_secs(10);
 
 /// A small scenario grid: one depth, one offset, one tilt, so that the
 /// phases' lengths are set by their budgets alone.
