@@ -50,9 +50,13 @@ pub const DEFAULT_SPHERE_DIAMETER_MM: f64 = 10.0;
 pub const PAPER_ARM_MM: f64 = 50.0;
 /// Fewest feature points a layout may have (PnP needs four).
 pub const MIN_POINTS: usize = 4;
-/// Objects of an OBJ file count as spheres when the distances of their
-/// vertices from their centroid vary by at most this fraction of the mean.
-pub const OBJ_SPHERE_TOLERANCE: f64 = 0.05;
+/// Objects of an OBJ file count as spheres when the RMS distance of their
+/// vertices from the least-squares sphere is at most this fraction of its
+/// radius (a meshed sphere's vertices lie on it to rounding).
+pub const OBJ_SPHERE_TOLERANCE: f64 = 0.01;
+/// A layout imported from OBJ whose points span less than this (mm) is
+/// refused with a hint that the file is probably in metres.
+pub const OBJ_MIN_SPAN_MM: f64 = 2.0;
 /// Fewest vertices an OBJ object needs to be read as a sphere.
 pub const OBJ_SPHERE_MIN_VERTICES: usize = 12;
 
@@ -432,15 +436,19 @@ impl Layout {
 
     /// Imports a layout from an OBJ file with `tobj`.
     ///
-    /// * When the file holds at least [`MIN_POINTS`] objects with faces and
-    ///   every one of them is a sphere (its vertices lie within
-    ///   [`OBJ_SPHERE_TOLERANCE`] of one distance from their centroid), each
-    ///   object becomes a feature point at its vertex centroid, named after
-    ///   the object; the diameter is measured unless `options` gives one.
-    /// * Otherwise every distinct vertex (`v` line) becomes a feature point
-    ///   `V1, V2, ...` in file order.
+    /// * A file with faces is a set of meshed spheres: every object must be
+    ///   one ([`fit_sphere`]: the least-squares sphere through its
+    ///   vertices, whose RMS residual must be at most
+    ///   [`OBJ_SPHERE_TOLERANCE`] of its radius), and becomes a feature
+    ///   point at the sphere's centre, named after the object; the diameter
+    ///   is measured (the mean) unless `options` gives one. An object that is
+    ///   not a sphere, or has no faces, is an error that names it.
+    /// * A file without faces is a point set: every distinct vertex (`v`
+    ///   line) becomes a feature point `V1, V2, ...` in file order.
     ///
-    /// Coordinates are taken as millimetres. The result is not validated.
+    /// Coordinates are taken as millimetres; points spanning less than
+    /// [`OBJ_MIN_SPAN_MM`] are refused with a hint that the file is
+    /// probably in metres. The result is not validated.
     pub fn from_obj(path: &Path, options: &ObjImport) -> Result<Layout, LayoutError> {
         let obj_error = |message: String| LayoutError::Obj {
             path: path.to_path_buf(),
@@ -484,13 +492,36 @@ impl Layout {
             models = load(&with_points)?;
         }
         let name = options.name.clone().unwrap_or_else(|| file_stem(path));
-        let spheres: Vec<(String, Vector3<f64>, f64)> = models
-            .iter()
-            .filter(|m| has_faces(m))
-            .filter_map(|m| obj_sphere(m).map(|(centre, radius)| (m.name.clone(), centre, radius)))
-            .collect();
-        let faced = models.iter().filter(|m| has_faces(m)).count();
-        let (points, diameter) = if faced >= MIN_POINTS && spheres.len() == faced {
+        let (points, diameter): (Vec<LayoutPoint>, f64) = if models.iter().any(has_faces) {
+            let mut spheres: Vec<(String, Vector3<f64>, f64)> = Vec::with_capacity(models.len());
+            for (k, model) in models.iter().enumerate() {
+                let label = if model.name.is_empty() {
+                    format!("object {}", k + 1)
+                } else {
+                    format!("object '{}'", model.name)
+                };
+                if !has_faces(model) {
+                    return Err(obj_error(format!(
+                        "{label} has no faces while others do: a file is read either as meshed spheres (every object one sphere) or, without faces, as a point set"
+                    )));
+                }
+                let vertices = distinct_vertices(std::slice::from_ref(model));
+                let fit = fit_sphere(&vertices).ok_or_else(|| {
+                    obj_error(format!(
+                        "{label} is not a sphere: no sphere fits its {} vertices (a sphere needs at least {OBJ_SPHERE_MIN_VERTICES}, not all on one plane)",
+                        vertices.len()
+                    ))
+                })?;
+                if fit.rms_residual_mm > OBJ_SPHERE_TOLERANCE * fit.radius_mm {
+                    return Err(obj_error(format!(
+                        "{label} is not a sphere: its vertices lie {:.3} mm (RMS) from the best-fitting sphere of radius {:.3} mm, more than {}% of it",
+                        fit.rms_residual_mm,
+                        fit.radius_mm,
+                        100.0 * OBJ_SPHERE_TOLERANCE
+                    )));
+                }
+                spheres.push((model.name.clone(), fit.centre, fit.radius_mm));
+            }
             let mean_radius = spheres.iter().map(|(_, _, r)| r).sum::<f64>() / spheres.len() as f64;
             let points = spheres
                 .into_iter()
@@ -501,16 +532,7 @@ impl Layout {
                 options.sphere_diameter_mm.unwrap_or(2.0 * mean_radius),
             )
         } else {
-            let mut seen: Vec<Vector3<f64>> = Vec::new();
-            for model in &models {
-                for chunk in model.mesh.positions.chunks_exact(3) {
-                    let p = Vector3::new(chunk[0] as f64, chunk[1] as f64, chunk[2] as f64);
-                    if !seen.contains(&p) {
-                        seen.push(p);
-                    }
-                }
-            }
-            let points = seen
+            let points = distinct_vertices(&models)
                 .into_iter()
                 .enumerate()
                 .map(|(i, p)| LayoutPoint::new(format!("V{}", i + 1), p))
@@ -522,6 +544,16 @@ impl Layout {
                     .unwrap_or(DEFAULT_SPHERE_DIAMETER_MM),
             )
         };
+        let positions: Vec<Vector3<f64>> = points.iter().map(|p| p.position).collect();
+        let span = positions
+            .iter()
+            .flat_map(|a| positions.iter().map(move |b| (a - b).norm()))
+            .fold(0.0, f64::max);
+        if positions.len() > 1 && span < OBJ_MIN_SPAN_MM {
+            return Err(obj_error(format!(
+                "its points span only {span:.4} mm; OBJ layouts are read in millimetres, so a file in metres must be scaled by 1000 first"
+            )));
+        }
         Ok(Layout {
             name,
             points,
@@ -543,29 +575,69 @@ fn has_faces(model: &tobj::Model) -> bool {
     }
 }
 
-/// The centre and radius of an OBJ object if it is a sphere: the centroid of
-/// its distinct vertices, and their mean distance from it when that
-/// distance varies by at most [`OBJ_SPHERE_TOLERANCE`].
-fn obj_sphere(model: &tobj::Model) -> Option<(Vector3<f64>, f64)> {
+/// The distinct vertices of `models`, in file order.
+fn distinct_vertices(models: &[tobj::Model]) -> Vec<Vector3<f64>> {
     let mut vertices: Vec<Vector3<f64>> = Vec::new();
-    for chunk in model.mesh.positions.chunks_exact(3) {
-        let p = Vector3::new(chunk[0] as f64, chunk[1] as f64, chunk[2] as f64);
-        if !vertices.contains(&p) {
-            vertices.push(p);
+    for model in models {
+        for chunk in model.mesh.positions.chunks_exact(3) {
+            let p = Vector3::new(chunk[0] as f64, chunk[1] as f64, chunk[2] as f64);
+            if !vertices.contains(&p) {
+                vertices.push(p);
+            }
         }
     }
-    if vertices.len() < OBJ_SPHERE_MIN_VERTICES {
+    vertices
+}
+
+/// A sphere fitted to points ([`fit_sphere`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SphereFit {
+    /// The centre, mm.
+    pub centre: Vector3<f64>,
+    /// The radius, mm.
+    pub radius_mm: f64,
+    /// RMS distance of the points from the sphere, mm.
+    pub rms_residual_mm: f64,
+}
+
+/// The least-squares sphere through `points`: the algebraic fit
+/// `|p|² = 2 c·p + k` (linear in the centre c and `k = r² − |c|²`, solved
+/// about the points' centroid for conditioning), which is exact for points
+/// on a sphere however they are spread over it, unlike their centroid. `None`
+/// with fewer than [`OBJ_SPHERE_MIN_VERTICES`] points or when they do not
+/// determine a sphere (all on one plane or line).
+pub fn fit_sphere(points: &[Vector3<f64>]) -> Option<SphereFit> {
+    if points.len() < OBJ_SPHERE_MIN_VERTICES {
         return None;
     }
-    let centre = vertices.iter().sum::<Vector3<f64>>() / vertices.len() as f64;
-    let distances: Vec<f64> = vertices.iter().map(|v| (v - centre).norm()).collect();
-    let mean = distances.iter().sum::<f64>() / distances.len() as f64;
-    let (min, max) = distances
+    let mean = points.iter().sum::<Vector3<f64>>() / points.len() as f64;
+    let mut normal = nalgebra::Matrix4::<f64>::zeros();
+    let mut rhs = nalgebra::Vector4::<f64>::zeros();
+    for p in points {
+        let q = p - mean;
+        let row = nalgebra::Vector4::new(2.0 * q.x, 2.0 * q.y, 2.0 * q.z, 1.0);
+        normal += row * row.transpose();
+        rhs += row * q.norm_squared();
+    }
+    let solution = crate::linalg::solve_positive_definite(&normal, &rhs)?;
+    let offset = Vector3::new(solution[0], solution[1], solution[2]);
+    let radius_sq = solution[3] + offset.norm_squared();
+    if !(radius_sq > 0.0 && radius_sq.is_finite()) {
+        return None;
+    }
+    let radius_mm = radius_sq.sqrt();
+    let centre = mean + offset;
+    let rms_residual_mm = (points
         .iter()
-        .fold((f64::INFINITY, 0.0f64), |(lo, hi), &d| {
-            (lo.min(d), hi.max(d))
-        });
-    (mean > 0.0 && max - min <= OBJ_SPHERE_TOLERANCE * mean).then_some((centre, mean))
+        .map(|p| ((p - centre).norm() - radius_mm).powi(2))
+        .sum::<f64>()
+        / points.len() as f64)
+        .sqrt();
+    Some(SphereFit {
+        centre,
+        radius_mm,
+        rms_residual_mm,
+    })
 }
 
 fn file_stem(path: &Path) -> String {
@@ -844,5 +916,117 @@ mod tests {
         assert_eq!(layout.points[1].name, "B");
         assert!((layout.points[1].position - Vector3::new(40.0, 0.0, 0.0)).norm() < 1e-5);
         assert!((layout.sphere_diameter_mm - 8.0).abs() < 1e-5);
+    }
+
+    /// OBJ text for one object: `vertices`, and faces that use them (a fan;
+    /// the import reads vertices, the faces only mark a mesh).
+    fn obj_object(name: &str, vertices: &[Vector3<f64>], base: usize) -> String {
+        let mut text = format!("o {name}\n");
+        for v in vertices {
+            text += &format!("v {} {} {}\n", v.x, v.y, v.z);
+        }
+        for k in 1..vertices.len() - 1 {
+            text += &format!("f {} {} {}\n", base + 1, base + k + 1, base + k + 2);
+        }
+        text
+    }
+
+    /// Points on the sphere (centre, radius), crowded towards its +z pole:
+    /// their centroid is pulled towards the pole, the fitted centre is not.
+    fn lopsided_sphere(centre: Vector3<f64>, radius: f64) -> Vec<Vector3<f64>> {
+        let mut points = Vec::new();
+        for ring in 1..12 {
+            // Polar angles squeezed towards 0.
+            let polar = std::f64::consts::PI * (ring as f64 / 12.0).powi(2);
+            for k in 0..8 {
+                let azimuth = std::f64::consts::TAU * k as f64 / 8.0;
+                points.push(
+                    centre
+                        + radius
+                            * Vector3::new(
+                                polar.sin() * azimuth.cos(),
+                                polar.sin() * azimuth.sin(),
+                                polar.cos(),
+                            ),
+                );
+            }
+        }
+        points
+    }
+
+    #[test]
+    fn obj_spheres_are_fitted_and_other_objects_refused_by_name() {
+        let dir = tempfile::tempdir().unwrap();
+        let centres = [
+            Vector3::new(0.0, 0.0, 0.0),
+            Vector3::new(40.0, 0.0, 0.0),
+            Vector3::new(0.0, 40.0, 0.0),
+            Vector3::new(0.0, 0.0, 40.0),
+        ];
+        let mut text = String::new();
+        let mut base = 0;
+        let mut all = Vec::new();
+        for (k, centre) in centres.iter().enumerate() {
+            let vertices = lopsided_sphere(*centre, 5.0);
+            text += &obj_object(&format!("S{k}"), &vertices, base);
+            base += vertices.len();
+            all.push(vertices);
+        }
+        let path = dir.path().join("lopsided.obj");
+        std::fs::write(&path, &text).unwrap();
+        let layout = Layout::from_obj(&path, &ObjImport::default()).unwrap();
+        for (point, (centre, vertices)) in layout.points.iter().zip(centres.iter().zip(&all)) {
+            // Exact to the file's printed precision, where the vertex
+            // centroid is off by more than a millimetre.
+            assert!((point.position - centre).norm() < 1e-6, "{point:?}");
+            let centroid = vertices.iter().sum::<Vector3<f64>>() / vertices.len() as f64;
+            assert!((centroid - centre).norm() > 1.0);
+        }
+        assert!((layout.sphere_diameter_mm - 10.0).abs() < 1e-6);
+        layout.validate().unwrap();
+
+        // An ellipsoid among the spheres is named in the error.
+        let ellipsoid: Vec<Vector3<f64>> = lopsided_sphere(Vector3::zeros(), 5.0)
+            .iter()
+            .map(|p| Vector3::new(3.0 * p.x, p.y, p.z) + Vector3::new(80.0, 0.0, 0.0))
+            .collect();
+        let with_ellipsoid = text.clone() + &obj_object("Egg", &ellipsoid, base);
+        std::fs::write(&path, with_ellipsoid).unwrap();
+        let error = Layout::from_obj(&path, &ObjImport::default()).unwrap_err();
+        assert!(
+            error.to_string().contains("object 'Egg' is not a sphere"),
+            "{error}"
+        );
+
+        // A point set only when there are no faces: a faceless object among
+        // meshed ones is an error, not a silent re-read as points.
+        let with_points =
+            text + &format!("o Loose\nv 1 2 3\nv 4 5 6\nl {} {}\n", base + 1, base + 2);
+        std::fs::write(&path, with_points).unwrap();
+        let error = Layout::from_obj(&path, &ObjImport::default()).unwrap_err();
+        assert!(
+            error.to_string().contains("object 'Loose' has no faces"),
+            "{error}"
+        );
+
+        // Coordinates in metres get a hint.
+        let metres = dir.path().join("metres.obj");
+        std::fs::write(&metres, "v 0 0 0\nv 0.04 0 0\nv 0 0.04 0\nv 0 0 0.04\n").unwrap();
+        let error = Layout::from_obj(&metres, &ObjImport::default()).unwrap_err();
+        assert!(error.to_string().contains("metres"), "{error}");
+    }
+
+    #[test]
+    fn sphere_fit_needs_enough_points_off_a_plane() {
+        let on_sphere = lopsided_sphere(Vector3::new(1.0, -2.0, 3.0), 7.0);
+        let fit = fit_sphere(&on_sphere).unwrap();
+        assert!((fit.centre - Vector3::new(1.0, -2.0, 3.0)).norm() < 1e-9);
+        assert!((fit.radius_mm - 7.0).abs() < 1e-9);
+        assert!(fit.rms_residual_mm < 1e-9);
+        assert!(fit_sphere(&on_sphere[..OBJ_SPHERE_MIN_VERTICES - 1]).is_none());
+        let planar: Vec<Vector3<f64>> = (0..20)
+            .map(|k| Vector3::new(k as f64, (k * k) as f64, 0.0))
+            .collect();
+        assert!(fit_sphere(&planar).is_none());
     }
 }
