@@ -634,30 +634,7 @@ fn draw_axes(svg: &mut Svg, x: &Scale, y: &Scale, area: Rect, x_labels: bool) {
     }
     svg.rect(area, "none", Some("#000000"));
     if x_labels {
-        let baseline = area.bottom + 6.0 + TEXT_ASCENT_EM * TICK_SIZE + 2.0;
-        let kept = thin_labels(
-            &x_ticks,
-            |t| {
-                text_box(
-                    &t.label,
-                    x.map(t.value),
-                    baseline,
-                    TICK_SIZE,
-                    Anchor::Middle,
-                )
-            },
-            4.0,
-        );
-        for (tick, _) in kept {
-            svg.text(
-                "tick-x",
-                &tick.label,
-                x.map(tick.value),
-                baseline,
-                TICK_SIZE,
-                Anchor::Middle,
-            );
-        }
+        draw_x_tick_labels(svg, x, &x_ticks, area.bottom);
     }
     let right = area.left - 7.0;
     let centre = 0.5 * (TEXT_ASCENT_EM - TEXT_DESCENT_EM) * TICK_SIZE;
@@ -682,6 +659,31 @@ fn draw_axes(svg: &mut Svg, x: &Scale, y: &Scale, area: Rect, x_labels: bool) {
             y.map(tick.value) + centre,
             TICK_SIZE,
             Anchor::End,
+        );
+    }
+}
+
+/// The x tick labels under an area whose bottom edge is at `bottom`,
+/// thinned so that no two overlap.
+fn draw_x_tick_labels(svg: &mut Svg, x: &Scale, ticks: &[Tick], bottom: f64) {
+    let baseline = bottom + 6.0 + TEXT_ASCENT_EM * TICK_SIZE + 2.0;
+    let place = |t: &Tick| {
+        text_box(
+            &t.label,
+            x.map(t.value),
+            baseline,
+            TICK_SIZE,
+            Anchor::Middle,
+        )
+    };
+    for (tick, _) in thin_labels(ticks, place, 4.0) {
+        svg.text(
+            "tick-x",
+            &tick.label,
+            x.map(tick.value),
+            baseline,
+            TICK_SIZE,
+            Anchor::Middle,
         );
     }
 }
@@ -1034,34 +1036,11 @@ pub fn line_plot_with_availability(
             );
         }
         let x_ticks = x_scale.ticks(6.0);
-        let baseline = panel.bottom + 6.0 + TEXT_ASCENT_EM * TICK_SIZE + 2.0;
         for tick in &x_ticks {
             let px = x_scale.map(tick.value);
             svg.line((px, panel.bottom), (px, panel.bottom + 4.0), "#000000", 1.0);
         }
-        let kept = thin_labels(
-            &x_ticks,
-            |t| {
-                text_box(
-                    &t.label,
-                    x_scale.map(t.value),
-                    baseline,
-                    TICK_SIZE,
-                    Anchor::Middle,
-                )
-            },
-            4.0,
-        );
-        for (tick, _) in kept {
-            svg.text(
-                "tick-x",
-                &tick.label,
-                x_scale.map(tick.value),
-                baseline,
-                TICK_SIZE,
-                Anchor::Middle,
-            );
-        }
+        draw_x_tick_labels(&mut svg, &x_scale, &x_ticks, panel.bottom);
         bottom = panel.bottom;
     }
     let x_label_y = bottom + 6.0 + TICK_SIZE + 8.0 + TEXT_ASCENT_EM * LABEL_SIZE;
