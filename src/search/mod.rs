@@ -83,6 +83,7 @@ pub use compare::{hand_designs, DesignRow, MonteCarloFigures, PooledFigures};
 pub use front::{FrontEntry, FrontReport, FrontSettings, HandEntry};
 pub use optimise::{
     Candidate, Optimiser, SearchError, SearchOutcome as OptimiseOutcome, SearchSettings,
+    FINAL_POLISH_STARTS,
 };
 pub use report::{HeldOutCheck, SearchHeader, SearchSummary, Verdicts};
 
