@@ -17,7 +17,10 @@
 //!   evaluation, for up to [`REPAIR_ITERATIONS`] iterations. Starting the
 //!   real search from a feasible point matters: the identifiability
 //!   constraint (distinct pairwise distances) is a field of kinks that a
-//!   penalty alone leaves optimisers stranded just outside.
+//!   penalty alone leaves optimisers stranded just outside. A custom family
+//!   that the repair leaves infeasible then gets the distance-spreading
+//!   repair ([`crate::family::Constraints::spread_distances`]): beyond ten
+//!   points or so, distinct distances must fill the envelope's range.
 //! * Particle swarm and annealing are followed by a Nelder–Mead polish of
 //!   their best point.
 //! * Starts are independent and deterministic; the winner is the best start
@@ -32,7 +35,7 @@
 //!   ([`super::checkpoint`]) and resume where they stopped.
 
 use super::checkpoint::{CheckpointError, Checkpoints, StartCheckpoint, StartState};
-use super::{Evaluation, Evaluator};
+use super::{Evaluation, Evaluator, PENALTY_MARGIN_FRACTION, PENALTY_MARGIN_MM};
 use crate::family::Family;
 use crate::synthetic::stream_rng;
 use argmin::core::checkpointing::Checkpoint;
@@ -67,6 +70,11 @@ pub const FINAL_POLISH_STARTS: usize = 4;
 pub const FINAL_POLISH_JITTER: f64 = 0.005;
 /// Random stream of annealing.
 const ANNEAL_STREAM: u64 = 0x5EA2C6;
+/// Random stream of the distance-spreading repair's jitter.
+const SPREAD_STREAM: u64 = 0x5EA2C8;
+/// Seeded tries of the distance-spreading repair of one start (each from
+/// its own jitter; ~70 ms each for a custom family of 13 points).
+pub const SPREAD_TRIES: u64 = 3;
 /// Nelder–Mead's initial simplex steps this fraction of each range.
 pub const SIMPLEX_STEP: f64 = 0.1;
 /// The repair's simplex steps this fraction of each range: small, so that
@@ -534,11 +542,15 @@ fn best_params(problem: &LayoutProblem<'_>) -> Option<Vec<f64>> {
 /// twice the previous one's, from [`REPAIR_STEP`]: small first, so that the
 /// repaired point stays next to `initial`, larger when a symmetric start
 /// (equal distances everywhere) leaves the small simplex on a plateau of
-/// kinks. Returns the best point found if none meets them. `problem` must be
-/// in repair mode.
+/// kinks. A custom family whose points still break a constraint then gets
+/// the distance-spreading repair ([`spread_repair`], seeded by `seed` and the
+/// start), which moves them further but reaches the identifiability
+/// constraint for many more points. Returns the best point found if none
+/// meets them. `problem` must be in repair mode.
 fn repair_start<'a>(
     mut problem: LayoutProblem<'a>,
     initial: Vec<f64>,
+    seed: u64,
 ) -> Result<(LayoutProblem<'a>, Vec<f64>), argmin::core::Error> {
     debug_assert!(problem.repairing);
     let mut best = initial;
@@ -564,8 +576,56 @@ fn repair_start<'a>(
             .problem
             .expect("the executor returns its problem");
     }
+    if cost > 0.0 {
+        if let Some(spread) = spread_repair(
+            problem.family,
+            problem.evaluator,
+            &best,
+            seed,
+            problem.start,
+        ) {
+            let spread_cost = problem.cost(&spread)?;
+            if spread_cost < cost {
+                best = spread;
+            }
+        }
+    }
     let repaired = problem.family.clamp(&best);
     Ok((problem, repaired))
+}
+
+/// The distance-spreading repair
+/// ([`crate::family::Constraints::spread_distances`]) of a
+/// custom family's `params` towards `evaluator`'s constraints as its
+/// penalty tightens them: up to [`SPREAD_TRIES`] seeded tries, from
+/// `stream_rng(seed, SPREAD_STREAM, start · SPREAD_TRIES + try)`. Returns the
+/// first try's parameters that meet them, else the last try's; None for
+/// families whose parameters are not point coordinates, or without the
+/// identifiability constraint (the general repair meets the others).
+pub fn spread_repair(
+    family: &Family,
+    evaluator: &Evaluator,
+    params: &[f64],
+    seed: u64,
+    start: usize,
+) -> Option<Vec<f64>> {
+    let constraints = evaluator.constraints();
+    if constraints.min_distance_diff_mm <= 0.0 {
+        return None;
+    }
+    let target = constraints.tightened(PENALTY_MARGIN_FRACTION, PENALTY_MARGIN_MM);
+    let fixed = family.fixed_points();
+    let mut last = None;
+    for attempt in 0..SPREAD_TRIES {
+        let mut points = family.points(params);
+        let mut rng = stream_rng(seed, SPREAD_STREAM, start as u64 * SPREAD_TRIES + attempt);
+        let met = target.spread_distances(&mut points, &fixed, &mut rng);
+        last = family.custom_params(&points);
+        if met || last.is_none() {
+            break;
+        }
+    }
+    last
 }
 
 /// The layout nearest `params` (by the search's own repair) that meets
@@ -607,7 +667,7 @@ pub fn repair(
         })),
         repairing: true,
     };
-    repair_start(problem, family.clamp(params))
+    repair_start(problem, family.clamp(params), 0)
         .map(|(_, repaired)| repaired)
         .map_err(|error| SearchError::Optimiser {
             start: 0,
@@ -652,7 +712,7 @@ fn run_start<'a>(
     };
     // The repair is deterministic and cheap, so a resumed run repeats it
     // rather than checkpointing it.
-    let (mut problem, initial) = repair_start(problem, initial)?;
+    let (mut problem, initial) = repair_start(problem, initial, settings.seed)?;
     problem.repairing = false;
     let main = checkpoints.map(|c| c.file(start, "main"));
     let problem = match settings.optimiser {

@@ -606,8 +606,113 @@ fn unsatisfiable(family: &Family, constraints: &Constraints) -> Option<String> {
             "{points} points have {distances} pairwise distances, but the envelope holds at most {capacity} distances {} mm apart between {closest} mm (sphere diameter plus gap) and its diagonal, {diagonal:.1} mm; use fewer points, a larger envelope or a smaller --min-distance-diff",
             constraints.min_distance_diff_mm,
         )),
+        Some(_) if matches!(family.kind(), FamilyKind::Custom { .. }) => {
+            unidentifiable(family, constraints)
+        }
         _ => None,
     }
+}
+
+/// Random stream of the up-front identifiability check.
+const FEASIBILITY_STREAM: u64 = 0xF0EA51;
+/// Envelope scales the refusal of [`unidentifiable`] tries, in order.
+const FEASIBLE_ENVELOPE_SCALES: [f64; 4] = [1.25, 1.5, 2.0, 3.0];
+/// Fractions of the distance difference the refusal of [`unidentifiable`]
+/// tries, in order.
+const FEASIBLE_DIFF_FRACTIONS: [f64; 3] = [0.75, 0.5, 0.25];
+
+/// The smallest difference between two pairwise distances that the
+/// distance-spreading repair reaches for `family`'s start in `constraints`
+/// (tightened as the search's penalty tightens them), trying
+/// [`optimise::SPREAD_TRIES`] seeded jitters, and whether it met them.
+fn spread_check(family: &Family, constraints: &Constraints) -> (bool, f64) {
+    let target = constraints.tightened(super::PENALTY_MARGIN_FRACTION, super::PENALTY_MARGIN_MM);
+    let fixed = family.fixed_points();
+    let mut closest = 0.0f64;
+    for attempt in 0..optimise::SPREAD_TRIES {
+        let mut points = family.points(&family.initial());
+        let mut rng = crate::synthetic::stream_rng(0, FEASIBILITY_STREAM, attempt);
+        if target.spread_distances(&mut points, &fixed, &mut rng) {
+            return (
+                true,
+                constraints.violations(&points).smallest_distance_diff_mm,
+            );
+        }
+        closest = closest.max(constraints.violations(&points).smallest_distance_diff_mm);
+    }
+    (false, closest)
+}
+
+/// The up-front identifiability check of a custom family: the number of
+/// distances may fit the envelope's range ([`Constraints::distinct_distance_capacity`]),
+/// but they must also fit the geometry, which allows far fewer (with the
+/// default constraints, 13 points rather than the 18 the range allows).
+/// If the distance-spreading repair finds no identifiable layout from the
+/// family's start, the search (whose starts repair the same way) would not
+/// either: the refusal says how close it came and which point count,
+/// envelope or difference it does reach. It is a failed search, not a
+/// proof that no layout exists, and says so.
+fn unidentifiable(family: &Family, constraints: &Constraints) -> Option<String> {
+    let (met, closest) = spread_check(family, constraints);
+    if met {
+        return None;
+    }
+    let points = family.point_count();
+    let diff = constraints.min_distance_diff_mm;
+    let rebuilt = |kind: FamilyKind, envelope: Envelope| {
+        Family::new(kind, envelope, constraints.sphere_diameter_mm).ok()
+    };
+    let mut options = Vec::new();
+    if let FamilyKind::Custom { start: None, .. } = family.kind() {
+        if let Some(count) = (4..points).rev().find(|&count| {
+            rebuilt(
+                FamilyKind::Custom { count, start: None },
+                constraints.envelope,
+            )
+            .is_some_and(|f| spread_check(&f, constraints).0)
+        }) {
+            options.push(format!("--points {count}"));
+        }
+    }
+    let size = constraints.envelope.size_mm;
+    if let Some(envelope) = FEASIBLE_ENVELOPE_SCALES.iter().find_map(|scale| {
+        let envelope = Envelope::new(size.map(|s| s * scale)).ok()?;
+        let family = rebuilt(family.kind().clone(), envelope)?;
+        let wider = Constraints {
+            envelope,
+            ..*constraints
+        };
+        spread_check(&family, &wider).0.then_some(envelope)
+    }) {
+        let [x, y, z] = envelope.size_mm;
+        options.push(if x == y && y == z {
+            format!("--envelope {x}")
+        } else {
+            format!("--envelope {x},{y},{z}")
+        });
+    }
+    if let Some(smaller) = FEASIBLE_DIFF_FRACTIONS.iter().find_map(|fraction| {
+        let smaller = Constraints {
+            min_distance_diff_mm: diff * fraction,
+            ..*constraints
+        };
+        spread_check(family, &smaller)
+            .0
+            .then_some(smaller.min_distance_diff_mm)
+    }) {
+        options.push(format!("--min-distance-diff {smaller}"));
+    }
+    let options = if options.is_empty() {
+        "it finds none with fewer points, a larger envelope or a smaller difference either"
+            .to_string()
+    } else {
+        format!("it does find one with {}", options.join(", or "))
+    };
+    Some(format!(
+        "no layout of {points} points found whose {} pairwise distances differ by {diff} mm or more: the distance-spreading repair that every start of the search uses got them {closest:.2} mm apart at best ({} seeded tries; a failed search, not a proof that none exists); {options}",
+        points * (points - 1) / 2,
+        optimise::SPREAD_TRIES,
+    ))
 }
 
 /// Removes what a killed run may have left of the outputs' temporaries and
@@ -1257,6 +1362,48 @@ mod tests {
         assert_eq!(resumed.evaluations, finished.evaluations);
         assert_eq!(resumed.winner.points, finished.winner.points);
         assert!(!resumed.partial.exists() && !resumed.checkpoints.exists());
+    }
+
+    #[test]
+    fn custom_layouts_of_twelve_points_end_identifiable_and_sixteen_are_refused_up_front() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut config = small(dir.path());
+        // The default constraints: identifiability 1 mm in a 100 mm cube.
+        assert_eq!(config.constraints.min_distance_diff_mm, 1.0);
+        config.family = FamilyKind::Custom {
+            count: 12,
+            start: None,
+        };
+        config.search.iterations = 60;
+        config.search.polish_iterations = 40;
+        let outcome = run(&config, &mut Silent).unwrap();
+        let violations = config.constraints.violations(&outcome.winner.positions());
+        assert!(violations.feasible(), "{violations:?}");
+        assert!(violations.smallest_distance_diff_mm >= 1.0);
+        let status = Layout::load(&config.layout_path)
+            .unwrap()
+            .provenance
+            .unwrap()["status"]
+            .clone();
+        assert!(status.as_str().unwrap().starts_with("finished"), "{status}");
+
+        // Sixteen: 120 distances fit the range (capacity 162) but not the
+        // cube's geometry as far as the repair finds; refused before any
+        // work, with what it does reach.
+        let dir = tempfile::tempdir().unwrap();
+        let mut config = small(dir.path());
+        config.family = FamilyKind::Custom {
+            count: 16,
+            start: None,
+        };
+        let error = run(&config, &mut Silent).unwrap_err();
+        let text = error.to_string();
+        assert!(matches!(error, SearchError::Unsatisfiable(_)), "{text}");
+        assert!(text.contains("no layout of 16 points"), "{text}");
+        assert!(text.contains("--points 1"), "{text}");
+        assert!(text.contains("not a proof"), "{text}");
+        assert!(!config.checkpoint_dir.exists());
+        assert!(!config.layout_path.exists());
     }
 
     /// Records each phase's last progress.
