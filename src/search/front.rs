@@ -307,14 +307,25 @@ fn first_order(evaluation: &Evaluation) -> (Option<f64>, Option<f64>) {
         .map_or((None, None), |t| (t.rotation_deg, t.translation_mm))
 }
 
-/// Writes the front: a layout file per member in `layout_dir`
-/// (`<name>-front-<k>.json`), and `front.json`, `front.csv` and `front.svg`
-/// in `report_dir`. `first_order` scores layouts by the first-order model on
-/// the search grid; `hand` are the hand designs' names, layouts and
-/// evaluations by the search objective.
+/// The front's report with its members' layouts, built by [`build`]
+/// without touching a file and written by [`write`], so that a run can write
+/// them together with the rest of its report once every phase has finished.
+#[derive(Debug, Clone)]
+pub struct FrontFiles {
+    /// What `front.json` holds (each member's `layout` is the path its
+    /// layout file gets).
+    pub report: FrontReport,
+    /// The members' layouts, in the report's order.
+    pub layouts: Vec<Layout>,
+}
+
+/// Builds the front's report: a layout per member, to be written to
+/// `layout_dir` (`<name>-front-<k>.json`), and the report of `front.json`.
+/// `first_order` scores layouts by the first-order model on the search grid;
+/// `hand` are the hand designs' names, layouts and evaluations by the
+/// search objective. Writes nothing ([`write`] does).
 #[allow(clippy::too_many_arguments)]
-pub fn write(
-    report_dir: &Path,
+pub fn build(
     layout_dir: &Path,
     name: &str,
     family: &Family,
@@ -324,10 +335,9 @@ pub fn write(
     provenance: &serde_json::Value,
     (evaluations, seconds): (usize, f64),
     settings: &FrontSettings,
-) -> Result<FrontReport, ReportError> {
-    std::fs::create_dir_all(layout_dir).map_err(|e| ReportError::write(layout_dir, e))?;
-    std::fs::create_dir_all(report_dir).map_err(|e| ReportError::write(report_dir, e))?;
+) -> FrontFiles {
     let mut members = Vec::with_capacity(points.len());
+    let mut layouts = Vec::with_capacity(points.len());
     for (k, point) in points.iter().enumerate() {
         let member = format!("{name}-front-{}", k + 1);
         let mut layout = family.layout(&member, &point.candidate.params);
@@ -336,9 +346,6 @@ pub fn write(
         record["availability_floor"] = point.floor.into();
         layout.provenance = Some(record);
         let path = layout_dir.join(format!("{member}.json"));
-        layout
-            .save_atomic(&path)
-            .map_err(|e| ReportError::write(&path, e))?;
         let (rotation, translation) = first_order(
             &first_order_evaluator.evaluate(&layout.positions(), &layout.point_sigmas()),
         );
@@ -354,6 +361,7 @@ pub fn write(
             translation_rms_mm: translation,
             monte_carlo: None,
         });
+        layouts.push(layout);
     }
     let hand_designs: Vec<HandEntry> = hand
         .iter()
@@ -395,12 +403,29 @@ pub fn write(
         members,
         hand_designs,
     };
+    FrontFiles { report, layouts }
+}
+
+/// Writes what [`build`] built: each member's layout file (at its entry's
+/// `layout` path, atomically), then `front.json`, `front.csv` and
+/// `front.svg` in `report_dir`.
+pub fn write(report_dir: &Path, files: &FrontFiles) -> Result<(), ReportError> {
+    let report = &files.report;
+    for (entry, layout) in report.members.iter().zip(&files.layouts) {
+        if let Some(dir) = entry.layout.parent() {
+            std::fs::create_dir_all(dir).map_err(|e| ReportError::write(dir, e))?;
+        }
+        layout
+            .save_atomic(&entry.layout)
+            .map_err(|e| ReportError::write(&entry.layout, e))?;
+    }
+    std::fs::create_dir_all(report_dir).map_err(|e| ReportError::write(report_dir, e))?;
     let json_path = report_dir.join("front.json");
     let json =
         serde_json::to_string_pretty(&report).map_err(|e| ReportError::write(&json_path, e))?;
     write_text(&json_path, &(json + "\n"))?;
     let csv_path = report_dir.join("front.csv");
-    let table = table(&report);
+    let table = table(report);
     write_text(
         &csv_path,
         &table.csv().map_err(|e| ReportError::write(&csv_path, e))?,
@@ -430,7 +455,7 @@ pub fn write(
         "first-order RMS rotation (°), search grid",
         &series,
     )?;
-    Ok(report)
+    Ok(())
 }
 
 /// The front and the hand designs as one table (`front.csv`, and the

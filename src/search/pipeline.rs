@@ -727,6 +727,7 @@ fn remove_stale_temporaries(config: &SearchConfig, partial: &Path) -> usize {
         config.report_dir.join("winner-validation"),
     ];
     dirs.extend(config.export.as_ref().map(|e| e.dir.clone()));
+    dirs.extend(config.front.as_ref().map(|f| f.layout_dir.clone()));
     for dir in dirs {
         removed += files::remove_stale_temporaries_in(&dir).unwrap_or(0);
     }
@@ -1075,8 +1076,10 @@ pub fn run(
                 .iter()
                 .map(|r| (r.name.clone(), r.layout.clone(), r.evaluation.clone()))
                 .collect();
-            let report = front::write(
-                &config.report_dir,
+            // Built now, written with the rest of the report once the
+            // winner's validation has finished: an interrupted run leaves
+            // no front without its report.
+            let files = front::build(
                 &output.layout_dir,
                 name,
                 &family,
@@ -1086,8 +1089,8 @@ pub fn run(
                 &provenance_for_front,
                 (evaluations, front_started.elapsed().as_secs_f64()),
                 &output.settings,
-            )?;
-            Some(report)
+            );
+            Some(files)
         }
     };
     let summary = SearchSummary {
@@ -1108,7 +1111,7 @@ pub fn run(
         outcome,
         designs: rows,
         held_out,
-        front: front.clone(),
+        front: front.as_ref().map(|f| f.report.clone()),
     };
 
     let validation_config = MonteCarloConfig {
@@ -1170,6 +1173,9 @@ pub fn run(
     }))
     .map_err(|e| ReportError::write(&run_path, e))?;
     write_text(&run_path, &(run_json + "\n"))?;
+    if let Some(files) = &front {
+        front::write(&config.report_dir, files)?;
+    }
 
     if let Some(export) = &config.export {
         observer.progress(PHASE_EXPORT, 0, 1);
@@ -1203,7 +1209,7 @@ pub fn run(
     }
     result.winner = winner;
     result.summary = Some(summary);
-    result.front = front;
+    result.front = front.map(|f| f.report);
     result.total_seconds = started.elapsed().as_secs_f64();
     Ok(result)
 }
@@ -1362,6 +1368,39 @@ mod tests {
         assert_eq!(resumed.evaluations, finished.evaluations);
         assert_eq!(resumed.winner.points, finished.winner.points);
         assert!(!resumed.partial.exists() && !resumed.checkpoints.exists());
+    }
+
+    #[test]
+    fn a_front_is_written_with_its_report_and_not_before() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut config = small(dir.path());
+        config.validate_solvers = vec![Solver::ParallelWeighted, Solver::Ml];
+        let layout_dir = dir.path().join("t-front");
+        config.front = Some(FrontOutput {
+            settings: FrontSettings {
+                levels: 1,
+                iterations: 40,
+            },
+            layout_dir: layout_dir.clone(),
+        });
+        // Stopped in the winner's validation, after the front's sweep: no
+        // front file without its report.
+        let mut observer = StopIn::at_start(PHASE_VALIDATE);
+        let outcome = run(&config, &mut observer).unwrap();
+        assert!(outcome.interrupted);
+        assert!(observer.phases.iter().any(|p| p == PHASE_FRONT));
+        assert!(!layout_dir.exists(), "front layouts before the report");
+        assert!(!config.report_dir.exists());
+        // A finished run writes both.
+        let outcome = run(&config, &mut Silent).unwrap();
+        let front = outcome.front.expect("a front");
+        assert!(!front.members.is_empty());
+        for member in &front.members {
+            Layout::load(&member.layout).unwrap();
+        }
+        for file in ["front.json", "front.csv", "front.svg", "summary.json"] {
+            assert!(config.report_dir.join(file).exists(), "{file}");
+        }
     }
 
     #[test]
