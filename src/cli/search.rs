@@ -24,6 +24,13 @@ use layout_opt::sphere_image::Observation;
 use std::path::PathBuf;
 use std::time::Instant;
 
+/// The polish budget when --polish is not given: two thirds of
+/// --iterations (2000 with the default 3000), so the polish shrinks with a
+/// quick search instead of dominating it.
+fn default_polish(iterations: u64) -> u64 {
+    (u128::from(iterations) * 2 / 3) as u64
+}
+
 /// Layout families.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 enum FamilyName {
@@ -124,9 +131,11 @@ pub struct SearchArgs {
     particles: usize,
     /// Nelder–Mead polish iterations: after particle swarm or annealing; after
     /// Nelder–Mead, the final polish runs this many from the winner and from
-    /// three seeded copies jittered around it (0 disables).
-    #[arg(long, default_value_t = 2000)]
-    polish: u64,
+    /// three seeded copies jittered around it (0 disables). Default: two
+    /// thirds of --iterations (2000 with its default), so that a short
+    /// --iterations makes a short search.
+    #[arg(long)]
+    polish: Option<u64>,
     /// Solver of the Monte-Carlo comparison in the report.
     #[arg(long, default_value = "parallel-weighted")]
     compare_solver: Solver,
@@ -276,7 +285,7 @@ fn config(args: SearchArgs, global: &GlobalOptions) -> anyhow::Result<SearchConf
             starts: args.starts,
             iterations: args.iterations,
             particles: args.particles,
-            polish_iterations: args.polish,
+            polish_iterations: args.polish.unwrap_or(default_polish(args.iterations)),
             seed: global.seed,
             start_jitter: args.start_jitter,
         },

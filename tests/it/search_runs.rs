@@ -4,6 +4,7 @@
 //! layout seen in `<out>.partial.json`; two runs on one output refuse at
 //! once, on different outputs both finish; outputs that cannot be written
 //! and refused flags fail before any work and leave nothing behind.
+//! The polish budget follows `--iterations` unless `--polish` is given.
 //!
 //! Every run works in its own temporary directory (also its working
 //! directory), so nothing lands in the checkout.
@@ -375,4 +376,36 @@ fn ctrl_c_ends_validate_with_130_and_no_report() {
         "{stderr}"
     );
     assert!(!out.join("report.md").exists());
+}
+
+/// Without --polish the polish budget is two thirds of --iterations; an
+/// explicit --polish wins.
+#[test]
+fn the_polish_follows_iterations_unless_given() {
+    let dir = tempfile::tempdir().unwrap();
+    for (extra, polish) in [(&[][..], 20), (&["--polish", "7"][..], 7)] {
+        let out = dir.path().join(format!("p{polish}.json"));
+        let mut args = vec![
+            "--iterations",
+            "30",
+            "--compare-trials",
+            "5",
+            "--validate-solvers",
+            "parallel-weighted",
+        ];
+        args.extend_from_slice(extra);
+        let output = command(dir.path(), &out, &args).output().unwrap();
+        assert!(
+            output.status.success(),
+            "{}",
+            String::from_utf8_lossy(&output.stderr)
+        );
+        let summary: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(report_dir(&out).join("summary.json")).unwrap())
+                .unwrap();
+        assert_eq!(
+            summary["header"]["search"]["polish_iterations"], polish,
+            "{extra:?}"
+        );
+    }
 }
