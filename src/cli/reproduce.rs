@@ -55,9 +55,17 @@ pub fn run(args: ReproduceArgs, global: &GlobalOptions) -> anyhow::Result<()> {
         command: command_line(),
         out_dir,
     };
+    progress::catch_ctrl_c();
     let mut bars = progress::Bars::new(global.quiet);
     let result = pipeline::run(&config, &mut bars);
     bars.finish();
+    if let Err(reproduce::ReproduceError::Interrupted) = result {
+        eprintln!(
+            "interrupted: no report written ({} untouched)",
+            config.out_dir.display()
+        );
+        std::process::exit(super::search::EXIT_INTERRUPTED);
+    }
     let ReproduceOutcome {
         reproduction,
         seconds,

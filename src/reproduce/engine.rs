@@ -27,7 +27,7 @@ use nalgebra::{Vector2, Vector3};
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
 /// A geodesic rotation error above this is a gross failure (degrees).
 pub const GROSS_ERROR_DEG: f64 = 5.0;
@@ -42,6 +42,16 @@ pub(crate) struct Context<'a> {
     pub solvers: Vec<Solver>,
     /// Progress of the running experiment.
     pub progress: Progress<'a>,
+    /// Set when the caller wants the run to stop: trials still to run are
+    /// skipped (and the run's results thrown away).
+    pub stop: &'a AtomicBool,
+}
+
+impl Context<'_> {
+    /// Whether the caller asked the run to stop.
+    pub fn stopped(&self) -> bool {
+        self.stop.load(Ordering::Relaxed)
+    }
 }
 
 /// Progress of the running experiment, reported through a callback with
@@ -150,6 +160,17 @@ struct SettingTrial {
 }
 
 fn solve_instance(context: &Context, instance: &Instance) -> SettingTrial {
+    if context.stopped() {
+        // Skipped, not solved: the stopped run's results are discarded.
+        return SettingTrial {
+            outcomes: context
+                .solvers
+                .iter()
+                .map(|_| Outcome::Failed("the run was stopped".into()))
+                .collect(),
+            first_order: None,
+        };
+    }
     let camera = &context.camera;
     let n = instance.object.len();
     let mut normalised = Vec::with_capacity(n);
@@ -235,7 +256,12 @@ pub(crate) fn run_random(
 ) -> (Vec<Vec<Cell>>, Vec<Option<FirstOrderLine>>) {
     let per_trial: Vec<Vec<SettingTrial>> = (0..trials)
         .into_par_iter()
-        .map(|trial| {
+        .filter_map(|trial| {
+            // After a stop the trials not yet begun are dropped unbuilt
+            // (the stopped run's results are discarded).
+            if context.stopped() {
+                return None;
+            }
             let results = (0..settings)
                 .map(|setting| {
                     let mut rng = stream_rng(context.seed, stream, trial as u64);
@@ -243,7 +269,7 @@ pub(crate) fn run_random(
                 })
                 .collect();
             context.progress.advance(settings);
-            results
+            Some(results)
         })
         .collect();
     let mut cells = Vec::with_capacity(settings);
@@ -345,9 +371,13 @@ pub(crate) fn run_scenarios(
         // projected sphere centres.
         observation: crate::sphere_image::Observation::Centre,
     };
-    montecarlo::run(&target, scenarios, &config, &|_| {
-        context.progress.advance(trials)
-    })
+    montecarlo::run_until(
+        &target,
+        scenarios,
+        &config,
+        &|_| context.progress.advance(trials),
+        context.stop,
+    )
 }
 
 /// The cells and first-order limit of one scenario outcome.

@@ -62,6 +62,7 @@ use serde::Serialize;
 use std::fmt::Write as _;
 use std::path::Path;
 use std::str::FromStr;
+use std::sync::atomic::AtomicBool;
 use std::time::Instant;
 
 /// Noise draws per pose of the simulated protocol by default (1365 poses:
@@ -273,6 +274,10 @@ pub enum ReproduceError {
     /// A report file could not be written.
     #[error(transparent)]
     Report(#[from] ReportError),
+    /// The caller asked the run to stop before it finished; nothing was
+    /// written.
+    #[error("the reproduction was stopped before it finished; no report written")]
+    Interrupted,
 }
 
 /// What to run.
@@ -449,6 +454,19 @@ pub fn run(
     command: &str,
     on_progress: &(dyn Fn(&str, usize, usize) + Sync),
 ) -> Result<Reproduction, ReproduceError> {
+    run_until(config, command, on_progress, &AtomicBool::new(false))
+}
+
+/// [`run`], ended early with [`ReproduceError::Interrupted`] once `stop` is
+/// set: trials not yet begun are skipped (the Monte-Carlo experiments read
+/// it before each trial, the random-geometry ones before each problem,
+/// timing before each repetition), so the run ends within one problem.
+pub fn run_until(
+    config: &Config,
+    command: &str,
+    on_progress: &(dyn Fn(&str, usize, usize) + Sync),
+    stop: &AtomicBool,
+) -> Result<Reproduction, ReproduceError> {
     if config.trials == Some(0) {
         return Err(ReproduceError::NoTrials);
     }
@@ -457,6 +475,7 @@ pub fn run(
         seed: config.seed,
         solvers: Solver::ALL.to_vec(),
         progress: Progress::new(on_progress),
+        stop,
     };
     let (_, missing) = group(&context, &PAPER_SOLVERS);
     let header = Header {
@@ -485,18 +504,27 @@ pub fn run(
     };
     let mut experiments = Vec::new();
     let mut wall_seconds = Vec::new();
+    let interrupted = || context.stopped().then_some(ReproduceError::Interrupted);
     for &experiment in &config.experiments {
+        if let Some(error) = interrupted() {
+            return Err(error);
+        }
         let trials = config.trials_for(experiment);
         let started = Instant::now();
         let result = match experiment {
-            Experiment::Points => points::run(&context, trials),
-            Experiment::Noise => noise::run(&context, trials),
-            Experiment::Timing => timing::run(&context, trials),
-            Experiment::Depth => depth::run(&context, trials),
-            Experiment::OffAxis => off_axis::run(&context, trials)?,
-            Experiment::Tilt => tilt::run(&context, trials)?,
-            Experiment::Protocol => protocol::run(&context, trials)?,
+            Experiment::Points => Ok(points::run(&context, trials)),
+            Experiment::Noise => Ok(noise::run(&context, trials)),
+            Experiment::Timing => Ok(timing::run(&context, trials)),
+            Experiment::Depth => Ok(depth::run(&context, trials)),
+            Experiment::OffAxis => off_axis::run(&context, trials),
+            Experiment::Tilt => tilt::run(&context, trials),
+            Experiment::Protocol => protocol::run(&context, trials),
         };
+        // A stopped experiment's results are incomplete: never returned.
+        if let Some(error) = interrupted() {
+            return Err(error);
+        }
+        let result = result?;
         wall_seconds.push((experiment, started.elapsed().as_secs_f64()));
         experiments.push(result);
     }
@@ -769,10 +797,11 @@ fn markdown(reproduction: &Reproduction) -> String {
 /// into the directory the configuration names, with progress through an
 /// [`Observer`](crate::observer::Observer) (one phase per experiment).
 pub mod pipeline {
-    use super::{run as reproduce, write_report, Config, ReproduceError, Reproduction};
+    use super::{run_until, write_report, Config, ReproduceError, Reproduction};
     use crate::observer::{relay, Observer};
     use crate::report::{write_text, ReportError};
-    use std::path::PathBuf;
+    use std::path::{Path, PathBuf};
+    use std::sync::atomic::AtomicBool;
     use std::sync::Mutex;
     use std::time::Instant;
 
@@ -798,11 +827,20 @@ pub mod pipeline {
 
     /// Runs the experiments and writes the report, with `run.json` (timing
     /// per experiment, threads), into [`ReproduceConfig::out_dir`].
+    ///
+    /// An observer that asks to stop ([`Observer::interrupted`], polled
+    /// every 20 ms) ends the run within one problem with
+    /// [`ReproduceError::Interrupted`], and nothing is written. The report is
+    /// written as a set: every file first into a staging directory beside
+    /// `out_dir` (`.<name>.writing-<pid>`), then moved into `out_dir` one
+    /// rename each, so `out_dir` never holds a half-written file, and a
+    /// failed write leaves the previous report as it was.
     pub fn run(
         config: &ReproduceConfig,
         observer: &mut impl Observer,
     ) -> Result<ReproduceOutcome, ReproduceError> {
         let latest = Mutex::new(None::<(String, u64, u64)>);
+        let stop = AtomicBool::new(false);
         let started = Instant::now();
         let reproduction = relay(
             observer,
@@ -812,36 +850,85 @@ pub mod pipeline {
                     o.progress(&phase, done, total);
                 }
             },
-            None,
+            Some(&stop),
             || {
-                reproduce(
+                run_until(
                     &config.experiments,
                     &config.command,
                     &|name, done, total| {
                         *latest.lock().expect("progress lock") =
                             Some((name.to_string(), done as u64, total as u64));
                     },
+                    &stop,
                 )
             },
         )?;
         let seconds = started.elapsed().as_secs_f64();
-        write_report(&config.out_dir, &reproduction)?;
-        let run = serde_json::json!({
-            "wall_seconds": seconds,
-            "threads": rayon::current_num_threads(),
-            "experiments": reproduction
-                .wall_seconds
-                .iter()
-                .map(|(e, s)| serde_json::json!({"experiment": e.name(), "wall_seconds": s}))
-                .collect::<Vec<_>>(),
-        });
-        let path = config.out_dir.join("run.json");
-        let text = serde_json::to_string_pretty(&run).map_err(|e| ReportError::write(&path, e))?;
-        write_text(&path, &(text + "\n"))?;
+        write_as_set(&config.out_dir, |dir| {
+            write_report(dir, &reproduction)?;
+            let run = serde_json::json!({
+                "wall_seconds": seconds,
+                "threads": rayon::current_num_threads(),
+                "experiments": reproduction
+                    .wall_seconds
+                    .iter()
+                    .map(|(e, s)| serde_json::json!({"experiment": e.name(), "wall_seconds": s}))
+                    .collect::<Vec<_>>(),
+            });
+            let path = dir.join("run.json");
+            let text =
+                serde_json::to_string_pretty(&run).map_err(|e| ReportError::write(&path, e))?;
+            write_text(&path, &(text + "\n"))?;
+            Ok(())
+        })?;
         Ok(ReproduceOutcome {
             reproduction,
             seconds,
         })
+    }
+
+    /// Runs `write` on a fresh staging directory beside `out_dir`, then
+    /// moves what it wrote into `out_dir` (one rename per file, replacing
+    /// files of the same name; other files in `out_dir` stay). The staging
+    /// directory is removed either way.
+    fn write_as_set(
+        out_dir: &Path,
+        write: impl FnOnce(&Path) -> Result<(), ReproduceError>,
+    ) -> Result<(), ReproduceError> {
+        let parent = match out_dir.parent() {
+            Some(parent) if !parent.as_os_str().is_empty() => parent.to_path_buf(),
+            _ => PathBuf::from("."),
+        };
+        let name = out_dir
+            .file_name()
+            .map_or_else(|| "report".into(), |n| n.to_string_lossy().into_owned());
+        std::fs::create_dir_all(&parent).map_err(|e| ReportError::write(&parent, e))?;
+        let staging = parent.join(format!(".{name}.writing-{}", std::process::id()));
+        // A killed run of this process id cannot still be writing.
+        let _ = std::fs::remove_dir_all(&staging);
+        let result = write(&staging).and_then(|()| {
+            std::fs::create_dir_all(out_dir).map_err(|e| ReportError::write(out_dir, e))?;
+            move_into(&staging, out_dir)
+        });
+        let _ = std::fs::remove_dir_all(&staging);
+        result
+    }
+
+    /// Moves every file under `from` to the same place under `to`.
+    fn move_into(from: &Path, to: &Path) -> Result<(), ReproduceError> {
+        let entries = std::fs::read_dir(from).map_err(|e| ReportError::write(from, e))?;
+        for entry in entries {
+            let entry = entry.map_err(|e| ReportError::write(from, e))?;
+            let target = to.join(entry.file_name());
+            if entry.path().is_dir() {
+                std::fs::create_dir_all(&target).map_err(|e| ReportError::write(&target, e))?;
+                move_into(&entry.path(), &target)?;
+            } else {
+                std::fs::rename(entry.path(), &target)
+                    .map_err(|e| ReportError::write(&target, e))?;
+            }
+        }
+        Ok(())
     }
 }
 

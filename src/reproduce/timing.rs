@@ -212,7 +212,7 @@ pub(crate) fn run(context: &Context, repetitions: usize) -> ExperimentResult {
         let problems: Vec<TimedProblem> =
             (0..repetitions).map(|r| problem(context, n, r)).collect();
         for &solver in &context.solvers {
-            if n < solver.min_points() {
+            if n < solver.min_points() || context.stopped() {
                 rows.push(TimingRow {
                     n,
                     solver: solver.name().to_string(),
@@ -234,6 +234,9 @@ pub(crate) fn run(context: &Context, repetitions: usize) -> ExperimentResult {
             let mut methods = Vec::with_capacity(repetitions);
             let mut errors = 0;
             for p in &problems {
+                if context.stopped() {
+                    break;
+                }
                 let started = Instant::now();
                 let checked = validate_input(solver, black_box(&p.object), black_box(&p.image));
                 let check = started.elapsed();

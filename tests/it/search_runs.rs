@@ -4,7 +4,8 @@
 //! layout seen in `<out>.partial.json`; two runs on one output refuse at
 //! once, on different outputs both finish; outputs that cannot be written
 //! and refused flags fail before any work and leave nothing behind.
-//! The polish budget follows `--iterations` unless `--polish` is given.
+//! `validate` and `reproduce` honour Ctrl-C the same way, and the polish
+//! budget follows `--iterations` unless `--polish` is given.
 //!
 //! Every run works in its own temporary directory (also its working
 //! directory), so nothing lands in the checkout.
@@ -376,6 +377,61 @@ fn ctrl_c_ends_validate_with_130_and_no_report() {
         "{stderr}"
     );
     assert!(!out.join("report.md").exists());
+}
+
+/// `reproduce` honours Ctrl-C in a random-geometry experiment and in a
+/// Monte-Carlo one: status 130 within about a second, and the report of an
+/// earlier finished run stays as it was.
+#[test]
+fn ctrl_c_ends_reproduce_with_130_and_keeps_the_finished_report() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("paper");
+    let reproduce = |experiment: &str, trials: &str| {
+        let mut command = Command::new(env!("CARGO_BIN_EXE_layout-opt"));
+        command
+            .current_dir(dir.path())
+            .args(["reproduce", "--experiment", experiment, "--trials", trials])
+            .arg("--out")
+            .arg(&out);
+        command
+    };
+    let finished = reproduce("noise", "3").output().unwrap();
+    assert!(
+        finished.status.success(),
+        "{}",
+        String::from_utf8_lossy(&finished.stderr)
+    );
+    let report = std::fs::read(out.join("report.md")).unwrap();
+    let names = |dir: &Path| {
+        let mut names: Vec<_> = std::fs::read_dir(dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        names.sort();
+        names
+    };
+    let files = names(&out);
+    for experiment in ["noise", "tilt"] {
+        // The estimate (printed before a run this long) says it has begun.
+        let mut run = Running::start(reproduce(experiment, "100000"));
+        run.wait_for_line("estimate");
+        std::thread::sleep(Duration::from_millis(300));
+        let (code, elapsed, stderr) = run.interrupt();
+        eprintln!(
+            "reproduce {experiment}: ended {} ms after SIGINT",
+            elapsed.as_millis()
+        );
+        assert_eq!(code, Some(130), "{stderr}");
+        assert!(elapsed < STOP_WITHIN, "took {elapsed:?} to stop");
+        assert!(
+            stderr.contains("interrupted: no report written"),
+            "{stderr}"
+        );
+        assert_eq!(std::fs::read(out.join("report.md")).unwrap(), report);
+        assert_eq!(names(&out), files);
+        // No staging directory left behind.
+        assert_eq!(names(dir.path()), vec![std::ffi::OsString::from("paper")]);
+    }
 }
 
 /// Without --polish the polish budget is two thirds of --iterations; an
