@@ -36,7 +36,7 @@
 
 use super::checkpoint::{CheckpointError, Checkpoints, StartCheckpoint, StartState};
 use super::{Evaluation, Evaluator, PENALTY_MARGIN_FRACTION, PENALTY_MARGIN_MM};
-use crate::family::Family;
+use crate::family::{Family, FamilyKind};
 use crate::synthetic::stream_rng;
 use argmin::core::checkpointing::Checkpoint;
 use argmin::core::{observers::ObserverMode, CostFunction, Executor, Solver, State, KV};
@@ -610,7 +610,9 @@ pub fn spread_repair(
     start: usize,
 ) -> Option<Vec<f64>> {
     let constraints = evaluator.constraints();
-    if constraints.min_distance_diff_mm <= 0.0 {
+    if constraints.min_distance_diff_mm <= 0.0
+        || !matches!(family.kind(), FamilyKind::Custom { .. })
+    {
         return None;
     }
     let target = constraints.tightened(PENALTY_MARGIN_FRACTION, PENALTY_MARGIN_MM);
