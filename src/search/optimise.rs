@@ -73,7 +73,7 @@ const ANNEAL_STREAM: u64 = 0x5EA2C6;
 /// Random stream of the distance-spreading repair's jitter.
 const SPREAD_STREAM: u64 = 0x5EA2C8;
 /// Seeded tries of the distance-spreading repair of one start (each from
-/// its own jitter; ~70 ms each for a custom family of 13 points).
+/// its own jitter).
 pub const SPREAD_TRIES: u64 = 3;
 /// Nelder–Mead's initial simplex steps this fraction of each range.
 pub const SIMPLEX_STEP: f64 = 0.1;
