@@ -10,7 +10,8 @@ use layout_opt::mesh::geometry::{
     Bed, Structure, DEFAULT_MIN_FEATURE_MM, DEFAULT_STRUT_DIAMETER_MM, DEFAULT_VIEW_CONE_DEG,
 };
 use layout_opt::mesh::pipeline::{self, ExportConfig};
-use layout_opt::mesh::{Axis, ExportOptions, Format, MarkerOptions, MountHoles};
+use layout_opt::mesh::{Axis, ExportError, ExportOptions, Format, MarkerOptions, MountHoles};
+use layout_opt::scenario::Range;
 use std::path::{Path, PathBuf};
 
 /// Flags of `export`.
@@ -70,8 +71,18 @@ pub struct ExportArgs {
     /// Half-angle of the cone of viewing directions around --view, degrees:
     /// supports are chosen so as not to cover spheres from it, and a strut
     /// that does is an error unless --allow-occlusion.
-    #[arg(long, value_name = "DEG", default_value_t = DEFAULT_VIEW_CONE_DEG)]
-    view_cone: f64,
+    /// Default: from --tilt and --pan when given, else 20°.
+    #[arg(long, value_name = "DEG", conflicts_with_all = ["tilt", "pan"])]
+    view_cone: Option<f64>,
+    /// Tilts about X the marker will be seen at, degrees (a range as in
+    /// validate, e.g. -30..30:10 or -20,35): the view cone becomes the
+    /// largest angle between the main view and a view of the range.
+    #[arg(long, value_name = "RANGE", allow_hyphen_values = true, value_parser = boxed_range)]
+    tilt: Option<Box<Range>>,
+    /// Pans about Y the marker will be seen at, degrees (with --tilt or
+    /// alone).
+    #[arg(long, value_name = "RANGE", allow_hyphen_values = true, value_parser = boxed_range)]
+    pan: Option<Box<Range>>,
     /// Write the files even when a strut covers a sphere from the view cone.
     #[arg(long)]
     allow_occlusion: bool,
@@ -79,6 +90,13 @@ pub struct ExportArgs {
     /// error.
     #[arg(long, value_name = "X,Y,Z", default_value = "250,210,210")]
     bed: Bed,
+}
+
+/// A range, boxed so that `export`'s flags stay small.
+fn boxed_range(text: &str) -> Result<Box<Range>, String> {
+    text.parse::<Range>()
+        .map(Box::new)
+        .map_err(|e| e.to_string())
 }
 
 fn load_layout(args: &ExportArgs) -> anyhow::Result<(Layout, String)> {
@@ -121,8 +139,37 @@ fn megabytes(bytes: u64) -> String {
     }
 }
 
+/// The view cone's half-angle: `--view-cone`, else the largest angle
+/// between the main view and the view at a tilt t and pan p of the ranges
+/// given (`acos(cos t · cos p)`, the camera turned about X then Y), else
+/// [`DEFAULT_VIEW_CONE_DEG`].
+fn view_cone_deg(view_cone: Option<f64>, tilt: Option<&Range>, pan: Option<&Range>) -> f64 {
+    if let Some(cone) = view_cone {
+        return cone;
+    }
+    if tilt.is_none() && pan.is_none() {
+        return DEFAULT_VIEW_CONE_DEG;
+    }
+    let zero = Range::single(0.0);
+    let (tilt, pan) = (tilt.unwrap_or(&zero), pan.unwrap_or(&zero));
+    let mut cone: f64 = 0.0;
+    for t in &tilt.values {
+        for p in &pan.values {
+            let cosine = (t.to_radians().cos() * p.to_radians().cos()).clamp(-1.0, 1.0);
+            cone = cone.max(cosine.acos().to_degrees());
+        }
+    }
+    // acos(cos 25°) is 25.000000000000004°: whole nanodegrees read better.
+    (cone * 1e9).round() / 1e9
+}
+
 pub fn run(args: ExportArgs, global: &GlobalOptions) -> anyhow::Result<()> {
     let (layout, source) = load_layout(&args)?;
+    let view_cone = view_cone_deg(args.view_cone, args.tilt.as_deref(), args.pan.as_deref());
+    anyhow::ensure!(
+        args.view_cone.is_some() || view_cone < 80.0,
+        "--tilt and --pan reach {view_cone:.1}° from the main view; the view cone must stay below 80°: narrow the ranges or give --view-cone"
+    );
     let options = ExportOptions {
         formats: args.format.clone(),
         marker: MarkerOptions {
@@ -132,7 +179,7 @@ pub fn run(args: ExportArgs, global: &GlobalOptions) -> anyhow::Result<()> {
             mount: args.mount,
             mount_holes: args.mount_holes.clone(),
             structure: args.structure,
-            view_cone_deg: args.view_cone,
+            view_cone_deg: view_cone,
             bed: args.bed,
         },
         resolution_mm: args.resolution,
@@ -143,9 +190,14 @@ pub fn run(args: ExportArgs, global: &GlobalOptions) -> anyhow::Result<()> {
         options,
         out_dir: args.out.clone(),
     };
+    progress::catch_ctrl_c();
     let mut bars = progress::Bars::new(global.quiet);
     let result = pipeline::run(&config, &mut bars);
     bars.finish();
+    if let Err(ExportError::Interrupted) = result {
+        eprintln!("interrupted: none of the export's files were written");
+        std::process::exit(super::search::EXIT_INTERRUPTED);
+    }
     let report = result.with_context(|| format!("cannot export {source}"))?;
 
     let m = &report.mesh;
@@ -202,6 +254,15 @@ pub fn run(args: ExportArgs, global: &GlobalOptions) -> anyhow::Result<()> {
         },
         report.identification_margin_mm
     );
+    match &report.tolerances.centre {
+        Some(c) => println!(
+            "sphere-centre tolerance ±{:.3} mm per coordinate, from the datum on the plate (keeps the fabrication share of the RMS rotation error at most {:.0} % of the image noise's over {} scenarios; see the sheet)",
+            c.tolerance_mm,
+            100.0 * c.share,
+            c.scenarios
+        ),
+        None => println!("sphere-centre tolerance: none from the error model (no default scenario sees every sphere)"),
+    }
     let o = &report.overhang;
     let [x, y, z] = report.print_size_mm;
     println!(

@@ -23,5 +23,6 @@
 //! assert!(near.rms_rotation_deg() > 0.0 && near.rms_rotation_deg() < 1.0);
 //! ```
 
+pub mod fabrication;
 pub mod first_order;
 pub mod transfer;

@@ -58,6 +58,7 @@ pub(crate) mod stl;
 pub mod trimesh;
 
 pub use geometry::{Axis, GeometryError, Marker, MarkerOptions, MountHoles};
+pub use sheet::{datum_positions, Datum, DatumPosition, Tolerances, CSV_HEADER};
 pub use trimesh::{Topology, TriangleMesh};
 
 use crate::layout::Layout;
@@ -78,8 +79,9 @@ pub const RESOLUTION_PER_FEATURE: f64 = 0.5;
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum ExportError {
-    /// The observer asked to stop before the export started.
-    #[error("export interrupted before it started; nothing was written")]
+    /// The observer asked to stop (Ctrl-C); none of the export's files
+    /// were left.
+    #[error("export interrupted; none of its files were written")]
     Interrupted,
     /// The marker cannot be built (layout or geometry options).
     #[error(transparent)]
@@ -421,16 +423,36 @@ pub struct ExportReport {
     pub mount: Axis,
     /// Screw holes, if any.
     pub mount_holes: Option<MountHoles>,
+    /// Sphere centres and hole axes from the datum on the base plate
+    /// ([`Datum`]), mm.
+    pub datum: Vec<DatumPosition>,
+    /// Sphere-centre tolerance from the error model and the workshop
+    /// tolerances of the sheet.
+    pub tolerances: Tolerances,
 }
 
 /// Builds the marker for `layout` and writes every requested format, the
 /// fabrication sheet (`<name>-fabrication.md`, `.csv`, `<name>-views.svg`)
 /// and this report as `<name>-export.json` into `out_dir` (created if
-/// missing).
+/// missing), as a set: every file is first written into a staging
+/// directory inside `out_dir` and then renamed into place, so that a
+/// failure part-way leaves none of the new files (see [`FileSet`]).
 pub fn export(
     layout: &Layout,
     options: &ExportOptions,
     out_dir: &Path,
+) -> Result<ExportReport, ExportError> {
+    export_observed(layout, options, out_dir, &|| false)
+}
+
+/// [`export`], asking `interrupted` between the steps: once it says yes,
+/// the export stops with [`ExportError::Interrupted`] and leaves none of
+/// its files.
+fn export_observed(
+    layout: &Layout,
+    options: &ExportOptions,
+    out_dir: &Path,
+    interrupted: &dyn Fn() -> bool,
 ) -> Result<ExportReport, ExportError> {
     if options.formats.is_empty() {
         return Err(ExportError::NoFormat);
@@ -448,17 +470,23 @@ pub fn export(
         &shift,
         geometry::MAX_OVERHANG_DEG,
     );
+    let tolerances = sheet::Tolerances::for_marker(&solid.marker);
+    if interrupted() {
+        return Err(ExportError::Interrupted);
+    }
     std::fs::create_dir_all(out_dir).map_err(|source| ExportError::Io {
         path: out_dir.to_path_buf(),
         source,
     })?;
+    let mut set = FileSet::stage(out_dir, &solid.name())?;
+    let staging = set.staging.clone();
     let mut files = Vec::new();
     let mut formats = options.formats.clone();
     formats.sort();
     formats.dedup();
     for format in formats {
         let start = Instant::now();
-        let written = format.writer().write(&solid, out_dir)?;
+        let written = format.writer().write(&solid, &staging)?;
         let seconds = start.elapsed().as_secs_f64();
         for path in written {
             files.push(WrittenFile {
@@ -467,10 +495,14 @@ pub fn export(
                 path,
                 seconds,
             });
+            set.wrote()?;
+        }
+        if interrupted() {
+            return Err(ExportError::Interrupted);
         }
     }
     let start = Instant::now();
-    let sheet_files = sheet::write(&solid, &coverage, out_dir)?;
+    let sheet_files = sheet::write(&solid, &coverage, &tolerances, &staging)?;
     let seconds = start.elapsed().as_secs_f64();
     for path in sheet_files {
         files.push(WrittenFile {
@@ -479,6 +511,16 @@ pub fn export(
             path,
             seconds,
         });
+        set.wrote()?;
+    }
+    if interrupted() {
+        return Err(ExportError::Interrupted);
+    }
+    // The report names the files where they will be.
+    for file in &mut files {
+        if let Some(name) = file.path.file_name() {
+            file.path = out_dir.join(name);
+        }
     }
     let mut report = ExportReport {
         name: solid.marker.name.clone(),
@@ -503,20 +545,118 @@ pub fn export(
         view: options.marker.view,
         mount: solid.marker.mount,
         mount_holes: options.marker.mount_holes.clone(),
+        datum: sheet::datum_positions(&solid.marker),
+        tolerances,
     };
-    let json_path = out_dir.join(format!("{}-export.json", solid.name()));
+    let json_name = format!("{}-export.json", solid.name());
     report.files.push(WrittenFile {
         format: None,
-        path: json_path.clone(),
+        path: out_dir.join(&json_name),
         bytes: 0,
         seconds: 0.0,
     });
     let json = serde_json::to_string_pretty(&report).expect("the report serialises") + "\n";
-    write_file(&json_path, json.as_bytes())?;
+    write_file(&staging.join(&json_name), json.as_bytes())?;
+    set.wrote()?;
+    set.commit()?;
     if let Some(last) = report.files.last_mut() {
         last.bytes = json.len() as u64;
     }
     Ok(report)
+}
+
+/// An export's files as a set: written into a staging directory inside the
+/// output directory (`.<name>.export.<pid>.<n>.tmp`), then renamed into
+/// place one by one by [`FileSet::commit`]. Dropped before the commit
+/// finished (an error, an interruption), it removes the staging directory
+/// and any file it had already moved into place, so that an export leaves
+/// all of its files or none of them. Files of an earlier export that a
+/// renamed file replaced are not restored.
+struct FileSet {
+    out_dir: PathBuf,
+    staging: PathBuf,
+    moved: Vec<PathBuf>,
+    committed: bool,
+    /// Files staged so far (for the test-only failure point).
+    #[cfg(test)]
+    written: usize,
+}
+
+#[cfg(test)]
+thread_local! {
+    /// Test-only failure point: fail once this many files are staged.
+    static FAIL_AFTER_FILES: std::cell::Cell<Option<usize>> = const { std::cell::Cell::new(None) };
+}
+
+impl FileSet {
+    fn stage(out_dir: &Path, name: &str) -> Result<FileSet, ExportError> {
+        static NEXT: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+        let n = NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        let staging = out_dir.join(format!(".{name}.export.{}.{n}.tmp", std::process::id()));
+        std::fs::create_dir(&staging).map_err(|source| ExportError::Io {
+            path: staging.clone(),
+            source,
+        })?;
+        Ok(FileSet {
+            out_dir: out_dir.to_path_buf(),
+            staging,
+            moved: Vec::new(),
+            committed: false,
+            #[cfg(test)]
+            written: 0,
+        })
+    }
+
+    /// One more file is staged.
+    fn wrote(&mut self) -> Result<(), ExportError> {
+        #[cfg(test)]
+        {
+            self.written += 1;
+            if FAIL_AFTER_FILES.with(|f| f.get()) == Some(self.written) {
+                return Err(ExportError::Io {
+                    path: self.staging.clone(),
+                    source: std::io::Error::other("injected failure"),
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// Moves every staged file into the output directory.
+    fn commit(mut self) -> Result<(), ExportError> {
+        let io = |path: &Path| {
+            let path = path.to_path_buf();
+            move |source| ExportError::Io { path, source }
+        };
+        let mut staged: Vec<PathBuf> = std::fs::read_dir(&self.staging)
+            .map_err(io(&self.staging))?
+            .map(|entry| entry.map(|e| e.path()))
+            .collect::<Result<_, _>>()
+            .map_err(io(&self.staging))?;
+        staged.sort();
+        for from in staged {
+            let Some(name) = from.file_name() else {
+                continue;
+            };
+            let to = self.out_dir.join(name);
+            std::fs::rename(&from, &to).map_err(io(&to))?;
+            self.moved.push(to);
+        }
+        self.committed = true;
+        let _ = std::fs::remove_dir(&self.staging);
+        Ok(())
+    }
+}
+
+impl Drop for FileSet {
+    fn drop(&mut self) {
+        if !self.committed {
+            for path in &self.moved {
+                let _ = std::fs::remove_file(path);
+            }
+            let _ = std::fs::remove_dir_all(&self.staging);
+        }
+    }
 }
 
 /// The sphere a strut covers most, in the main view or from the view cone,
@@ -574,7 +714,7 @@ pub(crate) fn write_file(path: &Path, bytes: &[u8]) -> Result<(), ExportError> {
 /// checked and written ([`export`]), with its progress reported to the
 /// observer; the files written are in the returned report.
 pub mod pipeline {
-    use super::{export, ExportError, ExportOptions, ExportReport};
+    use super::{ExportError, ExportOptions, ExportReport};
     use crate::layout::Layout;
     use crate::observer::Observer;
     use std::path::PathBuf;
@@ -593,10 +733,9 @@ pub mod pipeline {
         pub out_dir: PathBuf,
     }
 
-    /// Builds and writes the part. An observer that asks to stop before the
-    /// work starts gets [`ExportError::Interrupted`]; once started, an
-    /// export (seconds at most) runs to the end, so that its files are
-    /// written as a set.
+    /// Builds and writes the part. An observer that asks to stop gets
+    /// [`ExportError::Interrupted`]: before the work starts, or between the
+    /// design and each file, and then none of the export's files are left.
     pub fn run(
         config: &ExportConfig,
         observer: &mut impl Observer,
@@ -605,7 +744,11 @@ pub mod pipeline {
             return Err(ExportError::Interrupted);
         }
         observer.progress(PHASE_EXPORT, 0, 1);
-        let report = export(&config.layout, &config.options, &config.out_dir)?;
+        let observer_ref = &*observer;
+        let report =
+            super::export_observed(&config.layout, &config.options, &config.out_dir, &|| {
+                observer_ref.interrupted()
+            })?;
         observer.progress(PHASE_EXPORT, 1, 1);
         Ok(report)
     }
@@ -667,6 +810,135 @@ pub mod pipeline {
                 Err(ExportError::Interrupted)
             ));
             assert!(!config.out_dir.exists());
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::layout::LayoutPoint;
+    use std::cell::Cell;
+
+    /// A small part that meshes in a fraction of a second.
+    fn small() -> Layout {
+        let points = [
+            [0.0, 0.0, 0.0],
+            [30.0, 0.0, -10.0],
+            [0.0, 26.0, -5.0],
+            [-12.0, -14.0, 15.0],
+        ];
+        Layout {
+            name: "small".into(),
+            points: points
+                .iter()
+                .enumerate()
+                .map(|(i, p)| LayoutPoint::new(format!("S{i}"), (*p).into()))
+                .collect(),
+            sphere_diameter_mm: 6.0,
+            family: None,
+            provenance: None,
+        }
+    }
+
+    fn options() -> ExportOptions {
+        ExportOptions {
+            formats: vec![Format::Stl, Format::Obj],
+            allow_occlusion: true,
+            ..Default::default()
+        }
+    }
+
+    /// Every entry of `dir`, sorted.
+    fn entries(dir: &Path) -> Vec<String> {
+        let mut names: Vec<String> = std::fs::read_dir(dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        names.sort();
+        names
+    }
+
+    #[test]
+    fn a_failure_part_way_leaves_none_of_the_files() {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(dir.path().join("keep.txt"), "not ours").unwrap();
+        let report = export(&small(), &options(), dir.path()).unwrap();
+        // stl, obj, the sheet's three files, the report.
+        assert_eq!(report.files.len(), 6);
+        assert!(report.files.iter().all(|f| f.path.exists()), "{report:?}");
+        assert_eq!(entries(dir.path()).len(), 7);
+        for fail_after in [1, 4, 6] {
+            let other = tempfile::tempdir().unwrap();
+            std::fs::write(other.path().join("keep.txt"), "not ours").unwrap();
+            FAIL_AFTER_FILES.with(|f| f.set(Some(fail_after)));
+            let result = export(&small(), &options(), other.path());
+            FAIL_AFTER_FILES.with(|f| f.set(None));
+            let error = result.unwrap_err();
+            assert!(error.to_string().contains("injected failure"), "{error}");
+            assert_eq!(
+                entries(other.path()),
+                ["keep.txt"],
+                "failing after {fail_after}"
+            );
+        }
+    }
+
+    #[test]
+    fn a_rename_that_fails_takes_back_the_files_already_moved() {
+        let dir = tempfile::tempdir().unwrap();
+        // The last file moved into place (names sorted) cannot replace a
+        // directory that holds a file.
+        std::fs::create_dir(dir.path().join("small.stl")).unwrap();
+        std::fs::write(dir.path().join("small.stl").join("x"), "x").unwrap();
+        let error = export(&small(), &options(), dir.path()).unwrap_err();
+        assert!(
+            matches!(&error, ExportError::Io { path, .. } if path.ends_with("small.stl")),
+            "{error}"
+        );
+        assert_eq!(entries(dir.path()), ["small.stl"]);
+    }
+
+    #[test]
+    fn an_interruption_part_way_leaves_none_of_the_files() {
+        for polls in [1, 2, 3] {
+            let dir = tempfile::tempdir().unwrap();
+            let asked = Cell::new(0);
+            let interrupted = || {
+                asked.set(asked.get() + 1);
+                asked.get() >= polls
+            };
+            let result = export_observed(&small(), &options(), dir.path(), &interrupted);
+            assert!(matches!(result, Err(ExportError::Interrupted)));
+            assert!(entries(dir.path()).is_empty(), "after {polls} polls");
+        }
+    }
+
+    /// The datum is the corner of the plate's bed face: the datum
+    /// coordinates of the plate's corners are 0 and its sizes, and Z is
+    /// the STL's z.
+    #[test]
+    fn datum_is_the_plates_bed_corner() {
+        let marker = Marker::design(&small(), &options().marker).unwrap();
+        let datum = Datum::of(&marker);
+        let (rotation, shift) = marker.print_transform();
+        let plate = &marker.plate;
+        let mut lo = Vector3::repeat(f64::INFINITY);
+        for sx in [-1.0, 1.0] {
+            for sy in [-1.0, 1.0] {
+                for sz in [-1.0, 1.0] {
+                    let corner =
+                        plate.centre + plate.half_extents.component_mul(&Vector3::new(sx, sy, sz));
+                    lo = lo.inf(&datum.coordinates(&corner));
+                }
+            }
+        }
+        assert!(lo.norm() < 1e-9, "{lo}");
+        for s in &marker.spheres {
+            let d = datum.coordinates(&s.centre);
+            let print = rotation * s.centre + shift;
+            assert!((d.z - print.z).abs() < 1e-9);
+            assert!(d.z > 0.0);
         }
     }
 }

@@ -13,15 +13,101 @@ use super::geometry::{gltf_rotation, print_rotation, Marker};
 use super::quality::Coverage;
 use super::{write_file, ExportError, Solid};
 use nalgebra::{Matrix3, Vector3};
+use serde::Serialize;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-/// Margin around each view in the SVG, mm.
-const VIEW_MARGIN_MM: f64 = 22.0;
+/// Margin around each view in the SVG, mm (room for the ordinate labels).
+const VIEW_MARGIN_MM: f64 = 40.0;
+/// Distance of an ordinate dimension's baseline from the part, mm.
+const ORDINATE_OFFSET_MM: f64 = 5.0;
+/// Smallest spacing of two ordinate labels, mm.
+const ORDINATE_SPACING_MM: f64 = 3.2;
 /// Text size in the SVG, mm.
 const TEXT_MM: f64 = 4.0;
 /// Identification margins below this are flagged in the sheet, mm.
 pub const MARGIN_WARNING_MM: f64 = 1.0;
+
+/// The datum reference frame of the drawings and the sheet: a corner of
+/// the base plate, the face that lies on the bed.
+///
+/// * Datum A: the plate's bed face (z = 0 of the STL).
+/// * Datum B: the plate's side face at the smallest X of the STL.
+/// * Datum C: the plate's side face at the smallest Y of the STL.
+///
+/// Datum coordinates are the STL's print-frame axes (Z up, away from the
+/// bed) with the origin where the three faces meet (the corner of the
+/// plate's box before its edges are rounded), so a technician measures each
+/// sphere from the plate with the part standing as printed.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Datum {
+    /// Marker frame → datum frame rotation (the STL's print rotation).
+    pub rotation: Matrix3<f64>,
+    /// The datum origin in the marker frame, mm.
+    pub origin_mm: Vector3<f64>,
+}
+
+impl Datum {
+    /// The datum of `marker`'s base plate.
+    pub fn of(marker: &Marker) -> Datum {
+        let (rotation, shift) = marker.print_transform();
+        let plate = &marker.plate;
+        let corner = rotation * plate.centre - rotation.abs() * plate.half_extents;
+        let origin_print = Vector3::new(corner.x, corner.y, 0.0);
+        Datum {
+            rotation,
+            origin_mm: rotation.transpose() * (origin_print - shift),
+        }
+    }
+
+    /// The datum coordinates (x from B, y from C, z from A) of a
+    /// marker-frame point, mm.
+    pub fn coordinates(&self, p: &Vector3<f64>) -> Vector3<f64> {
+        self.rotation * (p - self.origin_mm)
+    }
+
+    /// Datum axis `k` (0: x, 1: y, 2: z) as a marker-frame direction.
+    pub fn axis(&self, k: usize) -> Vector3<f64> {
+        self.rotation.row(k).transpose()
+    }
+}
+
+/// A feature located from the [`Datum`]: a sphere centre or a hole axis.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct DatumPosition {
+    /// "sphere" or "hole".
+    pub kind: &'static str,
+    /// The sphere's name, or H1, H2, … for holes.
+    pub name: String,
+    /// Datum coordinates, mm (for a hole, z is the plate's mid-plane).
+    pub position_mm: [f64; 3],
+}
+
+/// Every sphere centre and hole axis of `marker` in datum coordinates.
+pub fn datum_positions(marker: &Marker) -> Vec<DatumPosition> {
+    let datum = Datum::of(marker);
+    let spheres = marker
+        .spheres
+        .iter()
+        .map(|s| (s.name.clone(), "sphere", s.centre));
+    let holes = marker
+        .plate
+        .holes
+        .iter()
+        .enumerate()
+        .map(|(k, h)| (format!("H{}", k + 1), "hole", h.centre));
+    spheres
+        .chain(holes)
+        .map(|(name, kind, p)| {
+            let d = datum.coordinates(&p);
+            DatumPosition {
+                kind,
+                name,
+                position_mm: [d.x, d.y, d.z],
+            }
+        })
+        .collect()
+}
 
 /// Every pair of spheres with the distance between their centres, sorted
 /// by distance (ties in layout order).
@@ -50,20 +136,60 @@ pub fn identification_margin(marker: &Marker) -> (f64, Option<[(usize, usize); 2
 pub fn write(
     solid: &Solid,
     coverage: &[Coverage],
+    tolerances: &Tolerances,
     dir: &Path,
 ) -> Result<Vec<PathBuf>, ExportError> {
     let name = solid.name();
     let md = dir.join(format!("{name}-fabrication.md"));
     let csv = dir.join(format!("{name}-fabrication.csv"));
     let svg = dir.join(format!("{name}-views.svg"));
-    write_file(&md, markdown(solid, coverage, &svg).as_bytes())?;
-    write_file(&csv, &csv_table(&solid.marker))?;
+    write_file(&md, markdown(solid, coverage, tolerances, &svg).as_bytes())?;
+    write_file(&csv, &csv_table(&solid.marker, tolerances))?;
     let [lo, hi] = solid.report.bounds_mm;
     write_file(
         &svg,
         views_svg(&solid.marker, (Vector3::from(lo), Vector3::from(hi))).as_bytes(),
     )?;
     Ok(vec![md, csv, svg])
+}
+
+/// Sphere diameter tolerance, ± mm: a workshop figure, not from the error
+/// model (the solvers use the centres; the diameter only sizes the image
+/// disc a detector fits).
+pub const DIAMETER_TOLERANCE_MM: f64 = 0.2;
+/// Hole position tolerance, ± mm: for mounting only.
+pub const HOLE_TOLERANCE_MM: f64 = 0.2;
+
+/// The tolerances the sheet gives.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Tolerances {
+    /// Sphere-centre tolerance from the error model, or `None` when no
+    /// scenario of the grid sees every sphere.
+    pub centre: Option<crate::error_model::fabrication::FabricationTolerance>,
+    /// What the centre tolerance was computed over (camera and grid).
+    pub basis: String,
+    /// Sphere diameter, ± mm ([`DIAMETER_TOLERANCE_MM`]).
+    pub diameter_mm: f64,
+    /// Hole positions, ± mm ([`HOLE_TOLERANCE_MM`]).
+    pub hole_position_mm: f64,
+}
+
+impl Tolerances {
+    /// The centre tolerance over `validate`'s default camera and grid
+    /// (the paper's camera and protocol, tilt step 2°, σ = 0.5 px).
+    pub fn for_marker(marker: &Marker) -> Tolerances {
+        use crate::error_model::fabrication::{tolerance, TOLERANCE_SHARE};
+        let camera = crate::camera::Camera::paper();
+        let grid = crate::scenario::ScenarioGrid::paper_protocol(2.0);
+        let object: Vec<Vector3<f64>> = marker.spheres.iter().map(|s| s.centre).collect();
+        let diameter_mm = marker.spheres.first().map_or(0.0, |s| 2.0 * s.radius);
+        Tolerances {
+            centre: tolerance(&camera, &grid, &object, diameter_mm, TOLERANCE_SHARE).ok(),
+            basis: "validate's default scenarios: the paper's camera, depths 200–1000 mm, x offsets 0/50/100 mm, tilt −90…90° in 2° steps, σ = 0.5 px".to_string(),
+            diameter_mm: DIAMETER_TOLERANCE_MM,
+            hole_position_mm: HOLE_TOLERANCE_MM,
+        }
+    }
 }
 
 fn sphere_pair(marker: &Marker, (i, j): (usize, usize)) -> String {
@@ -83,7 +209,7 @@ fn frame_rows(rotation: &Matrix3<f64>) -> String {
     format!("({}, {}, {})", axis(0), axis(1), axis(2))
 }
 
-fn markdown(solid: &Solid, coverage: &[Coverage], svg: &Path) -> String {
+fn markdown(solid: &Solid, coverage: &[Coverage], tolerances: &Tolerances, svg: &Path) -> String {
     let marker = &solid.marker;
     let report = &solid.report;
     let t = &report.topology;
@@ -130,12 +256,9 @@ fn markdown(solid: &Solid, coverage: &[Coverage], svg: &Path) -> String {
         );
     }
     let _ = writeln!(md, ".");
-    if margin < MARGIN_WARNING_MM {
-        let _ = writeln!(
-            md,
-            "\n> Below {MARGIN_WARNING_MM} mm: these spheres cannot be told apart by their distances alone."
-        );
-    }
+    let _ = write!(md, "{}", margin_warning(marker, tolerances));
+    let _ = write!(md, "{}", tolerance_section(tolerances));
+    let _ = write!(md, "{}", datum_section(marker, tolerances));
 
     let [lo, hi] = report.bounds_mm;
     let size = [hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]];
@@ -282,42 +405,243 @@ fn markdown(solid: &Solid, coverage: &[Coverage], svg: &Path) -> String {
     md
 }
 
-fn csv_table(marker: &Marker) -> Vec<u8> {
+/// The most a pairwise distance moves when both centres are within ±`t`
+/// per coordinate: 2·√3·t.
+fn distance_change_mm(t: f64) -> f64 {
+    2.0 * 3f64.sqrt() * t
+}
+
+/// The identification-margin warning (empty when the margin is ample).
+fn margin_warning(marker: &Marker, tolerances: &Tolerances) -> String {
+    let (margin, pairs) = identification_margin(marker);
+    let names = pairs.map_or(String::new(), |[a, b]| {
+        format!(
+            " ({} and {})",
+            sphere_pair(marker, a),
+            sphere_pair(marker, b)
+        )
+    });
+    let drift = tolerances
+        .centre
+        .as_ref()
+        .map(|c| distance_change_mm(c.tolerance_mm));
+    if margin < 1e-6 {
+        format!(
+            "\n> **Warning: repeated distances.** Two pairs of spheres{names} are the same distance apart, so an image of the marker cannot be matched to its spheres by pairwise distances alone: those spheres are interchangeable for a distance-based identification, which needs other cues (sphere colour or size, the view's known range, tracking from a known start). Printing errors do not help: they are random, not a code.\n"
+        )
+    } else if margin < MARGIN_WARNING_MM {
+        let within = drift.map_or(String::new(), |d| {
+            format!(
+                "; a part within the centre tolerance can change a distance by up to {d:.3} mm{}",
+                if d >= margin {
+                    ", enough to swap these two"
+                } else {
+                    ""
+                }
+            )
+        });
+        format!(
+            "\n> **Warning: small identification margin.** {margin:.3} mm{names} is below {MARGIN_WARNING_MM} mm (search's default `--min-distance-diff`): matching by distances needs the measured distances to be better than half of it{within}.\n"
+        )
+    } else {
+        String::new()
+    }
+}
+
+/// The "Tolerances" section of the sheet.
+fn tolerance_section(tolerances: &Tolerances) -> String {
+    let mut md = String::from("\n## Tolerances\n\n");
+    match &tolerances.centre {
+        Some(c) => {
+            let w = &c.worst_scenario;
+            let _ = writeln!(
+                md,
+                "- **Sphere centres: ±{:.3} mm** in each datum coordinate (X, Y, Z) of every sphere. From the error model: a part whose centres are off by errors of standard deviation σ_fab per coordinate, solved with the nominal layout, has a first-order RMS rotation error of {:.4}° per mm of σ_fab in the worst case; with σ_fab ≤ {:.3} mm it stays at most {:.0} % of the image-noise RMS rotation error in every one of the {} scenarios (of {}) that see every sphere, over {} (worst: depth {} mm, x offset {} mm, tilt {}°, where the noise gives {:.4}°). Added in quadrature, {:.0} % raises the total error by {:.1} %. Errors within ±T have an RMS of at most T whatever their distribution, so the tolerance is the σ_fab bound itself. Check a design with `layout-opt validate LAYOUT --fabrication-sigma {:.3}`.",
+                c.tolerance_mm,
+                c.rotation_deg_per_mm,
+                c.max_sigma_mm,
+                100.0 * c.share,
+                c.scenarios,
+                c.grid_scenarios,
+                tolerances.basis,
+                w.depth_mm,
+                w.offset_x_mm,
+                w.tilt_deg,
+                c.noise_rotation_deg,
+                100.0 * c.share,
+                100.0 * ((1.0 + c.share * c.share).sqrt() - 1.0),
+                c.tolerance_mm
+            );
+            let _ = writeln!(
+                md,
+                "  The tolerance scales with the share: at ±{:.3} mm the fabrication error would equal the noise error (the total rising by 41 %).",
+                c.tolerance_mm / c.share
+            );
+        }
+        None => {
+            let _ = writeln!(
+                md,
+                "- **Sphere centres:** no tolerance from the error model: no scenario of {} sees every sphere.",
+                tolerances.basis
+            );
+        }
+    }
+    let _ = writeln!(
+        md,
+        "- **Sphere diameter: ±{:.2} mm** (a workshop tolerance, not from the error model: the pose uses the centres; the diameter only sizes the image disc a detector fits).",
+        tolerances.diameter_mm
+    );
+    let _ = writeln!(
+        md,
+        "- **Hole positions: ±{:.2} mm** (for mounting only; the holes do not enter the pose).",
+        tolerances.hole_position_mm
+    );
+    md
+}
+
+/// The "Datum" section: what the datum is, and the spheres and holes from
+/// it with blank columns for the as-measured values.
+fn datum_section(marker: &Marker, tolerances: &Tolerances) -> String {
+    let mut md = String::from("\n## Datum and positions to measure\n\n");
+    let _ = writeln!(
+        md,
+        "Stand the part as printed (plate on a surface plate). **Datum A** is the plate's bed face, **datum B** its side face at the STL's smallest X, **datum C** its side face at the STL's smallest Y. Every position below is measured from them: X from B, Y from C, Z (height) from A, along the STL's axes; the origin is the corner of the plate's box before its edges were rounded (radius {:.1} mm). The views mark the datum corner and give the same values.\n",
+        marker.plate.rounding
+    );
+    let centre = tolerances
+        .centre
+        .as_ref()
+        .map_or("—".to_string(), |c| format!("±{:.3}", c.tolerance_mm));
+    let _ = writeln!(
+        md,
+        "| sphere | X | Y | Z | ⌀ | centre tol. | ⌀ tol. | measured X | measured Y | measured Z | measured ⌀ | X ok | Y ok | Z ok | ⌀ ok |\n|---|---:|---:|---:|---:|---:|---:|---|---|---|---|---|---|---|---|"
+    );
+    let positions = datum_positions(marker);
+    for (p, s) in positions
+        .iter()
+        .filter(|p| p.kind == "sphere")
+        .zip(&marker.spheres)
+    {
+        let [x, y, z] = p.position_mm;
+        let _ = writeln!(
+            md,
+            "| {} | {x:.3} | {y:.3} | {z:.3} | {:.3} | {centre} | ±{:.2} | | | | | | | | |",
+            p.name,
+            2.0 * s.radius,
+            tolerances.diameter_mm
+        );
+    }
+    let holes: Vec<&DatumPosition> = positions.iter().filter(|p| p.kind == "hole").collect();
+    if !holes.is_empty() {
+        let diameter = marker.plate.holes.first().map_or(0.0, |h| 2.0 * h.radius);
+        let _ = writeln!(
+            md,
+            "\n| hole | X | Y | ⌀ | position tol. | measured X | measured Y | X ok | Y ok |\n|---|---:|---:|---:|---:|---|---|---|---|"
+        );
+        for h in holes {
+            let [x, y, _] = h.position_mm;
+            let _ = writeln!(
+                md,
+                "| {} | {x:.3} | {y:.3} | {diameter:.2} | ±{:.2} | | | | |",
+                h.name, tolerances.hole_position_mm
+            );
+        }
+    }
+    let _ = writeln!(
+        md,
+        "\nA coordinate is *ok* when |measured − nominal| ≤ its tolerance; a part with every sphere coordinate ok meets the error model's bound above."
+    );
+    md
+}
+
+/// Columns of `<name>-fabrication.csv`.
+pub const CSV_HEADER: [&str; 16] = [
+    "kind",
+    "name",
+    "x_mm",
+    "y_mm",
+    "z_mm",
+    "diameter_mm",
+    "distance_mm",
+    "datum_x_mm",
+    "datum_y_mm",
+    "datum_z_mm",
+    "tolerance_mm",
+    "measured_x_mm",
+    "measured_y_mm",
+    "measured_z_mm",
+    "measured_diameter_mm",
+    "pass",
+];
+
+fn csv_table(marker: &Marker, tolerances: &Tolerances) -> Vec<u8> {
     let mut writer = csv::Writer::from_writer(Vec::new());
     let f = |v: f64| format!("{v:.6}");
-    let _ = writer.write_record([
-        "kind",
-        "name",
-        "x_mm",
-        "y_mm",
-        "z_mm",
-        "diameter_mm",
-        "distance_mm",
-    ]);
-    for s in &marker.spheres {
-        let _ = writer.write_record([
-            "sphere".to_string(),
-            s.name.clone(),
-            f(s.centre.x),
-            f(s.centre.y),
-            f(s.centre.z),
-            f(2.0 * s.radius),
-            String::new(),
-        ]);
+    let _ = writer.write_record(CSV_HEADER);
+    let blank = || String::new();
+    let centre_tolerance = tolerances
+        .centre
+        .as_ref()
+        .map_or(String::new(), |c| f(c.tolerance_mm));
+    let positions = datum_positions(marker);
+    let mut row = |fields: [String; 7], datum: [f64; 3], tolerance: String| {
+        let mut record: Vec<String> = fields.to_vec();
+        record.extend(datum.iter().map(|&v| f(v)));
+        record.push(tolerance);
+        record.extend((0..5).map(|_| blank()));
+        let _ = writer.write_record(&record);
+    };
+    for (s, p) in marker.spheres.iter().zip(&positions) {
+        row(
+            [
+                "sphere".to_string(),
+                s.name.clone(),
+                f(s.centre.x),
+                f(s.centre.y),
+                f(s.centre.z),
+                f(2.0 * s.radius),
+                blank(),
+            ],
+            p.position_mm,
+            centre_tolerance.clone(),
+        );
     }
+    for (h, p) in marker
+        .plate
+        .holes
+        .iter()
+        .zip(positions.iter().filter(|p| p.kind == "hole"))
+    {
+        row(
+            [
+                "hole".to_string(),
+                p.name.clone(),
+                f(h.centre.x),
+                f(h.centre.y),
+                f(h.centre.z),
+                f(2.0 * h.radius),
+                blank(),
+            ],
+            p.position_mm,
+            f(tolerances.hole_position_mm),
+        );
+    }
+    let mut plain = |kind: &str, name: String, distance: f64| {
+        let mut record = vec![kind.to_string(), name];
+        record.extend((0..4).map(|_| blank()));
+        record.push(f(distance));
+        record.extend((0..9).map(|_| blank()));
+        let _ = writer.write_record(&record);
+    };
     for (i, j, d) in pairwise_distances(marker) {
-        let _ = writer.write_record([
-            "distance".to_string(),
+        plain(
+            "distance",
             format!("{}-{}", marker.spheres[i].name, marker.spheres[j].name),
-            String::new(),
-            String::new(),
-            String::new(),
-            String::new(),
-            f(d),
-        ]);
+            d,
+        );
     }
     let (margin, _) = identification_margin(marker);
-    let _ = writer.write_record(["identification_margin", "", "", "", "", "", &f(margin)]);
+    plain("identification_margin", String::new(), margin);
     writer.into_inner().unwrap_or_default()
 }
 
@@ -395,8 +719,43 @@ fn views_svg(marker: &Marker, (lo, hi): (Vector3<f64>, Vector3<f64>)) -> String 
         svg,
         r##"<defs><marker id="arrow" viewBox="0 0 10 10" refX="10" refY="5" markerWidth="6" markerHeight="6" orient="auto-start-reverse"><path d="M 0 0 L 10 5 L 0 10 z" fill="#333"/></marker></defs>"##
     );
+    // Ordinate dimensions from the datum: X and Y in the view along the
+    // datum's Z (looking at the plate), Z in the next view.
+    let datum = Datum::of(marker);
+    let datum_axis_of = |screen: &Vector3<f64>| {
+        (0..3)
+            .find(|&k| datum.axis(k).dot(screen).abs() > 0.5)
+            .expect("views and datum are axis-aligned")
+    };
+    let top = views
+        .iter()
+        .position(|v| datum.axis(2).dot(&v.forward).abs() > 0.5)
+        .expect("one view looks along the datum's Z");
+    let side = (top + 1) % 3;
+    let mut plan: [Vec<(bool, usize)>; 3] = Default::default();
+    plan[top] = vec![
+        (true, datum_axis_of(&views[top].right)),
+        (false, datum_axis_of(&views[top].down)),
+    ];
+    plan[side] = [true, false]
+        .into_iter()
+        .map(|along_right| {
+            let v = &views[side];
+            (
+                along_right,
+                datum_axis_of(if along_right { &v.right } else { &v.down }),
+            )
+        })
+        .filter(|&(_, k)| k == 2)
+        .collect();
+    let _ = writeln!(
+        svg,
+        r#"<text x="2" y="{:.3}" font-size="{:.2}">Ordinates from the datum (mm): X from face B, Y from face C, Z from face A (the bed face); origin ⊕ at the plate corner.</text>"#,
+        panel_h - 2.0,
+        0.7 * TEXT_MM
+    );
     let mut x0 = 0.0;
-    for (view, width) in views.iter().zip(&panel_w) {
+    for (index, (view, width)) in views.iter().zip(&panel_w).enumerate() {
         let (r0, r1, d0, d1) = extent(view);
         let ox = x0 + VIEW_MARGIN_MM - r0;
         let oy = VIEW_MARGIN_MM - d0;
@@ -493,6 +852,48 @@ fn views_svg(marker: &Marker, (lo, hi): (Vector3<f64>, Vector3<f64>)) -> String 
                 }
             }
         }
+        if index == top {
+            let (x, y) = at(&datum.origin_mm);
+            let _ = writeln!(
+                svg,
+                r##"<path class="datum-origin" d="M {:.3},{y:.3} a 1.5,1.5 0 1,0 3,0 a 1.5,1.5 0 1,0 -3,0 M {:.3},{y:.3} h 5 M {x:.3},{:.3} v 5" fill="none" stroke="#c00" stroke-width="0.3"/>"##,
+                x - 1.5,
+                x - 2.5,
+                y - 2.5
+            );
+        }
+        for &(along_right, k) in &plan[index] {
+            let mut features: Vec<(String, Vector3<f64>)> = marker
+                .spheres
+                .iter()
+                .map(|s| (s.name.clone(), s.centre))
+                .collect();
+            if k != 2 {
+                features.extend(
+                    marker
+                        .plate
+                        .holes
+                        .iter()
+                        .enumerate()
+                        .map(|(h, hole)| (format!("H{}", h + 1), hole.centre)),
+                );
+            }
+            ordinates(
+                &mut svg,
+                &datum,
+                k,
+                &features,
+                &OrdinateFrame {
+                    along_right,
+                    at: &at,
+                    baseline: if along_right {
+                        oy + d0 - ORDINATE_OFFSET_MM
+                    } else {
+                        ox + r0 - ORDINATE_OFFSET_MM
+                    },
+                },
+            );
+        }
         // Overall dimensions: width below, height on the right.
         let (left, right) = (ox + r0, ox + r1);
         let (top, bottom) = (oy + d0, oy + d1);
@@ -525,6 +926,114 @@ fn views_svg(marker: &Marker, (lo, hi): (Vector3<f64>, Vector3<f64>)) -> String 
     svg
 }
 
+/// Where one ordinate dimension goes in a view.
+struct OrdinateFrame<'a> {
+    /// Along the view's right (labels above the part) or down (labels to
+    /// its left).
+    along_right: bool,
+    /// Marker point → SVG coordinates.
+    at: &'a dyn Fn(&Vector3<f64>) -> (f64, f64),
+    /// The baseline's SVG coordinate (y when along right, x when down).
+    baseline: f64,
+}
+
+/// Draws ordinate dimensions of datum coordinate `k` for `features` and
+/// the datum face itself (0): an extension line from each feature to the
+/// baseline and a label with its names and value; features with the same
+/// value share a label, and labels closer than [`ORDINATE_SPACING_MM`] are
+/// jogged apart.
+fn ordinates(
+    svg: &mut String,
+    datum: &Datum,
+    k: usize,
+    features: &[(String, Vector3<f64>)],
+    frame: &OrdinateFrame,
+) {
+    let face = ["B", "C", "A"][k];
+    let axis = ["X", "Y", "Z"][k];
+    let screen_of = |p: &Vector3<f64>| {
+        let (x, y) = (frame.at)(p);
+        if frame.along_right {
+            (x, y)
+        } else {
+            (y, x)
+        }
+    };
+    // (position along the baseline, value, names, feature's other screen
+    // coordinate).
+    let mut ticks: Vec<(f64, f64, Vec<String>, Option<f64>)> = Vec::new();
+    // The datum face: the origin projected on this axis.
+    let (origin_along, _) = screen_of(&datum.origin_mm);
+    ticks.push((origin_along, 0.0, vec![format!("face {face}")], None));
+    for (name, p) in features {
+        let value = datum.coordinates(p)[k];
+        let (along, across) = screen_of(p);
+        match ticks
+            .iter_mut()
+            .find(|t| t.3.is_some() && (t.1 - value).abs() < 0.005)
+        {
+            Some(t) => t.2.push(name.clone()),
+            None => ticks.push((along, value, vec![name.clone()], Some(across))),
+        }
+    }
+    ticks.sort_by(|a, b| a.0.total_cmp(&b.0));
+    // Labels spread apart along the baseline, centred on their ticks.
+    let mut placed: Vec<f64> = ticks.iter().map(|t| t.0).collect();
+    for i in 1..placed.len() {
+        placed[i] = placed[i].max(placed[i - 1] + ORDINATE_SPACING_MM);
+    }
+    let size = 0.7 * TEXT_MM;
+    let b = frame.baseline;
+    // Outward: up (−y) for labels above, left (−x) for labels at the left.
+    let jog = 2.0;
+    let _ = writeln!(
+        svg,
+        r##"<g class="ordinates" data-datum="{axis}" stroke-width="0.15" fill="none">"##
+    );
+    for (tick, label_at) in ticks.iter().zip(&placed) {
+        let (along, value, names, across) = tick;
+        let point = |a: f64, c: f64| {
+            if frame.along_right {
+                (a, c)
+            } else {
+                (c, a)
+            }
+        };
+        let mut path = Vec::new();
+        if let Some(across) = across {
+            path.push(point(*along, *across));
+        }
+        path.push(point(*along, b));
+        path.push(point(*label_at, b - jog));
+        let points: Vec<String> = path.iter().map(|(x, y)| format!("{x:.3},{y:.3}")).collect();
+        let _ = writeln!(
+            svg,
+            r##"<polyline points="{}" stroke="{}" stroke-dasharray="{}"/>"##,
+            points.join(" "),
+            if across.is_some() { "#777" } else { "#000" },
+            if across.is_some() { "0.8 0.6" } else { "none" }
+        );
+        let (tx, ty) = point(*label_at, b - jog - 0.8);
+        let text = format!("{} {value:.2}", names.join(","));
+        if frame.along_right {
+            let (tx, ty) = (tx + 0.35 * size, ty);
+            let _ = writeln!(
+                svg,
+                r##"<text class="ordinate" data-datum="{axis}" data-mm="{value:.3}" x="{tx:.3}" y="{ty:.3}" font-size="{size:.2}" fill="#000" stroke="none" text-anchor="start" transform="rotate(-90 {tx:.3} {ty:.3})">{}</text>"##,
+                xml(&text)
+            );
+        } else {
+            let _ = writeln!(
+                svg,
+                r##"<text class="ordinate" data-datum="{axis}" data-mm="{value:.3}" x="{tx:.3}" y="{:.3}" font-size="{size:.2}" fill="#000" stroke="none" text-anchor="end">{}</text>"##,
+                ty + 0.35 * size,
+                xml(&text)
+            );
+        }
+    }
+    let _ = writeln!(svg, "</g>");
+}
+
 /// Escapes text for XML.
 fn xml(text: &str) -> String {
     text.replace('&', "&amp;")
@@ -553,10 +1062,16 @@ mod tests {
     #[test]
     fn csv_lists_spheres_distances_and_margin() {
         let marker = Marker::design(&Layout::paper_biprism(), &MarkerOptions::default()).unwrap();
-        let text = String::from_utf8(csv_table(&marker)).unwrap();
+        let tolerances = Tolerances::for_marker(&marker);
+        let text = String::from_utf8(csv_table(&marker, &tolerances)).unwrap();
         let lines: Vec<&str> = text.lines().collect();
-        assert_eq!(lines[0], "kind,name,x_mm,y_mm,z_mm,diameter_mm,distance_mm");
-        assert_eq!(lines[1], "sphere,O0,0.000000,0.000000,0.000000,10.000000,");
+        assert_eq!(lines[0], CSV_HEADER.join(","));
+        assert!(
+            lines[1].starts_with("sphere,O0,0.000000,0.000000,0.000000,10.000000,,"),
+            "{}",
+            lines[1]
+        );
+        assert!(lines[1].ends_with(",,,,,"), "blank as-measured columns");
         assert_eq!(lines.len(), 1 + 7 + 21 + 1);
         assert!(lines[8].starts_with("distance,O0-P1,"), "{}", lines[8]);
     }

@@ -319,6 +319,22 @@ fn fabrication_sheet_lists_spheres_distances_and_margin() {
     assert!(md.contains("Bounding box"));
     assert!(md.contains("Volume:"));
     assert!(md.contains("tetrahedron-views.svg"));
+    // Tolerances, the datum, the as-measured columns and the warning of
+    // repeated distances.
+    assert!(md.contains("## Tolerances"), "{md}");
+    assert!(md.contains("**Sphere centres: ±"), "{md}");
+    assert!(md.contains("**Datum A**"), "{md}");
+    assert!(
+        md.contains("| measured X | measured Y | measured Z |"),
+        "{md}"
+    );
+    assert!(md.contains("Warning: repeated distances"), "{md}");
+    let centre = report.tolerances.centre.as_ref().unwrap();
+    assert!(
+        centre.tolerance_mm > 0.0 && centre.tolerance_mm < 1.0,
+        "{centre:?}"
+    );
+    assert_eq!(report.datum.len(), 5);
     // A regular tetrahedron has only two distinct distances: margin 0.
     assert!(report.identification_margin_mm.abs() < 1e-5);
     let csv = std::fs::read_to_string(dir.path().join("tetrahedron-fabrication.csv")).unwrap();
@@ -491,5 +507,149 @@ fn drawing_dimensions_match_the_mesh() {
             extents.iter().any(|e| (e - n).abs() <= 0.1),
             "dimension {n} matches no extent of the mesh {extents:?}"
         );
+    }
+}
+
+/// A CSV row of the sheet: name, datum x, y, z, diameter.
+fn sheet_rows(csv: &str, kind: &str) -> Vec<(String, [f64; 3], f64)> {
+    let mut reader = csv::Reader::from_reader(csv.as_bytes());
+    let header = reader.headers().unwrap().clone();
+    let column = |name: &str| header.iter().position(|h| h == name).unwrap();
+    let (k, n, d) = (column("kind"), column("name"), column("diameter_mm"));
+    let datum = [
+        column("datum_x_mm"),
+        column("datum_y_mm"),
+        column("datum_z_mm"),
+    ];
+    reader
+        .records()
+        .map(|r| r.unwrap())
+        .filter(|r| &r[k] == kind)
+        .map(|r| {
+            (
+                r[n].to_string(),
+                datum.map(|c| r[c].parse::<f64>().unwrap()),
+                r[d].parse::<f64>().unwrap(),
+            )
+        })
+        .collect()
+}
+
+/// The ordinate labels of one datum axis in the views: (names, value).
+fn ordinate_labels(svg: &str, axis: &str) -> Vec<(Vec<String>, f64)> {
+    let marker = format!(r#"class="ordinate" data-datum="{axis}" data-mm=""#);
+    svg.split(&marker)
+        .skip(1)
+        .map(|rest| {
+            let value: f64 = rest.split('"').next().unwrap().parse().unwrap();
+            let text = rest.split_once('>').unwrap().1.split_once('<').unwrap().0;
+            let names = text.rsplit_once(' ').unwrap().0;
+            (names.split(',').map(str::to_string).collect(), value)
+        })
+        .collect()
+}
+
+/// The sheet and the drawing place every sphere and hole from the datum on
+/// the plate (its bed face and two side faces), and so does the mesh: the
+/// faces found in the STL and the sphere and hole centres fitted to its
+/// vertices agree with the sheet to 0.1 mm.
+#[test]
+fn datum_positions_match_the_mesh() {
+    let layout = Layout::load(&layouts_dir().join("biprism-search.json")).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let options = ExportOptions {
+        formats: vec![Format::Stl],
+        marker: MarkerOptions {
+            mount_holes: Some("M3x4".parse().unwrap()),
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    export(&layout, &options, dir.path()).unwrap();
+    let name = &layout.name;
+    let mut file = std::fs::File::open(dir.path().join(format!("{name}.stl"))).unwrap();
+    let stl = stl_io::read_stl(&mut file).unwrap();
+    let vertices: Vec<nalgebra::Vector3<f64>> = stl
+        .vertices
+        .iter()
+        .map(|v| nalgebra::Vector3::new(v[0] as f64, v[1] as f64, v[2] as f64))
+        .collect();
+    // Datum A at z = 0; B and C are the plate's side faces, the extremes of
+    // the flat band of the 4 mm plate's sides.
+    let lowest = vertices.iter().map(|v| v.z).fold(f64::INFINITY, f64::min);
+    assert!(lowest.abs() < 0.01, "{lowest}");
+    let band: Vec<&nalgebra::Vector3<f64>> = vertices
+        .iter()
+        .filter(|v| (1.5..=2.5).contains(&v.z))
+        .collect();
+    let face_b = band.iter().map(|v| v.x).fold(f64::INFINITY, f64::min);
+    let face_c = band.iter().map(|v| v.y).fold(f64::INFINITY, f64::min);
+    let origin = nalgebra::Vector3::new(face_b, face_c, 0.0);
+    let csv = std::fs::read_to_string(dir.path().join(format!("{name}-fabrication.csv"))).unwrap();
+    let svg = std::fs::read_to_string(dir.path().join(format!("{name}-views.svg"))).unwrap();
+    let labels = ["X", "Y", "Z"].map(|axis| ordinate_labels(&svg, axis));
+    let spheres = sheet_rows(&csv, "sphere");
+    assert_eq!(spheres.len(), layout.points.len());
+    for (sphere, datum, diameter) in &spheres {
+        let nominal = origin + nalgebra::Vector3::from(*datum);
+        let radius = 0.5 * diameter;
+        let surface: Vec<nalgebra::Vector3<f64>> = vertices
+            .iter()
+            .filter(|v| ((*v - nominal).norm() - radius).abs() < 0.1)
+            .copied()
+            .collect();
+        let fit = layout_opt::layout::fit_sphere(&surface)
+            .unwrap_or_else(|| panic!("{sphere}: no sphere near {nominal}"));
+        let error = fit.centre - nominal;
+        assert!(
+            error.amax() <= 0.1,
+            "{sphere}: the mesh's centre is {error} from the sheet's"
+        );
+        for (k, axis_labels) in labels.iter().enumerate() {
+            assert!(
+                axis_labels
+                    .iter()
+                    .any(|(names, v)| names.contains(sphere) && (v - datum[k]).abs() < 1e-3),
+                "{sphere}: no ordinate {} of {:.3} in the views",
+                ["X", "Y", "Z"][k],
+                datum[k]
+            );
+        }
+    }
+    let holes = sheet_rows(&csv, "hole");
+    assert_eq!(holes.len(), 4);
+    for (hole, datum, diameter) in &holes {
+        let centre = origin + nalgebra::Vector3::from(*datum);
+        let wall: Vec<&&nalgebra::Vector3<f64>> = band
+            .iter()
+            .filter(|v| {
+                let r = ((v.x - centre.x).powi(2) + (v.y - centre.y).powi(2)).sqrt();
+                (r - 0.5 * diameter).abs() < 0.1
+            })
+            .collect();
+        assert!(wall.len() >= 8, "{hole}: {} wall vertices", wall.len());
+        // Kåsa's algebraic circle fit: x² + y² + a·x + b·y + c = 0.
+        let mut normal = nalgebra::Matrix3::<f64>::zeros();
+        let mut rhs = nalgebra::Vector3::<f64>::zeros();
+        for v in &wall {
+            let row = nalgebra::Vector3::new(v.x, v.y, 1.0);
+            normal += row * row.transpose();
+            rhs -= row * (v.x * v.x + v.y * v.y);
+        }
+        let abc = normal.lu().solve(&rhs).unwrap();
+        let fitted = nalgebra::Vector2::new(-0.5 * abc.x, -0.5 * abc.y);
+        let error = fitted - centre.xy();
+        assert!(
+            error.amax() <= 0.1,
+            "{hole}: the mesh's hole is {error} from the sheet's"
+        );
+        for (k, axis_labels) in labels.iter().take(2).enumerate() {
+            assert!(
+                axis_labels
+                    .iter()
+                    .any(|(names, v)| names.contains(hole) && (v - datum[k]).abs() < 1e-3),
+                "{hole}: no ordinate in the views"
+            );
+        }
     }
 }

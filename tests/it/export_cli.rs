@@ -199,3 +199,36 @@ fn an_obj_point_set_is_imported() {
         "{sheet}"
     );
 }
+
+#[test]
+fn the_view_cone_follows_the_tilts_given() {
+    let dir = tempfile::tempdir().unwrap();
+    let export = |extra: &[&str]| {
+        let mut command = layout_opt();
+        command
+            .args([
+                "export",
+                &shipped("tetrahedron.json"),
+                "--format",
+                "stl",
+                "--out",
+            ])
+            .arg(dir.path())
+            .args(extra);
+        command.assert()
+    };
+    export(&["--tilt", "-25..25:5"])
+        .success()
+        .stdout(predicate::str::contains("view cone ±25°"));
+    export(&[])
+        .success()
+        .stdout(predicate::str::contains("view cone ±20°"));
+    export(&["--tilt", "-90..90:10"])
+        .failure()
+        .stderr(predicate::str::contains(
+            "--tilt and --pan reach 90.0° from the main view; the view cone must stay below 80°",
+        ));
+    export(&["--tilt", "10", "--view-cone", "5"])
+        .failure()
+        .stderr(predicate::str::contains("cannot be used with"));
+}

@@ -26,6 +26,8 @@ mod cli_solve;
 #[cfg(feature = "cli")]
 mod export_cli;
 #[cfg(feature = "cli")]
+mod fabrication_cli;
+#[cfg(feature = "cli")]
 mod reproduce;
 #[cfg(feature = "cli")]
 mod search;
