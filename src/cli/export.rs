@@ -21,9 +21,10 @@ pub struct ExportArgs {
     /// per sphere). Without it, the paper's biprism.
     #[arg(value_name = "LAYOUT")]
     layout: Option<PathBuf>,
-    /// Formats to write, comma-separated: stl (mm, Z up), obj (mm, marker
-    /// frame), gltf (.gltf + .bin, m, Y up), glb (m, Y up).
-    #[arg(long, value_delimiter = ',', default_value = "stl,obj,gltf,glb")]
+    /// Formats to write, comma-separated: stl (mm, Z up), 3mf (mm, Z up,
+    /// for slicers), obj (mm, marker frame), gltf (.gltf + .bin, m, Y up),
+    /// glb (m, Y up).
+    #[arg(long, value_delimiter = ',', default_value = "stl,3mf,obj,gltf,glb")]
     format: Vec<Format>,
     /// Output directory (created if missing).
     #[arg(long, value_name = "DIR", default_value = "build")]

@@ -171,7 +171,7 @@ pub struct SearchArgs {
     #[arg(long, value_name = "DIR")]
     checkpoint_dir: Option<PathBuf>,
     /// Also export the winner as printable meshes in these formats
-    /// (stl, obj, gltf, glb; comma-separated), with `export`'s defaults.
+    /// (stl, 3mf, obj, gltf, glb; comma-separated), with `export`'s defaults.
     #[arg(long, value_delimiter = ',', value_name = "FORMATS")]
     export: Vec<Format>,
     /// Directory of the exported meshes. Default: build/<name>/.

@@ -55,6 +55,7 @@ pub(crate) mod repair;
 pub(crate) mod sdf;
 pub(crate) mod sheet;
 pub(crate) mod stl;
+pub(crate) mod threemf;
 pub mod trimesh;
 
 pub use geometry::{Axis, GeometryError, Marker, MarkerOptions, MountHoles};
@@ -103,10 +104,10 @@ pub enum ExportError {
     #[error("the mesh is not a watertight solid ({0}); try a finer --resolution")]
     NotWatertight(String),
     /// A format name is unknown.
-    #[error("unknown format \"{0}\": expected stl, obj, gltf or glb")]
+    #[error("unknown format \"{0}\": expected stl, 3mf, obj, gltf or glb")]
     UnknownFormat(String),
     /// No format was asked for.
-    #[error("no output format given; expected stl, obj, gltf or glb")]
+    #[error("no output format given; expected stl, 3mf, obj, gltf or glb")]
     NoFormat,
     /// A file could not be written.
     #[error("cannot write {path}: {source}")]
@@ -147,11 +148,20 @@ pub enum Format {
     Gltf,
     /// Binary glTF 2.0, metres, Y up.
     Glb,
+    /// 3MF (zipped XML), mm, print frame (Z up), for slicers.
+    #[serde(rename = "3mf")]
+    ThreeMf,
 }
 
 impl Format {
     /// Every format, in the order files are written.
-    pub const ALL: &'static [Format] = &[Format::Stl, Format::Obj, Format::Gltf, Format::Glb];
+    pub const ALL: &'static [Format] = &[
+        Format::Stl,
+        Format::ThreeMf,
+        Format::Obj,
+        Format::Gltf,
+        Format::Glb,
+    ];
 
     /// Its CLI name and file extension.
     pub fn name(self) -> &'static str {
@@ -160,6 +170,7 @@ impl Format {
             Format::Obj => "obj",
             Format::Gltf => "gltf",
             Format::Glb => "glb",
+            Format::ThreeMf => "3mf",
         }
     }
 
@@ -170,6 +181,7 @@ impl Format {
             Format::Obj => &obj::ObjWriter,
             Format::Gltf => &gltf::GltfWriter { binary: false },
             Format::Glb => &gltf::GltfWriter { binary: true },
+            Format::ThreeMf => &threemf::ThreeMfWriter,
         }
     }
 }

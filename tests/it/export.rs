@@ -101,6 +101,7 @@ fn export_and_check(layout: &Layout, options: &ExportOptions, label: &str) -> Fi
         let path = file_of(dir.path(), &name, format);
         let mesh = match format {
             Format::Stl => read_stl(&path, &marker),
+            Format::ThreeMf => read_3mf(&path, &marker),
             Format::Obj => read_obj(&path),
             Format::Gltf | Format::Glb => read_gltf(&path, &marker),
         };

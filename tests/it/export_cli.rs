@@ -137,7 +137,7 @@ fn an_unknown_format_is_refused() {
         .assert()
         .failure()
         .stderr(predicate::str::contains(
-            "unknown format \"ply\": expected stl, obj, gltf or glb",
+            "unknown format \"ply\": expected stl, 3mf, obj, gltf or glb",
         ));
 }
 

@@ -33,6 +33,69 @@ pub fn read_stl(path: &Path, marker: &Marker) -> ReadBack {
     }
 }
 
+/// 3MF (print frame, mm) back to the marker frame: the package's parts
+/// are read with the `zip` crate and the model's XML is scanned here,
+/// independently of the writer. Checks the package structure on the way.
+pub fn read_3mf(path: &Path, marker: &Marker) -> ReadBack {
+    use std::io::Read;
+    let file = std::fs::File::open(path).unwrap();
+    let mut archive = zip::ZipArchive::new(file).unwrap();
+    let mut part = |name: &str| {
+        let mut text = String::new();
+        archive
+            .by_name(name)
+            .unwrap_or_else(|e| panic!("{}: no part {name}: {e}", path.display()))
+            .read_to_string(&mut text)
+            .unwrap();
+        text
+    };
+    let types = part("[Content_Types].xml");
+    assert!(types.contains("application/vnd.ms-package.3dmanufacturing-3dmodel+xml"));
+    let rels = part("_rels/.rels");
+    assert!(rels.contains("Target=\"/3D/3dmodel.model\""));
+    assert!(rels.contains("http://schemas.microsoft.com/3dmanufacturing/2013/01/3dmodel"));
+    let model = part("3D/3dmodel.model");
+    assert!(model.contains("unit=\"millimeter\""), "3MF in mm");
+    assert!(
+        model.contains(&format!("name=\"{}\"", marker.name)),
+        "the object is named after the part"
+    );
+    assert_eq!(model.matches("<object ").count(), 1, "one object");
+    assert_eq!(model.matches("<item ").count(), 1, "one build item");
+    let attribute = |element: &str, key: &str| -> f64 {
+        let start = element
+            .find(&format!(" {key}=\""))
+            .unwrap_or_else(|| panic!("no {key} in {element}"))
+            + key.len()
+            + 3;
+        let end = start + element[start..].find('"').unwrap();
+        element[start..end].parse().unwrap()
+    };
+    // Each element's attributes, with the space before the first one.
+    let elements = |tag: &str| -> Vec<String> {
+        model
+            .split(&format!("<{tag} "))
+            .skip(1)
+            .map(|rest| format!(" {}", &rest[..rest.find("/>").unwrap()]))
+            .collect()
+    };
+    let (rotation, shift) = marker.print_transform();
+    let back = rotation.transpose();
+    ReadBack {
+        positions: elements("vertex")
+            .iter()
+            .map(|v| {
+                let p = Vector3::new(attribute(v, "x"), attribute(v, "y"), attribute(v, "z"));
+                back * (p - shift)
+            })
+            .collect(),
+        triangles: elements("triangle")
+            .iter()
+            .map(|t| ["v1", "v2", "v3"].map(|k| attribute(t, k) as usize))
+            .collect(),
+    }
+}
+
 /// OBJ (marker frame, mm).
 pub fn read_obj(path: &Path) -> ReadBack {
     let (models, _) = tobj::load_obj(
