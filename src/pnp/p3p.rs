@@ -79,6 +79,9 @@ const ROUNDING_TOLERANCE: f64 = 1e-12;
 /// squares the relative error of an already close root. More are allowed
 /// for far-field roots that start further off; converged roots stop early.
 pub const DEPTH_REFINEMENT_STEPS: usize = 15;
+/// `γ` needs no polishing once the eigenvalue it zeroes is below this
+/// fraction of the smaller non-zero one.
+const SETTLED_ZERO: f64 = 1e-12;
 /// Newton steps polishing `γ` (see [`plane_pair`]).
 const GAMMA_POLISH_STEPS: usize = 4;
 /// Two depth triples this close (relative) are the same root.
@@ -352,6 +355,14 @@ fn plane_pair(
     if let Some(mut g) = gamma {
         for _ in 0..GAMMA_POLISH_STEPS {
             let k = nearest_zero(&eigen.eigenvalues);
+            // Done when the "zero" is negligible beside the smaller non-zero
+            // eigenvalue (the usual case: no extra decomposition).
+            let smaller_nonzero = eigen.eigenvalues[(k + 1) % 3]
+                .abs()
+                .min(eigen.eigenvalues[(k + 2) % 3].abs());
+            if eigen.eigenvalues[k].abs() <= SETTLED_ZERO * smaller_nonzero {
+                break;
+            }
             let e = eigen.eigenvectors.column(k).into_owned();
             let slope = e.dot(&(d2 * e));
             if slope == 0.0 || !slope.is_finite() {

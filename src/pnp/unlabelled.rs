@@ -348,6 +348,13 @@ struct Search<'a> {
     projections: Vec<Option<Vector2<f64>>>,
     labels: Vec<usize>,
     matched_object: Vec<Vector3<f64>>,
+    /// Every labelling refined so far (`image.len()` labels each) and the
+    /// screening cost of the hypothesis it was refined from.
+    refined: Vec<usize>,
+    refined_costs: Vec<f64>,
+    /// Screening cost (sum of squared blob distances) of the current
+    /// hypothesis.
+    screening_cost: f64,
     best: Option<Labelling>,
     runner_up: Option<Labelling>,
     hypotheses: usize,
@@ -367,6 +374,9 @@ impl<'a> Search<'a> {
             projections: vec![None; object.len()],
             labels: vec![0; image.len()],
             matched_object: Vec::with_capacity(image.len()),
+            refined: Vec::new(),
+            refined_costs: Vec::new(),
+            screening_cost: 0.0,
             best: None,
             runner_up: None,
             hypotheses: 0,
@@ -418,6 +428,7 @@ impl<'a> Search<'a> {
                 (c.z > 0.0).then(|| Vector2::new(c.x / c.z, c.y / c.z))
             };
         }
+        self.screening_cost = 0.0;
         for (i, m) in self.image.iter().enumerate() {
             if triple.contains(&i) {
                 continue;
@@ -436,6 +447,7 @@ impl<'a> Search<'a> {
             }
             match nearest {
                 Some((distance_sq, k)) if distance_sq <= self.screening_gate_sq => {
+                    self.screening_cost += distance_sq;
                     self.labels[i] = k;
                     used |= 1 << k;
                 }
@@ -448,6 +460,23 @@ impl<'a> Search<'a> {
     /// Refines the current labelling from `start` and ranks it if consistent.
     fn verify(&mut self, start: &Pose) {
         let count = self.image.len();
+        // The same labels from another hypothesis are refined again only
+        // if that hypothesis fits the blobs better: the first may have
+        // been a poorer P3P root whose refinement stopped in a local
+        // minimum.
+        if let Some(index) = self
+            .refined
+            .chunks_exact(count)
+            .position(|seen| seen == self.labels.as_slice())
+        {
+            if self.screening_cost >= self.refined_costs[index] {
+                return;
+            }
+            self.refined_costs[index] = self.screening_cost;
+        } else {
+            self.refined.extend_from_slice(&self.labels);
+            self.refined_costs.push(self.screening_cost);
+        }
         self.matched_object.clear();
         self.matched_object
             .extend(self.labels.iter().map(|&k| self.object[k]));
