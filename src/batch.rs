@@ -15,6 +15,14 @@
 //! `seconds` times the solver call alone and `start` names the solver whose
 //! pose a refining method (`ml`) started from.
 //!
+//! Unlabelled: [`Batch::solve_unlabelled`] (`solve --unlabelled`) reads
+//! each problem's image points as an unordered set of blobs (up to one
+//! fewer than the object points), labels them with
+//! [`crate::pnp::unlabelled::identify`] and fits the final pose with the
+//! chosen solver on the found labels; results add `labels`, `ambiguity`
+//! and `runner_up_rms_px` (the last two `null` when no other labelling is
+//! consistent).
+//!
 //! Spheres: with a sphere diameter (`solve --sphere-diameter D`, or
 //! `"sphere_diameter"` on a problem, which takes precedence) the image points
 //! are the centres of the spheres' silhouette ellipses, and `ml` fits the
