@@ -667,6 +667,84 @@ mod tests {
         assert!(matches!(&bad.results[2], ProblemResult::Solved { .. }));
     }
 
+    /// Unlabelled with spheres: shuffled noise-free ellipse centres of 10 mm
+    /// spheres on an asymmetric marker (one blob missing in the second
+    /// problem) are labelled, and the sphere-model fit is exact; a solver
+    /// other than ml is refused.
+    #[test]
+    fn unlabelled_sphere_blobs_are_labelled_and_fitted_exactly() {
+        use crate::pose::rotation_error_deg;
+        use nalgebra::Rotation3;
+        let camera = Camera::paper_with_distortion();
+        let object = [
+            Vector3::new(0.0, 0.0, 0.0),
+            Vector3::new(60.0, 5.0, 0.0),
+            Vector3::new(-10.0, 45.0, 10.0),
+            Vector3::new(20.0, -30.0, 40.0),
+            Vector3::new(-35.0, -15.0, -25.0),
+            Vector3::new(30.0, 35.0, -30.0),
+        ];
+        let truth = Pose::new(
+            Rotation3::from_euler_angles(0.4, 0.3, 0.1),
+            Vector3::new(60.0, -40.0, 250.0),
+        );
+        let orders: [&[usize]; 2] = [&[4, 1, 5, 0, 3, 2], &[2, 5, 0, 4, 1]];
+        let problems: Vec<serde_json::Value> = orders
+            .iter()
+            .map(|order| {
+                let pixels: Vec<[f64; 2]> = order
+                    .iter()
+                    .map(|&k| {
+                        let m =
+                            ellipse_centre_normalised(&truth.transform(&object[k]), 5.0).unwrap();
+                        let px = camera.normalised_to_pixel(&m);
+                        [px.x, px.y]
+                    })
+                    .collect();
+                serde_json::json!({
+                    "object_points": object.iter().map(|p| [p.x, p.y, p.z]).collect::<Vec<_>>(),
+                    "image_points": pixels,
+                })
+            })
+            .collect();
+        let text = serde_json::json!({
+            "camera": {"fx": camera.fx(), "fy": camera.fy(), "cx": camera.cx(), "cy": camera.cy(),
+                       "distortion": camera.distortion()},
+            "problems": problems,
+        })
+        .to_string();
+        let batch = Batch::from_json(&text).unwrap();
+        let output =
+            batch.solve_unlabelled(Solver::Ml, Some(10.0), UnlabelledConfig::default(), |_| {});
+        for (result, order) in output.results.iter().zip(orders) {
+            match result {
+                ProblemResult::Solved {
+                    rotation,
+                    labels,
+                    reprojection_rms_px,
+                    ..
+                } => {
+                    assert_eq!(labels.as_deref(), Some(order));
+                    assert!(*reprojection_rms_px < 1e-6, "{reprojection_rms_px}");
+                    let r = nalgebra::Matrix3::from_fn(|i, j| rotation[i][j]);
+                    let error =
+                        rotation_error_deg(&truth.rotation, &Rotation3::from_matrix_unchecked(r));
+                    assert!(error < 1e-6, "{error}°");
+                }
+                ProblemResult::Failed { error, .. } => panic!("{error}"),
+            }
+        }
+        let refused = batch.solve_unlabelled(
+            Solver::Sqpnp,
+            Some(10.0),
+            UnlabelledConfig::default(),
+            |_| {},
+        );
+        assert!(
+            matches!(&refused.results[0], ProblemResult::Failed { error, .. } if error.contains("needs the ml solver"))
+        );
+    }
+
     #[test]
     fn malformed_files_are_errors() {
         assert!(Batch::from_json("not json").is_err());
