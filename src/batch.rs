@@ -15,6 +15,14 @@
 //! `seconds` times the solver call alone and `start` names the solver whose
 //! pose a refining method (`ml`) started from.
 //!
+//! Unlabelled: [`Batch::solve_unlabelled`] (`solve --unlabelled`) reads
+//! each problem's image points as an unordered set of blobs (up to one
+//! fewer than the object points), labels them with
+//! [`crate::pnp::unlabelled::identify`] and fits the final pose with the
+//! chosen solver on the found labels; results add `labels`, `ambiguity`
+//! and `runner_up_rms_px` (the last two `null` when no other labelling is
+//! consistent).
+//!
 //! Spheres: with a sphere diameter (`solve --sphere-diameter D`, or
 //! `"sphere_diameter"` on a problem, which takes precedence) the image points
 //! are the centres of the spheres' silhouette ellipses, and `ml` fits the
@@ -24,6 +32,7 @@
 //! another solver gets an `error` entry rather than a silently biased pose.
 
 use crate::camera::{Camera, CameraSpec};
+use crate::pnp::unlabelled::{identify, UnlabelledOptions};
 use crate::pnp::{ml_sphere, Solver};
 use crate::pose::{reprojection_rms_px, Pose};
 use crate::sphere_image::ellipse_centre_normalised;
@@ -93,6 +102,27 @@ pub enum ProblemResult {
         /// The solver whose pose this one refines, if any (`ml`: `sqpnp`).
         #[serde(default, skip_serializing_if = "Option::is_none")]
         start: Option<String>,
+        /// Unlabelled solves only: for each image point, the index of its
+        /// object point.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        labels: Option<Vec<usize>>,
+        /// Unlabelled solves only: the refined reprojection RMS of the best
+        /// other consistent labelling over that of the chosen one; `null`
+        /// when no other labelling is consistent.
+        #[serde(
+            default,
+            skip_serializing_if = "Option::is_none",
+            deserialize_with = "present"
+        )]
+        ambiguity: Option<Option<f64>>,
+        /// Unlabelled solves only: the runner-up labelling's reprojection
+        /// RMS, px; `null` when no other labelling is consistent.
+        #[serde(
+            default,
+            skip_serializing_if = "Option::is_none",
+            deserialize_with = "present"
+        )]
+        runner_up_rms_px: Option<Option<f64>>,
     },
     /// A problem that could not be solved, and why.
     Failed {
@@ -101,6 +131,37 @@ pub enum ProblemResult {
         /// What was wrong.
         error: String,
     },
+}
+
+/// Reads a field that may be `null`: present means `Some`, so `null`
+/// stays distinct from an absent field.
+fn present<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Option<Option<f64>>, D::Error> {
+    Option::<f64>::deserialize(d).map(Some)
+}
+
+/// How `solve --unlabelled` identifies the blobs (module docs).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct UnlabelledConfig {
+    /// Per-blob reprojection gate, px (converted to normalised units with
+    /// the smaller focal length).
+    pub gate_px: f64,
+    /// How many object points may have no blob.
+    pub max_missing: usize,
+}
+
+/// Default gate of `solve --unlabelled`, px: 5σ at the σ = 0.5 px that
+/// blob detectors reach on our spheres, so a correct blob falls outside it
+/// with probability e^(−12.5) ≈ 4e-6, while a wrong labelling usually
+/// misses by far more (tens of px on the near-field views).
+pub const DEFAULT_GATE_PX: f64 = 2.5;
+
+impl Default for UnlabelledConfig {
+    fn default() -> Self {
+        Self {
+            gate_px: DEFAULT_GATE_PX,
+            max_missing: 1,
+        }
+    }
 }
 
 /// The whole output document.
@@ -150,6 +211,32 @@ impl Batch {
         &self,
         solver: Solver,
         sphere_diameter_mm: Option<f64>,
+        on_progress: impl FnMut(usize),
+    ) -> BatchOutput {
+        self.solve_problems(solver, sphere_diameter_mm, None, on_progress)
+    }
+
+    /// Unlabelled solves: each problem's image points are an unordered set
+    /// of blobs (up to `config.max_missing` fewer than the object points).
+    /// The labelling comes from [`crate::pnp::unlabelled::identify`]; the
+    /// final pose is `solver` on the found correspondences (with a sphere
+    /// diameter, `ml`'s sphere-image fit). Each result adds `labels`,
+    /// `ambiguity` and `runner_up_rms_px`.
+    pub fn solve_unlabelled(
+        &self,
+        solver: Solver,
+        sphere_diameter_mm: Option<f64>,
+        config: UnlabelledConfig,
+        on_progress: impl FnMut(usize),
+    ) -> BatchOutput {
+        self.solve_problems(solver, sphere_diameter_mm, Some(config), on_progress)
+    }
+
+    fn solve_problems(
+        &self,
+        solver: Solver,
+        sphere_diameter_mm: Option<f64>,
+        unlabelled: Option<UnlabelledConfig>,
         mut on_progress: impl FnMut(usize),
     ) -> BatchOutput {
         let results = self
@@ -164,6 +251,7 @@ impl Batch {
                         id,
                         problem,
                         problem.sphere_diameter.or(sphere_diameter_mm),
+                        unlabelled,
                     ),
                     Err(error) => ProblemResult::Failed {
                         id: id.clone(),
@@ -187,6 +275,7 @@ fn solve_one(
     id: &str,
     problem: &ProblemInput,
     sphere_diameter_mm: Option<f64>,
+    unlabelled: Option<UnlabelledConfig>,
 ) -> ProblemResult {
     let failed = |error: String| ProblemResult::Failed {
         id: id.to_string(),
@@ -211,6 +300,18 @@ fn solve_one(
             Ok(m) => normalised.push(m),
             Err(e) => return failed(format!("image point {index}: {e}")),
         }
+    }
+    if let Some(config) = unlabelled {
+        return solve_one_unlabelled(
+            camera,
+            solver,
+            id,
+            &object,
+            &pixels,
+            &normalised,
+            sphere_diameter_mm,
+            config,
+        );
     }
     if let Some(diameter_mm) = sphere_diameter_mm {
         if !(diameter_mm > 0.0 && diameter_mm.is_finite()) {
@@ -253,6 +354,90 @@ fn solve_one(
     }
 }
 
+/// One unlabelled problem: identify, then the final fit on the labels.
+#[allow(clippy::too_many_arguments)]
+fn solve_one_unlabelled(
+    camera: &Camera,
+    solver: Solver,
+    id: &str,
+    object: &[Vector3<f64>],
+    pixels: &[Vector2<f64>],
+    normalised: &[Vector2<f64>],
+    sphere_diameter_mm: Option<f64>,
+    config: UnlabelledConfig,
+) -> ProblemResult {
+    let failed = |error: String| ProblemResult::Failed {
+        id: id.to_string(),
+        error,
+    };
+    if !(config.gate_px > 0.0 && config.gate_px.is_finite()) {
+        return failed(format!(
+            "the gate must be a positive number of px, got {}",
+            config.gate_px
+        ));
+    }
+    if let Some(diameter_mm) = sphere_diameter_mm {
+        if !(diameter_mm > 0.0 && diameter_mm.is_finite()) {
+            return failed(format!(
+                "sphere_diameter must be a positive number of mm, got {diameter_mm}"
+            ));
+        }
+        if solver != Solver::Ml {
+            return failed(format!(
+                "a sphere diameter needs the ml solver, which fits the sphere-image model; {} fits projected centres and would be biased",
+                solver.name()
+            ));
+        }
+    }
+    let options = UnlabelledOptions::with_gate_px(
+        config.gate_px,
+        camera.fx().min(camera.fy()),
+        config.max_missing,
+    );
+    let start = Instant::now();
+    let found = match identify(object, normalised, &options) {
+        Ok(found) => found,
+        Err(e) => return failed(e.to_string()),
+    };
+    let matched: Vec<Vector3<f64>> = found.best.labels.iter().map(|&k| object[k]).collect();
+    let radius_mm = sphere_diameter_mm.map(|d| 0.5 * d);
+    let outcome = match radius_mm {
+        Some(radius_mm) => {
+            ml_sphere::solve(&matched, normalised, radius_mm).map_err(|e| e.to_string())
+        }
+        None => solver
+            .solve_best(&matched, normalised)
+            .map_err(|e| e.to_string()),
+    };
+    let seconds = start.elapsed().as_secs_f64();
+    let pose = match outcome {
+        Ok(pose) => pose,
+        Err(e) => return failed(format!("labels found, but the final fit failed: {e}")),
+    };
+    let mut result = solved(id, camera, solver, &pose, &matched, pixels, seconds);
+    let runner_up_rms_px = found.runner_up.as_ref().map(|runner_up| {
+        let matched: Vec<Vector3<f64>> = runner_up.labels.iter().map(|&k| object[k]).collect();
+        reprojection_rms_px(camera, &runner_up.pose, &matched, pixels)
+    });
+    if let ProblemResult::Solved {
+        reprojection_rms_px,
+        labels,
+        ambiguity,
+        runner_up_rms_px: runner_up_field,
+        ..
+    } = &mut result
+    {
+        if let Some(radius_mm) = radius_mm {
+            *reprojection_rms_px =
+                ellipse_centre_rms_px(camera, &pose, &matched, pixels, radius_mm);
+        }
+        *labels = Some(found.best.labels.clone());
+        *ambiguity = Some(found.ambiguity());
+        *runner_up_field = Some(runner_up_rms_px);
+    }
+    result
+}
+
 /// RMS distance, px, between `pixels` and the ellipse centres of spheres of
 /// radius `radius_mm` at `pose` (distortion included); infinite when a
 /// sphere is not wholly in front of the camera.
@@ -290,6 +475,9 @@ fn solved(
         reprojection_rms_px: reprojection_rms_px(camera, pose, object, pixels),
         seconds,
         start: solver.start().map(|start| start.name().to_string()),
+        labels: None,
+        ambiguity: None,
+        runner_up_rms_px: None,
     }
 }
 
@@ -477,6 +665,84 @@ mod tests {
         );
         // The problem's own diameter wins over the default.
         assert!(matches!(&bad.results[2], ProblemResult::Solved { .. }));
+    }
+
+    /// Unlabelled with spheres: shuffled noise-free ellipse centres of 10 mm
+    /// spheres on an asymmetric marker (one blob missing in the second
+    /// problem) are labelled, and the sphere-model fit is exact; a solver
+    /// other than ml is refused.
+    #[test]
+    fn unlabelled_sphere_blobs_are_labelled_and_fitted_exactly() {
+        use crate::pose::rotation_error_deg;
+        use nalgebra::Rotation3;
+        let camera = Camera::paper_with_distortion();
+        let object = [
+            Vector3::new(0.0, 0.0, 0.0),
+            Vector3::new(60.0, 5.0, 0.0),
+            Vector3::new(-10.0, 45.0, 10.0),
+            Vector3::new(20.0, -30.0, 40.0),
+            Vector3::new(-35.0, -15.0, -25.0),
+            Vector3::new(30.0, 35.0, -30.0),
+        ];
+        let truth = Pose::new(
+            Rotation3::from_euler_angles(0.4, 0.3, 0.1),
+            Vector3::new(60.0, -40.0, 250.0),
+        );
+        let orders: [&[usize]; 2] = [&[4, 1, 5, 0, 3, 2], &[2, 5, 0, 4, 1]];
+        let problems: Vec<serde_json::Value> = orders
+            .iter()
+            .map(|order| {
+                let pixels: Vec<[f64; 2]> = order
+                    .iter()
+                    .map(|&k| {
+                        let m =
+                            ellipse_centre_normalised(&truth.transform(&object[k]), 5.0).unwrap();
+                        let px = camera.normalised_to_pixel(&m);
+                        [px.x, px.y]
+                    })
+                    .collect();
+                serde_json::json!({
+                    "object_points": object.iter().map(|p| [p.x, p.y, p.z]).collect::<Vec<_>>(),
+                    "image_points": pixels,
+                })
+            })
+            .collect();
+        let text = serde_json::json!({
+            "camera": {"fx": camera.fx(), "fy": camera.fy(), "cx": camera.cx(), "cy": camera.cy(),
+                       "distortion": camera.distortion()},
+            "problems": problems,
+        })
+        .to_string();
+        let batch = Batch::from_json(&text).unwrap();
+        let output =
+            batch.solve_unlabelled(Solver::Ml, Some(10.0), UnlabelledConfig::default(), |_| {});
+        for (result, order) in output.results.iter().zip(orders) {
+            match result {
+                ProblemResult::Solved {
+                    rotation,
+                    labels,
+                    reprojection_rms_px,
+                    ..
+                } => {
+                    assert_eq!(labels.as_deref(), Some(order));
+                    assert!(*reprojection_rms_px < 1e-6, "{reprojection_rms_px}");
+                    let r = nalgebra::Matrix3::from_fn(|i, j| rotation[i][j]);
+                    let error =
+                        rotation_error_deg(&truth.rotation, &Rotation3::from_matrix_unchecked(r));
+                    assert!(error < 1e-6, "{error}°");
+                }
+                ProblemResult::Failed { error, .. } => panic!("{error}"),
+            }
+        }
+        let refused = batch.solve_unlabelled(
+            Solver::Sqpnp,
+            Some(10.0),
+            UnlabelledConfig::default(),
+            |_| {},
+        );
+        assert!(
+            matches!(&refused.results[0], ProblemResult::Failed { error, .. } if error.contains("needs the ml solver"))
+        );
     }
 
     #[test]

@@ -3,7 +3,7 @@
 use super::{progress, GlobalOptions};
 use anyhow::Context;
 use clap::Args;
-use layout_opt::batch::{demo_batch_json, Batch, ProblemResult};
+use layout_opt::batch::{demo_batch_json, Batch, ProblemResult, UnlabelledConfig, DEFAULT_GATE_PX};
 use layout_opt::pnp::Solver;
 use std::path::PathBuf;
 
@@ -14,9 +14,10 @@ pub struct SolveArgs {
     /// batch (the paper's biprism at 200..1000 mm, σ 0.5 px, from --seed).
     #[arg(long, value_name = "FILE")]
     problems: Option<PathBuf>,
-    /// Solver, by stable name (see --list).
-    #[arg(long, default_value = "parallel-weighted")]
-    solver: Solver,
+    /// Solver, by stable name (see --list). Default: parallel-weighted; with
+    /// --unlabelled, ml (the final pose is this solver on the found labels).
+    #[arg(long)]
+    solver: Option<Solver>,
     /// Write the results here instead of stdout.
     #[arg(long, value_name = "FILE")]
     output: Option<PathBuf>,
@@ -29,6 +30,17 @@ pub struct SolveArgs {
     /// Only `ml` accepts it; other solvers give each such problem an error.
     #[arg(long, value_name = "MM")]
     sphere_diameter: Option<f64>,
+    /// Each problem's image_points are an unordered set of blobs (at most one
+    /// fewer than the object points): find which blob is which object point
+    /// from the geometry alone (P3P hypotheses, verified by reprojection).
+    /// Adds "labels", "ambiguity" and "runner_up_rms_px" to each result.
+    #[arg(long)]
+    unlabelled: bool,
+    /// With --unlabelled: a labelling is consistent when every blob lies
+    /// within this many px of its reprojection. The default, 2.5 px, is 5σ
+    /// at σ = 0.5 px; raise it for noisier blobs.
+    #[arg(long, value_name = "PX", requires = "unlabelled", default_value_t = DEFAULT_GATE_PX)]
+    gate_px: f64,
 }
 
 /// Noise of the built-in demo batch, px.
@@ -55,22 +67,39 @@ pub fn run(args: SolveArgs, global: &GlobalOptions) -> anyhow::Result<()> {
             ),
         ),
     };
+    let solver = args.solver.unwrap_or(if args.unlabelled {
+        Solver::Ml
+    } else {
+        Solver::ParallelWeighted
+    });
+    anyhow::ensure!(
+        args.gate_px > 0.0 && args.gate_px.is_finite(),
+        "--gate-px must be a positive number of px, got {}",
+        args.gate_px
+    );
     if let Some(diameter) = args.sphere_diameter {
         anyhow::ensure!(
             diameter > 0.0 && diameter.is_finite(),
             "--sphere-diameter must be a positive number of mm, got {diameter}"
         );
         anyhow::ensure!(
-            args.solver == Solver::Ml,
+            solver == Solver::Ml,
             "--sphere-diameter needs --solver ml (the solver that fits the sphere-image model); {} fits projected centres",
-            args.solver
+            solver
         );
     }
     let batch = Batch::from_json(&text).with_context(|| format!("in {source}"))?;
     let bar = progress::bar(batch.problems.len() as u64, "solving", global.quiet);
-    let output = batch.solve_with_spheres(args.solver, args.sphere_diameter, |done| {
-        bar.set_position(done as u64)
-    });
+    let on_progress = |done: usize| bar.set_position(done as u64);
+    let output = if args.unlabelled {
+        let config = UnlabelledConfig {
+            gate_px: args.gate_px,
+            ..UnlabelledConfig::default()
+        };
+        batch.solve_unlabelled(solver, args.sphere_diameter, config, on_progress)
+    } else {
+        batch.solve_with_spheres(solver, args.sphere_diameter, on_progress)
+    };
     bar.finish_and_clear();
     let json = serde_json::to_string_pretty(&output)?;
 
@@ -89,8 +118,9 @@ pub fn run(args: SolveArgs, global: &GlobalOptions) -> anyhow::Result<()> {
         .map(|s| format!("; median {:.2} µs per solve", s * 1e6))
         .unwrap_or_default();
     let summary = format!(
-        "{}: solved {} of {} problems from {source}{median}{}",
-        args.solver,
+        "{}{}: solved {} of {} problems from {source}{median}{}",
+        solver,
+        if args.unlabelled { " (unlabelled)" } else { "" },
         seconds.len(),
         output.results.len(),
         if failed > 0 {

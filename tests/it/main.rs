@@ -18,6 +18,7 @@ mod noisy;
 mod plots;
 mod sphere_image;
 mod sqpnp_crosscheck;
+mod unlabelled;
 
 #[cfg(feature = "cli")]
 mod cli_consistency;
