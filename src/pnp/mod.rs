@@ -58,7 +58,7 @@ pub mod sqpnp;
 pub mod three_cubics;
 
 /// Candidate poses returned by a solver. Six fit inline, so the common
-/// solvers allocate nothing (EPnP returns five closed forms; a mirror
+/// solvers allocate nothing (EPnP returns four or five closed forms; a mirror
 /// candidate, rare, may spill).
 pub type Candidates = SmallVec<[Pose; 6]>;
 
