@@ -56,8 +56,6 @@ pub struct EpnpSystem {
     /// The fourth-smallest eigenvalue of `MᵀM` over the mean of its eight
     /// largest ([`EpnpSystem::null_space_flatness`]).
     null_space_flatness: f64,
-    /// The distinct entries of `MᵀM`, for [`EpnpSystem::residual_ratio`].
-    moments: NormalMoments,
     /// Its smallest eigenvalue: the least residual `xᵀMᵀMx / ‖x‖²` any
     /// control points reach.
     smallest_eigenvalue: f64,
@@ -93,6 +91,15 @@ pub fn principal_control_points(object: &[Vector3<f64>]) -> [Vector3<f64>; 4] {
     control
 }
 
+/// The distinct entries of `MᵀM`, for unrefined EPnP's test of whether the
+/// linearised closed forms fit the image ([`EpnpSystem::residual_ratio`]).
+/// Kept apart from [`EpnpSystem`] so that the solvers that never ask
+/// (EPnP+GN, IEPnP, the paper's family) do not carry it.
+#[derive(Debug, Clone)]
+pub struct FitTest {
+    moments: NormalMoments,
+}
+
 impl EpnpSystem {
     /// Builds the system for `object`/`image` with the given control points.
     pub fn new(
@@ -100,6 +107,16 @@ impl EpnpSystem {
         object: &[Vector3<f64>],
         image: &[Vector2<f64>],
     ) -> Result<Self, PnpError> {
+        Self::with_fit_test(control_world, object, image).map(|(system, _)| system)
+    }
+
+    /// [`EpnpSystem::new`], and the entries of `MᵀM` that
+    /// [`EpnpSystem::relinearises`] reads.
+    pub fn with_fit_test(
+        control_world: [Vector3<f64>; 4],
+        object: &[Vector3<f64>],
+        image: &[Vector2<f64>],
+    ) -> Result<(Self, FitTest), PnpError> {
         let to_barycentric = barycentric_map(&control_world)?;
         let sums = accumulate_point_sums(&control_world[0], &to_barycentric, object, image);
         let mut system = Self {
@@ -112,7 +129,6 @@ impl EpnpSystem {
             alpha_object_covariance: sums.alpha_object_covariance,
             object_centroid: sums.object_centroid,
             null_space_flatness: 0.0,
-            moments: sums.moments,
             smallest_eigenvalue: 0.0,
         };
         // Eq. 9: the null space is spanned by the eigenvectors of MᵀM for its
@@ -157,7 +173,12 @@ impl EpnpSystem {
             }
             system.control_distances_sq[row] = (control_world[a] - control_world[b]).norm_squared();
         }
-        Ok(system)
+        Ok((
+            system,
+            FitTest {
+                moments: sums.moments,
+            },
+        ))
     }
 
     /// `MᵀM` of eq. 8 for `object`/`image` under the given control points,
@@ -240,13 +261,13 @@ impl EpnpSystem {
     /// ([`EpnpSystem::needs_relinearisation`]), or where none of them fits
     /// the image ([`EpnpSystem::residual_ratio`] above
     /// [`LINEARISED_FIT_RATIO`] for every one, or not a number).
-    pub fn relinearises(&self, points: usize, linearised: &[Pose]) -> bool {
+    pub fn relinearises(&self, fit: &FitTest, points: usize, linearised: &[Pose]) -> bool {
         if self.needs_relinearisation(points) {
             return true;
         }
         let least_ratio = linearised
             .iter()
-            .map(|pose| self.residual_ratio(pose))
+            .map(|pose| self.residual_ratio(fit, pose))
             .fold(f64::INFINITY, f64::min);
         // `f64::min` skips NaN ratios, so none fitting leaves infinity.
         least_ratio > LINEARISED_FIT_RATIO || least_ratio.is_nan()
@@ -258,9 +279,9 @@ impl EpnpSystem {
     /// that fits the image leaves a residual of the noise's size, a few
     /// times that least one; a closed form that failed leaves far more.
     /// Read from the ten distinct 3×3 blocks of `MᵀM` ([`NormalMoments`]).
-    pub fn residual_ratio(&self, pose: &Pose) -> f64 {
+    pub fn residual_ratio(&self, fit: &FitTest, pose: &Pose) -> f64 {
         let x = self.control_world.map(|c| pose.transform(&c));
-        let [plain, by_u, by_v, by_radius] = &self.moments;
+        let [plain, by_u, by_v, by_radius] = &fit.moments;
         let mut residual = 0.0;
         for j in 0..4 {
             for k in j..4 {
@@ -866,7 +887,7 @@ pub fn solve(
     image: &[Vector2<f64>],
     refine: bool,
 ) -> Result<Candidates, PnpError> {
-    let system = EpnpSystem::new(principal_control_points(object), object, image)?;
+    let (system, fit) = EpnpSystem::with_fit_test(principal_control_points(object), object, image)?;
     let mut candidates = Candidates::new();
     if refine {
         let refine = |start: &Vector4<f64>| {
@@ -886,7 +907,7 @@ pub fn solve(
         for betas in &system.closed_form_betas() {
             system.push_candidates(betas, |start| *start, &mut candidates);
         }
-        if system.relinearises(object.len(), &candidates) {
+        if system.relinearises(&fit, object.len(), &candidates) {
             system.push_candidates(
                 &system.relinearised_betas(),
                 |start| *start,
@@ -924,7 +945,7 @@ mod tests {
             .map(|(i, p)| truth.project_normalised(p) + Vector2::new(1e-3 * i as f64, -2e-3))
             .collect();
         let control = principal_control_points(&object);
-        let system = EpnpSystem::new(control, &object, &image).unwrap();
+        let (system, fit) = EpnpSystem::with_fit_test(control, &object, &image).unwrap();
         let normal = EpnpSystem::normal_matrix(control, &object, &image).unwrap();
         let smallest = smallest_eigenpairs::<12, 1>(&normal).unwrap().values[0];
         let pose = Pose::new(
@@ -933,7 +954,7 @@ mod tests {
         );
         let x = Stacked::from_fn(|i, _| pose.transform(&control[i / 3])[i % 3]);
         let expected = (normal * x).dot(&x) / (x.norm_squared() * smallest);
-        let ratio = system.residual_ratio(&pose);
+        let ratio = system.residual_ratio(&fit, &pose);
         assert!(
             (ratio - expected).abs() <= 1e-9 * expected,
             "{ratio} against {expected}"

@@ -373,7 +373,7 @@ fn epnp_relinearises_in_the_far_field_only() {
             continue;
         };
         drawn += 1;
-        let system = EpnpSystem::new(
+        let (system, fit) = EpnpSystem::with_fit_test(
             principal_control_points(&p.object),
             &p.object,
             &p.normalised,
@@ -384,7 +384,7 @@ fn epnp_relinearises_in_the_far_field_only() {
         for betas in &system.closed_form_betas() {
             system.push_candidates(betas, |start| *start, &mut linearised);
         }
-        fired += usize::from(system.relinearises(p.object.len(), &linearised));
+        fired += usize::from(system.relinearises(&fit, p.object.len(), &linearised));
     }
     let noisy = Cell {
         depth_ratio: 5.0,
