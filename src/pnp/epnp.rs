@@ -53,12 +53,28 @@ pub struct EpnpSystem {
     alpha_object_covariance: SMatrix<f64, 4, 3>,
     /// Centroid `P̄` of the object points.
     object_centroid: Vector3<f64>,
+    /// The fourth-smallest eigenvalue of `MᵀM` over the mean of its eight
+    /// largest ([`EpnpSystem::null_space_flatness`]).
+    null_space_flatness: f64,
+    /// Its smallest eigenvalue: the least residual `xᵀMᵀMx / ‖x‖²` any
+    /// control points reach.
+    smallest_eigenvalue: f64,
 }
+
+/// The distinct entries of `MᵀM`: block (j, k) of control points j and k is
+/// `[[p, 0, −u], [0, p, −v], [−u, −v, r]]` with p, u, v, r the entries
+/// `UPPER[j][k]` of these four arrays, in this order.
+type NormalMoments = [[f64; 10]; 4];
+
+/// Index of the unordered control-point pair (j, k) in [`NormalMoments`].
+const UPPER: [[usize; 4]; 4] = [[0, 1, 2, 3], [1, 4, 5, 6], [2, 5, 7, 8], [3, 6, 8, 9]];
 
 /// What one pass over the points gives [`EpnpSystem::new`].
 struct PointSums {
     /// `MᵀM` of eq. 8.
     normal_matrix: SMatrix<f64, 12, 12>,
+    /// Its distinct entries ([`NormalMoments`]).
+    moments: NormalMoments,
     alpha_mean: Vector4<f64>,
     alpha_object_covariance: SMatrix<f64, 4, 3>,
     object_centroid: Vector3<f64>,
@@ -75,6 +91,15 @@ pub fn principal_control_points(object: &[Vector3<f64>]) -> [Vector3<f64>; 4] {
     control
 }
 
+/// The distinct entries of `MᵀM`, for unrefined EPnP's test of whether the
+/// linearised closed forms fit the image ([`EpnpSystem::residual_ratio`]).
+/// Kept apart from [`EpnpSystem`] so that the solvers that never ask
+/// (EPnP+GN, IEPnP, the paper's family) do not carry it.
+#[derive(Debug, Clone)]
+pub struct FitTest {
+    moments: NormalMoments,
+}
+
 impl EpnpSystem {
     /// Builds the system for `object`/`image` with the given control points.
     pub fn new(
@@ -82,6 +107,16 @@ impl EpnpSystem {
         object: &[Vector3<f64>],
         image: &[Vector2<f64>],
     ) -> Result<Self, PnpError> {
+        Self::with_fit_test(control_world, object, image).map(|(system, _)| system)
+    }
+
+    /// [`EpnpSystem::new`], and the entries of `MᵀM` that
+    /// [`EpnpSystem::relinearises`] reads.
+    pub fn with_fit_test(
+        control_world: [Vector3<f64>; 4],
+        object: &[Vector3<f64>],
+        image: &[Vector2<f64>],
+    ) -> Result<(Self, FitTest), PnpError> {
         let to_barycentric = barycentric_map(&control_world)?;
         let sums = accumulate_point_sums(&control_world[0], &to_barycentric, object, image);
         let mut system = Self {
@@ -93,18 +128,27 @@ impl EpnpSystem {
             alpha_mean: sums.alpha_mean,
             alpha_object_covariance: sums.alpha_object_covariance,
             object_centroid: sums.object_centroid,
+            null_space_flatness: 0.0,
+            smallest_eigenvalue: 0.0,
         };
         // Eq. 9: the null space is spanned by the eigenvectors of MᵀM for its
         // four smallest eigenvalues, smallest first.
-        system.null_space = smallest_eigenpairs::<12, 4>(&sums.normal_matrix)
-            .map_err(|error| PnpError::Degenerate {
+        let eigenpairs = smallest_eigenpairs::<12, 4>(&sums.normal_matrix).map_err(|error| {
+            PnpError::Degenerate {
                 solver: "EPnP",
                 reason: match error {
                     EigenError::NonFinite { .. } => "MᵀM has a non-finite entry",
                     _ => "the eigen-decomposition of MᵀM did not converge",
                 },
-            })?
-            .vectors;
+            }
+        })?;
+        system.null_space = eigenpairs.vectors;
+        // The trace is the sum of all twelve eigenvalues, so the mean of the
+        // eight largest costs nothing more.
+        let largest_eight_mean =
+            (sums.normal_matrix.trace() - eigenpairs.values.iter().sum::<f64>()) / 8.0;
+        system.null_space_flatness = eigenpairs.values[3] / largest_eight_mean;
+        system.smallest_eigenvalue = eigenpairs.values[0];
 
         // Lepetit eq. 13: ‖Σ_k β_k (v_k[a] − v_k[b])‖² = ‖c_a − c_b‖².
         for (row, &(a, b)) in PAIRS.iter().enumerate() {
@@ -129,7 +173,12 @@ impl EpnpSystem {
             }
             system.control_distances_sq[row] = (control_world[a] - control_world[b]).norm_squared();
         }
-        Ok(system)
+        Ok((
+            system,
+            FitTest {
+                moments: sums.moments,
+            },
+        ))
     }
 
     /// `MᵀM` of eq. 8 for `object`/`image` under the given control points,
@@ -184,6 +233,72 @@ impl EpnpSystem {
         Vector4::from_fn(|k, _| self.null_space[k].dot(&stacked))
     }
 
+    /// How close `MᵀM` is to a 4-dimensional null space: its fourth-smallest
+    /// eigenvalue over the mean of its eight largest (scale-free; NaN or
+    /// negative only for a degenerate system). Lepetit et al. §3.3: the
+    /// effective dimension N of the null space grows with the distance to
+    /// the camera and reaches 4 under weak perspective, where the solution
+    /// needs all four null vectors. Below [`NULL_SPACE_FLAT_BELOW`] it is 4.
+    pub fn null_space_flatness(&self) -> f64 {
+        self.null_space_flatness
+    }
+
+    /// Whether the null space is effectively 4-dimensional, so that the
+    /// relinearised N = 4 β ([`EpnpSystem::relinearised_betas`]) is worth
+    /// computing whatever the linearised closed forms give:
+    /// [`EpnpSystem::null_space_flatness`] below [`NULL_SPACE_FLAT_BELOW`]
+    /// (or not a number), or n ≤ [`ALWAYS_RELINEARISE_MAX_POINTS`], where M
+    /// has at most ten rows and noise decides the dimension.
+    pub fn needs_relinearisation(&self, points: usize) -> bool {
+        points <= ALWAYS_RELINEARISE_MAX_POINTS
+            || self.null_space_flatness < NULL_SPACE_FLAT_BELOW
+            || self.null_space_flatness.is_nan()
+    }
+
+    /// Whether unrefined EPnP adds the relinearised N = 4 candidate to
+    /// `linearised`, the candidates of the four linearised closed forms:
+    /// where the null space is effectively 4-dimensional
+    /// ([`EpnpSystem::needs_relinearisation`]), or where none of them fits
+    /// the image ([`EpnpSystem::residual_ratio`] above
+    /// [`LINEARISED_FIT_RATIO`] for every one, or not a number).
+    pub fn relinearises(&self, fit: &FitTest, points: usize, linearised: &[Pose]) -> bool {
+        if self.needs_relinearisation(points) {
+            return true;
+        }
+        let least_ratio = linearised
+            .iter()
+            .map(|pose| self.residual_ratio(fit, pose))
+            .fold(f64::INFINITY, f64::min);
+        // `f64::min` skips NaN ratios, so none fitting leaves infinity.
+        least_ratio > LINEARISED_FIT_RATIO || least_ratio.is_nan()
+    }
+
+    /// How badly `pose` fits eq. 8: the residual `xᵀMᵀMx / ‖x‖²` of the
+    /// camera-frame control points x it places, over the least residual any
+    /// control points reach (the smallest eigenvalue of `MᵀM`). A pose
+    /// that fits the image leaves a residual of the noise's size, a few
+    /// times that least one; a closed form that failed leaves far more.
+    /// Read from the ten distinct 3×3 blocks of `MᵀM` ([`NormalMoments`]).
+    pub fn residual_ratio(&self, fit: &FitTest, pose: &Pose) -> f64 {
+        let x = self.control_world.map(|c| pose.transform(&c));
+        let [plain, by_u, by_v, by_radius] = &fit.moments;
+        let mut residual = 0.0;
+        for j in 0..4 {
+            for k in j..4 {
+                let i = UPPER[j][k];
+                let (a, b) = (&x[j], &x[k]);
+                let block = plain[i] * (a.x * b.x + a.y * b.y)
+                    - by_u[i] * (a.x * b.z + a.z * b.x)
+                    - by_v[i] * (a.y * b.z + a.z * b.y)
+                    + by_radius[i] * a.z * b.z;
+                // Off-diagonal blocks appear twice in the quadratic form.
+                residual += if j == k { block } else { 2.0 * block };
+            }
+        }
+        let norm_sq: f64 = x.iter().map(|c| c.norm_squared()).sum();
+        residual / (norm_sq * self.smallest_eigenvalue)
+    }
+
     /// Lepetit's closed-form β for null-space dimensions N = 1…4, all
     /// linearised as the reference implementation does (N = 4 over four of
     /// the ten products), in that order: the starts of EPnP+GN.
@@ -203,7 +318,8 @@ impl EpnpSystem {
     /// the two N = 4 starts (6 or 10 points in a 1 m cube at 0.5–1.5 m, 300
     /// problems at σ = 0.5 px: unrefined EPnP at 1.29× the first-order limit
     /// with it, 2.78× with relinearisation in its place); far from it,
-    /// relinearisation is (unrefined EPnP returns both).
+    /// relinearisation is (unrefined EPnP returns both where the null space
+    /// is effectively 4-dimensional, [`EpnpSystem::needs_relinearisation`]).
     fn betas_dimension_4_linearised(&self) -> Vector4<f64> {
         let l = SMatrix::<f64, 6, 4>::from_columns(&[
             self.distance_products.column(0).into_owned(),
@@ -271,7 +387,9 @@ impl EpnpSystem {
     /// sweep's far-field regime (a 50 mm biprism at 1–3 m, σ = 0.5 px, 300
     /// problems, no Gauss–Newton): 247 off by more than 10° with the four
     /// linearised closed forms, 33 with this one beside them (unrefined
-    /// EPnP returns both, for the near field's sake). On a similar draw of
+    /// EPnP returns both, for the near field's sake, where
+    /// [`EpnpSystem::needs_relinearisation`] says the null space is
+    /// effectively 4-dimensional). On a similar draw of
     /// 300 problems, 257 fell to 15 with this one in place of the N = 4
     /// linearisation and to 34 with both. Gauss–Newton with backtracking
     /// and the mirror candidate needs no relinearised start (EPnP+GN: 0
@@ -473,7 +591,6 @@ fn accumulate_point_sums(
 ) -> PointSums {
     // Upper triangles of Σ αα ᵀ, Σ u αα ᵀ, Σ v αα ᵀ, Σ (u²+v²) αα ᵀ, entry
     // (j, k ≥ j) at index UPPER[j][k].
-    const UPPER: [[usize; 4]; 4] = [[0, 1, 2, 3], [1, 4, 5, 6], [2, 5, 7, 8], [3, 6, 8, 9]];
     let mut moments = [[0.0f64; 10]; 4];
     let mut alpha_sum = Vector4::zeros();
     let mut alpha_offset_sum = SMatrix::<f64, 4, 3>::zeros();
@@ -519,6 +636,7 @@ fn accumulate_point_sums(
     let offset_mean = offset_sum / count;
     PointSums {
         normal_matrix,
+        moments,
         alpha_mean,
         // Σ (α_i − ᾱ)(q_i − q̄)ᵀ = Σ α_i q_iᵀ − n ᾱ q̄ᵀ, with q = P − c0.
         alpha_object_covariance: alpha_offset_sum - alpha_mean * offset_sum.transpose(),
@@ -708,11 +826,57 @@ pub const NULL_SPACE_RANK_TOLERANCE: f64 = 1e-12;
 /// 12 − 8 = 4 for every pose.
 pub const RELINEARISED_START_MAX_POINTS: usize = 4;
 
+/// Unrefined EPnP computes the relinearised N = 4 β only when
+/// [`EpnpSystem::null_space_flatness`] is below this (or n ≤
+/// [`RELINEARISED_START_MAX_POINTS`]): relinearisation costs about as much
+/// as the rest of EPnP, and only where the null space is effectively
+/// 4-dimensional does it rescue the linearised closed forms. Measured
+/// (σ = 0.5 px): the far-field biprism (50 mm at 1–3 m, 1000 problems) lies
+/// at 4.9·10⁻⁵–7.9·10⁻⁴, so the gate always opens there (122 gross failures
+/// with and without it, 840 with no relinearisation); the 7-point biprism
+/// of the criterion benchmark (100 mm at 0.2–1 m, 2000 problems) lies at
+/// 2.2·10⁻³–9.8·10⁻², so the gate never opens there; over 48,347
+/// problems of depth/size 0.5–200, n 4–20, thickness 0.01–1 at σ 0 and
+/// 0.5 px, 12,442 gross failures with the gate against 12,414 with
+/// relinearisation always and 16,526 with none, and the same noise-free
+/// misses with and without it.
+pub const NULL_SPACE_FLAT_BELOW: f64 = 2e-3;
+
+/// Unrefined EPnP always computes the relinearised β up to this many
+/// points: with five, M has ten rows, its null space is at least
+/// 2-dimensional for every pose and the noise decides the rest. (With the
+/// flatness test alone, five points at depth/size 5, σ = 0.5 px lost 9 more
+/// problems of 300 to gross errors than with relinearisation always.)
+pub const ALWAYS_RELINEARISE_MAX_POINTS: usize = 5;
+
+/// Unrefined EPnP also computes the relinearised β when every linearised
+/// candidate leaves more than this many times the least residual of eq. 8
+/// ([`EpnpSystem::residual_ratio`]): the closed forms failed. Noise, not
+/// the far field, is then what defeats them (depth/size 2–10 at σ = 1–5 px).
+/// Measured once over 24,000 problems per σ (depth/size 0.5–200, n 4–20,
+/// thickness 0.01–1, uniform in the image), gross failures with the
+/// flatness test and five points alone against relinearisation always:
+/// +2, +17, +52, +98 at σ = 0.5, 1, 2, 5 px; with this test too (there
+/// on the best linearised candidate by reprojection error; the code takes
+/// the least ratio over all of them, which fires no more often), 0, +1,
+/// +4, +34 at a ratio of 20, 0, +2, +9, +45 at 50 (this value), 0, +5,
+/// +17, +60 at 100. The lower the ratio, the more often the common case
+/// pays: on the criterion benchmark's biprism it fires on 45 of 250
+/// problems at 20, on 19 at 50
+/// (`noisy::epnp_relinearises_in_the_far_field_only`). On the conformance
+/// sweep (31,200 problems) unrefined EPnP has 3617 gross failures gated
+/// against 3601 relinearising always, 15 of the 16 at σ = 5 px
+/// (depth/size 5, 10 points), a cell that is not well-posed.
+pub const LINEARISED_FIT_RATIO: f64 = 50.0;
+
 /// Ridge added to a rank-deficient normal matrix, relative to its mean diagonal.
 pub const RIDGE_FRACTION: f64 = 1e-12;
 
 /// EPnP (`refine = false`): one candidate per closed form, the four
-/// linearised ones and the relinearised N = 4; or EPnP+GN (`refine = true`):
+/// linearised ones and, where the null space is effectively 4-dimensional
+/// ([`EpnpSystem::needs_relinearisation`]) or none of those four fits the
+/// image ([`LINEARISED_FIT_RATIO`]), the relinearised N = 4; or
+/// EPnP+GN (`refine = true`):
 /// the four linearised closed forms refined by Gauss–Newton, as in the
 /// reference implementation, and the relinearised one too where N = 4 for
 /// every pose ([`RELINEARISED_START_MAX_POINTS`]). Either adds the depth-reversed mirror of any
@@ -723,7 +887,7 @@ pub fn solve(
     image: &[Vector2<f64>],
     refine: bool,
 ) -> Result<Candidates, PnpError> {
-    let system = EpnpSystem::new(principal_control_points(object), object, image)?;
+    let (system, fit) = EpnpSystem::with_fit_test(principal_control_points(object), object, image)?;
     let mut candidates = Candidates::new();
     if refine {
         let refine = |start: &Vector4<f64>| {
@@ -740,10 +904,60 @@ pub fn solve(
             system.push_candidates(&system.relinearised_betas(), refine, &mut candidates);
         }
     } else {
-        let starts = system.closed_form_betas();
-        for betas in starts.iter().chain([&system.relinearised_betas()]) {
+        for betas in &system.closed_form_betas() {
             system.push_candidates(betas, |start| *start, &mut candidates);
+        }
+        if system.relinearises(&fit, object.len(), &candidates) {
+            system.push_candidates(
+                &system.relinearised_betas(),
+                |start| *start,
+                &mut candidates,
+            );
         }
     }
     Ok(candidates)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::Rotation3;
+
+    /// The block-wise residual of [`EpnpSystem::residual_ratio`] equals the
+    /// quadratic form of the full `MᵀM`.
+    #[test]
+    fn residual_ratio_is_the_quadratic_form_of_the_normal_matrix() {
+        let object = [
+            Vector3::new(40.0, -25.0, 10.0),
+            Vector3::new(-30.0, 5.0, 20.0),
+            Vector3::new(0.0, 35.0, -15.0),
+            Vector3::new(10.0, 10.0, 40.0),
+            Vector3::new(-20.0, -30.0, -25.0),
+            Vector3::new(25.0, 15.0, -5.0),
+        ];
+        let truth = Pose::new(
+            Rotation3::from_euler_angles(0.3, -0.7, 1.1),
+            Vector3::new(30.0, -20.0, 400.0),
+        );
+        let image: Vec<Vector2<f64>> = object
+            .iter()
+            .enumerate()
+            .map(|(i, p)| truth.project_normalised(p) + Vector2::new(1e-3 * i as f64, -2e-3))
+            .collect();
+        let control = principal_control_points(&object);
+        let (system, fit) = EpnpSystem::with_fit_test(control, &object, &image).unwrap();
+        let normal = EpnpSystem::normal_matrix(control, &object, &image).unwrap();
+        let smallest = smallest_eigenpairs::<12, 1>(&normal).unwrap().values[0];
+        let pose = Pose::new(
+            Rotation3::from_euler_angles(0.35, -0.6, 1.0),
+            Vector3::new(25.0, -15.0, 420.0),
+        );
+        let x = Stacked::from_fn(|i, _| pose.transform(&control[i / 3])[i % 3]);
+        let expected = (normal * x).dot(&x) / (x.norm_squared() * smallest);
+        let ratio = system.residual_ratio(&fit, &pose);
+        assert!(
+            (ratio - expected).abs() <= 1e-9 * expected,
+            "{ratio} against {expected}"
+        );
+    }
 }

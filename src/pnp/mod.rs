@@ -60,7 +60,7 @@ pub mod three_cubics;
 pub mod unlabelled;
 
 /// Candidate poses returned by a solver. Six fit inline, so the common
-/// solvers allocate nothing (EPnP returns five closed forms; a mirror
+/// solvers allocate nothing (EPnP returns four or five closed forms; a mirror
 /// candidate, rare, may spill).
 pub type Candidates = SmallVec<[Pose; 6]>;
 

@@ -10,8 +10,13 @@
 
 use crate::common::{errors, problem, Family};
 use layout_opt::camera::Camera;
+use layout_opt::conformance::{generate, place_and_observe, rotation_limit_deg, Cell, OffAxis};
 use layout_opt::error_model::first_order::pose_covariance_isotropic;
-use layout_opt::pnp::{best_candidate, rpnp, Solver};
+use layout_opt::pnp::epnp::{principal_control_points, EpnpSystem};
+use layout_opt::pnp::{best_candidate, gauss_newton, rpnp, Candidates, Solver};
+use layout_opt::pose::Pose;
+use layout_opt::synthetic::{biprism_points, project_with_noise, random_pose, stream_rng, Problem};
+use rand::Rng;
 
 const SIGMA_PX: f64 = 0.5;
 const SEED: u64 = 7;
@@ -184,4 +189,245 @@ fn lhm_is_within_4_percent_of_the_limit() {
 #[test]
 fn opnp_reaches_the_first_order_limit() {
     check(Solver::Opnp, 0.04);
+}
+
+/// The seed of the conformance sweep (`examples/conformance.rs`), so that
+/// the first 300 cases of a cell below are that sweep's problems.
+const SWEEP_SEED: u64 = 20260301;
+
+/// RMS/CRLB of `pose_of` over cases `0..cases` of `cell` (non-gross
+/// problems; gross ones are counted and returned), and its standard error.
+fn cell_ratio(
+    cell: &Cell,
+    cases: u64,
+    pose_of: impl Fn(&Problem) -> Option<Pose>,
+) -> (f64, f64, usize) {
+    let camera = cell.camera();
+    let mut squares = Vec::new();
+    let mut gross = 0;
+    for case in 0..cases {
+        let p = generate(cell, SWEEP_SEED, case).problem;
+        let limit_deg = rotation_limit_deg(&camera, &p, cell.sigma_px)
+            .expect("the generating pose is observable");
+        let pose = pose_of(&p).expect("the solver returns a pose");
+        let (rotation_deg, _) = errors(&p, &pose);
+        if rotation_deg > GROSS_DEG {
+            gross += 1;
+        } else {
+            squares.push((rotation_deg / limit_deg).powi(2));
+        }
+    }
+    let count = squares.len() as f64;
+    let mean = squares.iter().sum::<f64>() / count;
+    let variance = squares.iter().map(|q| (q - mean).powi(2)).sum::<f64>() / (count - 1.0);
+    let ratio = mean.sqrt();
+    (ratio, (variance / count).sqrt() / (2.0 * ratio), gross)
+}
+
+fn sweep_cell(
+    depth_ratio: f64,
+    points: usize,
+    thickness: f64,
+    off_axis: OffAxis,
+    sigma_px: f64,
+) -> Cell {
+    Cell {
+        depth_ratio,
+        points,
+        thickness,
+        off_axis,
+        distortion: false,
+        sigma_px,
+    }
+}
+
+/// The seven conformance cells where `ml` read above 1.02× the limit at 300
+/// problems while `sqpnp` was within 1.1× (C014, C021, C023–C025, C029,
+/// C075: 1.021–1.058, each ±0.025–0.030). At 1500 problems of the same
+/// cells (the sweep's 300 among them) `ml` is at 0.988–1.018 (±0.011–0.014):
+/// the 300-problem excess was sampling noise. A multi-start ML (LM from
+/// every candidate of every solver and from the true pose, keeping the
+/// lowest reprojection error) found no lower minimum on any of these
+/// problems (checked once, not here: OPnP and DLS make it slow). The bound
+/// is the largest measured value plus a margin of one standard error.
+#[test]
+fn ml_is_within_2_percent_of_the_limit_where_the_sweep_read_above() {
+    let uniform = OffAxis::Uniform;
+    for cell in [
+        sweep_cell(5.0, 7, 1.0, uniform, 0.5),
+        sweep_cell(5.0, 10, 0.0, uniform, 0.5),
+        sweep_cell(5.0, 10, 0.01, uniform, 0.5),
+        sweep_cell(5.0, 10, 0.03, uniform, 0.5),
+        sweep_cell(5.0, 10, 0.1, uniform, 0.5),
+        sweep_cell(5.0, 10, 1.0, OffAxis::TowardCorner(0.5), 0.5),
+        sweep_cell(1.0, 6, 0.1, uniform, 1.0),
+    ] {
+        let (ratio, se, gross) = cell_ratio(&cell, 1500, |p| {
+            Solver::Ml.solve_best(&p.object, &p.normalised).ok()
+        });
+        eprintln!("ml on {cell:?}: RMS/CRLB = {ratio:.4} ± {se:.4}, gross {gross} of 1500");
+        assert_eq!(gross, 0, "{cell:?}");
+        assert!(ratio <= 1.03, "{cell:?}: RMS/CRLB = {ratio:.4} ± {se:.4}");
+    }
+}
+
+/// Near the camera (depth/size 0.5, 10 points in a cube, σ = 0.5 px: the
+/// sweep's C002) `epnp-gn` is 3.16× the limit. Started from the true pose's
+/// β, the same Gauss–Newton converges to the same estimates: the excess is
+/// the EPnP+GN estimator's (Lepetit's distance cost on the null space of
+/// the noisy MᵀM), not a failure of its search. Measured on the sweep's
+/// 300 problems: 3.159 either way; bound 3.25.
+#[test]
+fn epnp_gn_near_field_excess_is_its_cost_not_its_search() {
+    let cell = sweep_cell(0.5, 10, 1.0, OffAxis::Uniform, 0.5);
+    let (solved, _, gross) = cell_ratio(&cell, 300, |p| {
+        Solver::EpnpGn.solve_best(&p.object, &p.normalised).ok()
+    });
+    let (from_truth, _, _) = cell_ratio(&cell, 300, |p| {
+        let control = principal_control_points(&p.object);
+        let system = EpnpSystem::new(control, &p.object, &p.normalised).ok()?;
+        let true_control = control.map(|c| p.truth.transform(&c));
+        let start = system.betas_from_control_camera(&true_control);
+        let betas = gauss_newton::refine_betas(&system, &start, &gauss_newton::UNIT_WEIGHTS);
+        Some(system.pose_from_betas(&betas))
+    });
+    eprintln!("epnp-gn near field: RMS/CRLB {solved:.4} (GN from the truth: {from_truth:.4}), gross {gross}");
+    assert_eq!(gross, 0);
+    assert!(solved <= 3.25, "RMS/CRLB = {solved:.4}");
+    assert!(
+        (solved - from_truth).abs() <= 1e-3 * solved,
+        "epnp-gn {solved:.4} against GN from the truth {from_truth:.4}"
+    );
+}
+
+/// Unrefined EPnP computes the relinearised N = 4 β only where the null
+/// space is effectively 4-dimensional ([`EpnpSystem::needs_relinearisation`])
+/// or the linearised closed forms do not fit the image
+/// ([`EpnpSystem::relinearises`]). In the far field (the crate's 50 mm
+/// biprism at 1–3 m, every point in the image) the flatness test must open
+/// every time, or EPnP's gross failures come back; on the problems of the
+/// criterion benchmark (`benches/solvers.rs`: the paper's biprism,
+/// L = 50 mm, at 200–1000 mm) it must stay shut, and the fit test may open
+/// only where the closed forms failed, or EPnP pays for relinearisation in
+/// the common case. Where noise defeats the closed forms (depth/size 5,
+/// 6 points, σ = 2 px) the gate must lose nothing against relinearising
+/// always. Measured: flatness test open on 300 of 300 far-field problems,
+/// 34 of them gross (248 with the linearised closed forms alone); on 250
+/// benchmark problems it is shut on all and the fit test opens on 19; at
+/// σ = 2 px, 39 gross of 300 gated and relinearising always. (On this
+/// file's biprism family,
+/// depth/size 2–20, the flatness test opens on 69 of 250, the farther
+/// ones.)
+#[test]
+fn epnp_relinearises_in_the_far_field_only() {
+    let camera = Camera::default();
+    let (mut opened, mut gross, mut gross_without) = (0, 0, 0);
+    for case in 0..300 {
+        let mut rng = stream_rng(SEED, 99, case);
+        let p = loop {
+            let depth = rng.random_range(1000.0..3000.0);
+            if let Some(p) = place_and_observe(
+                &mut rng,
+                &camera,
+                biprism_points(25.0),
+                depth,
+                OffAxis::Uniform,
+                SIGMA_PX,
+            ) {
+                if p.pixels.iter().all(|px| camera.contains(px, 0.0)) {
+                    break p;
+                }
+            }
+        };
+        let system = EpnpSystem::new(
+            principal_control_points(&p.object),
+            &p.object,
+            &p.normalised,
+        )
+        .expect("a well-posed system");
+        opened += usize::from(system.needs_relinearisation(p.object.len()));
+        let pose = Solver::Epnp
+            .solve_best(&p.object, &p.normalised)
+            .expect("a pose");
+        gross += usize::from(errors(&p, &pose).0 > GROSS_DEG);
+        let mut linearised = Candidates::new();
+        for betas in &system.closed_form_betas() {
+            system.push_candidates(betas, |start| *start, &mut linearised);
+        }
+        let pose = best_candidate("EPnP", &linearised, &p.object, &p.normalised).expect("a pose");
+        gross_without += usize::from(errors(&p, &pose).0 > GROSS_DEG);
+    }
+    let (mut shut, mut fired) = (0, 0);
+    let paper = Camera::paper();
+    let mut case = 0;
+    let mut drawn = 0;
+    while drawn < 250 {
+        let mut rng = stream_rng(SEED, 98, case);
+        case += 1;
+        let truth = random_pose(&mut rng, 200.0 + 800.0 * (case % 5) as f64 / 4.0, 0.2);
+        let object = biprism_points(50.0);
+        if object.iter().any(|p| truth.transform(p).z < 50.0) {
+            continue;
+        }
+        let Some(p) = project_with_noise(&mut rng, &paper, object, truth, SIGMA_PX) else {
+            continue;
+        };
+        drawn += 1;
+        let (system, fit) = EpnpSystem::with_fit_test(
+            principal_control_points(&p.object),
+            &p.object,
+            &p.normalised,
+        )
+        .expect("a well-posed system");
+        shut += usize::from(!system.needs_relinearisation(p.object.len()));
+        let mut linearised = Candidates::new();
+        for betas in &system.closed_form_betas() {
+            system.push_candidates(betas, |start| *start, &mut linearised);
+        }
+        fired += usize::from(system.relinearises(&fit, p.object.len(), &linearised));
+    }
+    let noisy = Cell {
+        depth_ratio: 5.0,
+        points: 6,
+        thickness: 1.0,
+        off_axis: OffAxis::Uniform,
+        distortion: false,
+        sigma_px: 2.0,
+    };
+    let (mut gated_gross, mut always_gross) = (0, 0);
+    for case in 0..300 {
+        let p = generate(&noisy, SWEEP_SEED, case).problem;
+        let pose = Solver::Epnp
+            .solve_best(&p.object, &p.normalised)
+            .expect("a pose");
+        gated_gross += usize::from(errors(&p, &pose).0 > GROSS_DEG);
+        let system = EpnpSystem::new(
+            principal_control_points(&p.object),
+            &p.object,
+            &p.normalised,
+        )
+        .expect("a well-posed system");
+        let mut all = Candidates::new();
+        for betas in system
+            .closed_form_betas()
+            .iter()
+            .chain([&system.relinearised_betas()])
+        {
+            system.push_candidates(betas, |start| *start, &mut all);
+        }
+        let pose = best_candidate("EPnP", &all, &p.object, &p.normalised).expect("a pose");
+        always_gross += usize::from(errors(&p, &pose).0 > GROSS_DEG);
+    }
+    eprintln!("epnp far field: flatness test open {opened} of 300, gross {gross} ({gross_without} without relinearisation); benchmark problems: flatness test shut {shut} of 250, gate open {fired} of 250; σ = 2 px at depth/size 5: gross {gated_gross} gated, {always_gross} relinearising always");
+    assert_eq!(opened, 300);
+    assert_eq!(shut, 250);
+    assert!(gross <= 40, "far field: {gross} gross of 300");
+    assert!(
+        fired <= 22,
+        "benchmark problems: relinearised {fired} of 250"
+    );
+    assert!(
+        gated_gross <= always_gross + 1,
+        "σ = 2 px: {gated_gross} gross gated against {always_gross} always"
+    );
 }
