@@ -237,3 +237,95 @@ fn bad_ranges_are_rejected_clearly() {
         .failure()
         .stderr(predicate::str::contains("unknown solver 'nope'"));
 }
+
+/// Reads `scenarios.csv` into its header and rows.
+fn scenarios_csv(dir: &Path) -> (Vec<String>, Vec<Vec<String>>) {
+    let mut reader = csv::Reader::from_path(dir.join("scenarios.csv")).unwrap();
+    let header = reader
+        .headers()
+        .unwrap()
+        .iter()
+        .map(str::to_string)
+        .collect();
+    let rows = reader
+        .records()
+        .map(|r| r.unwrap().iter().map(str::to_string).collect())
+        .collect();
+    (header, rows)
+}
+
+/// The per-scenario bias columns hold the first-order bias the report pools:
+/// their largest value over the visible scenarios is the summary's largest,
+/// the rotation norm is that of its per-axis parts, and centre observations
+/// have no bias at all.
+#[test]
+fn scenarios_csv_has_the_first_order_bias_of_each_scenario() {
+    let run = |observation: &str| {
+        let dir = tempfile::tempdir().unwrap();
+        layout_opt()
+            .args([
+                "validate",
+                "--quiet",
+                "--trials",
+                "2",
+                "--solvers",
+                "epnp",
+                "--depth",
+                "200,400",
+                "--offset-x",
+                "0,100",
+                "--tilt",
+                "-40..40:40",
+                "--observation",
+                observation,
+                "--out",
+            ])
+            .arg(dir.path())
+            .assert()
+            .success();
+        dir
+    };
+    let dir = run("ellipse-centre");
+    let (header, rows) = scenarios_csv(dir.path());
+    let column = |name: &str| header.iter().position(|h| h == name).unwrap();
+    let (visible, rot, x, y, z, trans, shift) = (
+        column("visible"),
+        column("first_order_bias_rot_deg"),
+        column("first_order_bias_rot_x_deg"),
+        column("first_order_bias_rot_y_deg"),
+        column("first_order_bias_rot_z_deg"),
+        column("first_order_bias_trans_mm"),
+        column("bias_max_displacement_px"),
+    );
+    column("first_order_bias_trans_z_mm");
+    let number = |row: &Vec<String>, k: usize| row[k].parse::<f64>().unwrap();
+    let mut largest = 0.0f64;
+    for row in rows.iter().filter(|r| r[visible] == "true") {
+        let norm = number(row, x).hypot(number(row, y)).hypot(number(row, z));
+        assert!(
+            (norm - number(row, rot)).abs() <= 1e-9 + 1e-5 * norm,
+            "{row:?}"
+        );
+        assert!(number(row, rot) > 0.0 && number(row, trans) > 0.0);
+        assert!(number(row, shift) > 0.0 && number(row, shift) < 1.0);
+        largest = largest.max(number(row, rot));
+    }
+    let summary = summary(dir.path());
+    let pooled = summary["systematic"]["first_order_bias"]["max_rotation_deg"]
+        .as_f64()
+        .unwrap();
+    assert!(
+        (largest - pooled).abs() <= 1e-5 * pooled,
+        "{largest} vs {pooled}"
+    );
+
+    let dir = run("centre");
+    let (header, rows) = scenarios_csv(dir.path());
+    let rot = header
+        .iter()
+        .position(|h| h == "first_order_bias_rot_deg")
+        .unwrap();
+    for row in rows.iter().filter(|r| !r[rot].is_empty()) {
+        assert_eq!(row[rot].parse::<f64>().unwrap(), 0.0, "{row:?}");
+    }
+}
