@@ -56,6 +56,7 @@ pub mod polynomial;
 pub mod rpnp;
 pub mod sqpnp;
 pub mod three_cubics;
+pub mod unlabelled;
 
 /// Candidate poses returned by a solver. Six fit inline, so the common
 /// solvers allocate nothing (EPnP returns five closed forms; a mirror
