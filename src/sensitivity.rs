@@ -278,6 +278,10 @@ pub struct IdentifiabilitySummary {
     /// Monte-Carlo wrong-label rate over every trial of the visible
     /// scenarios.
     pub monte_carlo_wrong: Option<f64>,
+    /// The part of it in which the wrong labelling fits better than the
+    /// true one (what the prediction models; the rest are the solver's
+    /// search missing the truth, and trials without a labelling).
+    pub monte_carlo_ambiguous: Option<f64>,
     /// Trials run, wrong and failed (no labelling found), over the visible
     /// scenarios.
     pub trials: identifiability::TrialCounts,
@@ -586,6 +590,7 @@ fn identifiability_summary(
             trials.trials += i.trials.trials;
             trials.wrong += i.trials.wrong;
             trials.failed += i.trials.failed;
+            trials.missed += i.trials.missed;
         }
         (
             predictions.len(),
@@ -661,6 +666,7 @@ fn identifiability_summary(
         smallest_margin_px,
         mean_predicted_wrong,
         monte_carlo_wrong: trials.wrong_rate(),
+        monte_carlo_ambiguous: trials.ambiguous_rate(),
         trials,
         worst,
         curves,
@@ -1260,6 +1266,7 @@ fn scenario_table(layout: &Layout, validation: &Analysis) -> Table {
         "identify_predicted_wrong",
         "identify_trials",
         "identify_mc_wrong_rate",
+        "identify_mc_missed",
         "solver",
         "trials",
         "rms_rot_deg",
@@ -1339,6 +1346,10 @@ fn scenario_table(layout: &Layout, validation: &Analysis) -> Table {
                 .as_ref()
                 .map_or(String::new(), |i| i.trials.trials.to_string()),
             opt(identified.as_ref().and_then(|i| i.trials.wrong_rate())),
+            identified
+                .as_ref()
+                .filter(|i| i.trials.trials > 0)
+                .map_or(String::new(), |i| i.trials.missed.to_string()),
         ];
         if o.solvers.is_empty() {
             table.row(
@@ -1576,7 +1587,7 @@ fn identifiability_markdown(s: &IdentifiabilitySummary) -> String {
     let _ = writeln!(out, "## Identifiability (visible scenarios)\n");
     let _ = writeln!(
         out,
-        "Whether one image tells which blob is which sphere: the unlabelled solver on the blobs, shuffled. Predicted from the noise-free ambiguity margin (the residual norm ‖r‖ of the best wrong labelling that is geometrically consistent): {}. A scenario is identifiable when its predicted wrong-label probability is at most {}. Monte-Carlo: {} trials per visible scenario (the validation's noise draws, seed {}, blobs shuffled), per-point gate {}σ; the wrong labellings are counted, a trial without any labelling counts as wrong.\n",
+        "Whether one image tells which blob is which sphere: the unlabelled solver on the blobs, shuffled. Predicted from the noise-free ambiguity margin (the residual norm ‖r‖ of the best wrong labelling that is geometrically consistent): {}. A scenario is identifiable when its predicted wrong-label probability is at most {}. Monte-Carlo: {} trials per visible scenario (the validation's noise draws, seed {}, blobs shuffled), per-point gate {}σ; the wrong labellings are counted, a trial without any labelling counts as wrong. A wrong labelling that fits the blobs worse than the true labelling (refitted) means the solver's search lost the truth, which no margin predicts; the last column is the rest, the wrong labellings that fit better, which is what the prediction models.\n",
         s.model,
         significant(Some(1.0 - s.min_correct), 3),
         s.trials_per_scenario,
@@ -1590,6 +1601,7 @@ fn identifiability_markdown(s: &IdentifiabilitySummary) -> String {
         "smallest margin (px)",
         "mean predicted wrong",
         "Monte-Carlo wrong (trials)",
+        "of which a better fit than the truth",
     ]);
     table.row([
         s.scenarios.to_string(),
@@ -1602,12 +1614,14 @@ fn identifiability_markdown(s: &IdentifiabilitySummary) -> String {
         ),
         significant(s.mean_predicted_wrong, 3),
         format!(
-            "{} ({} of {}, {} without a labelling)",
+            "{} ({} of {}, {} without a labelling, {} fitting worse than the truth)",
             significant(s.monte_carlo_wrong, 3),
             s.trials.wrong,
             s.trials.trials,
-            s.trials.failed
+            s.trials.failed,
+            s.trials.missed
         ),
+        significant(s.monte_carlo_ambiguous, 3),
     ]);
     out.push_str(&table.markdown());
     if !s.worst.is_empty() {
