@@ -975,21 +975,26 @@ pub fn run(
     let identify_started = Instant::now();
     let (outcome, identify_books) = match config.min_identifiability {
         Some(floor) if !outcome.interrupted => {
+            // One step per round; a winner that needs fewer rounds ends the
+            // bar at its total.
+            let rounds_done = AtomicU64::new(0);
             let repaired = watch(
                 observer,
                 PHASE_IDENTIFY,
                 IDENTIFY_ROUNDS as u64,
-                || 0,
+                || rounds_done.load(Ordering::Relaxed),
                 Some(&stop),
                 || {
-                    enforce_identifiability(
+                    let repaired = enforce_identifiability(
                         &family,
                         &evaluator,
                         floor,
                         &config.search,
                         outcome,
                         &stop,
-                    )
+                    );
+                    rounds_done.store(IDENTIFY_ROUNDS as u64, Ordering::Relaxed);
+                    repaired
                 },
             )?;
             (repaired.0, Some(repaired.1))
@@ -1515,13 +1520,19 @@ mod tests {
         let mut observer = Record::default();
         run(&config, &mut observer).unwrap();
         let phases: Vec<&str> = observer.last.iter().map(|p| p.0.as_str()).collect();
-        assert_eq!(phases, [PHASE_SEARCH, PHASE_COMPARE, PHASE_VALIDATE]);
+        assert_eq!(
+            phases,
+            [PHASE_SEARCH, PHASE_IDENTIFY, PHASE_COMPARE, PHASE_VALIDATE]
+        );
         // The search's total is its real budget: starts × iterations.
         assert_eq!(observer.last[0].2, 3 * 400);
-        // The comparison: 8 designs (winner, start, 3 hand designs, 3 made
-        // admissible) × 2 seeds × 20 scenarios.
-        assert_eq!(observer.last[1].2, 8 * 2 * 20);
-        assert_eq!(observer.last[2].2, 20);
+        assert_eq!(observer.last[1].2, IDENTIFY_ROUNDS as u64);
+        // The comparison: 5 designs (winner, start, 3 hand designs; none
+        // made admissible, the stereo distance rule being off) × 2 seeds ×
+        // 20 scenarios.
+        assert_eq!(observer.last[2].2, 5 * 2 * 20);
+        // The validation: its Monte-Carlo run, then identifiability.
+        assert_eq!(observer.last[3].2, 2 * 20);
         for (phase, done, total) in &observer.last {
             assert_eq!(done, total, "{phase} ended short of its total");
         }
@@ -1592,6 +1603,7 @@ mod tests {
     fn impossible_constraints_are_refused_before_the_search() {
         let dir = tempfile::tempdir().unwrap();
         let mut config = small(dir.path());
+        config.constraints.min_distance_diff_mm = 1.0;
         config.family = FamilyKind::Custom {
             count: 30,
             start: None,
@@ -1629,6 +1641,7 @@ mod tests {
     fn too_many_points_for_distinct_distances_are_refused_before_the_search() {
         let dir = tempfile::tempdir().unwrap();
         let mut config = small(dir.path());
+        config.constraints.min_distance_diff_mm = 1.0;
         config.family = FamilyKind::Custom {
             count: 19,
             start: None,
