@@ -17,6 +17,7 @@ pub mod conformance;
 pub mod error_model;
 pub mod family;
 pub mod files;
+pub mod identifiability;
 pub mod layout;
 pub mod linalg;
 pub mod mesh;

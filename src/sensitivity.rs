@@ -12,6 +12,7 @@
 //! file at any thread count.
 
 use crate::camera::Camera;
+use crate::identifiability::{self, IdentifiabilitySettings, ScenarioIdentifiability};
 use crate::layout::{Layout, LayoutError};
 use crate::montecarlo::{
     self, median, MonteCarloConfig, MonteCarloError, Pooled, PoseErrorVector, ScenarioOutcome,
@@ -216,6 +217,102 @@ pub struct Summary {
     pub curves: Vec<Curve>,
     /// The systematic part of the error beside the random part, per axis.
     pub systematic: Systematic,
+    /// How often the unlabelled solver would label the visible scenarios
+    /// wrongly, predicted and measured.
+    pub identifiability: IdentifiabilitySummary,
+}
+
+/// How identifiability is checked in a validation.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct IdentifiabilityCheck {
+    /// A scenario is identifiable when its predicted share of correct
+    /// labellings reaches this.
+    pub min_correct: f64,
+    /// Monte-Carlo trials of the unlabelled solver per visible scenario (0:
+    /// the prediction alone).
+    pub trials: usize,
+}
+
+impl Default for IdentifiabilityCheck {
+    fn default() -> Self {
+        IdentifiabilityCheck {
+            min_correct: identifiability::DEFAULT_MIN_CORRECT,
+            trials: DEFAULT_IDENTIFY_TRIALS,
+        }
+    }
+}
+
+/// Default Monte-Carlo trials of the unlabelled solver per visible scenario.
+pub const DEFAULT_IDENTIFY_TRIALS: usize = 200;
+
+/// Identifiability over the visible scenarios (module
+/// [`crate::identifiability`]).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct IdentifiabilitySummary {
+    /// The prediction model, in words.
+    pub model: String,
+    /// The least predicted share of correct labellings of an identifiable
+    /// scenario.
+    pub min_correct: f64,
+    /// Monte-Carlo trials per visible scenario.
+    pub trials_per_scenario: usize,
+    /// Seed of the trials' noise (the validation's) and shuffle streams.
+    pub seed: u64,
+    /// Gate of the noise-free search for wrong labellings, in σ.
+    pub prediction_gate_sigmas: f64,
+    /// Per-point gate of the trials' unlabelled solver, in σ.
+    pub trial_gate_sigmas: f64,
+    /// Visible scenarios.
+    pub scenarios: usize,
+    /// Visible scenarios with a prediction.
+    pub predicted: usize,
+    /// Visible scenarios predicted identifiable.
+    pub identifiable: usize,
+    /// `identifiable / scenarios` (None without visible scenarios).
+    pub identifiable_share: Option<f64>,
+    /// Smallest margin of any visible scenario, px (None: every margin is
+    /// above its gate).
+    pub smallest_margin_px: Option<f64>,
+    /// Mean predicted wrong-label probability over the visible scenarios.
+    pub mean_predicted_wrong: Option<f64>,
+    /// Monte-Carlo wrong-label rate over every trial of the visible
+    /// scenarios.
+    pub monte_carlo_wrong: Option<f64>,
+    /// The part of it in which the wrong labelling fits better than the
+    /// true one (what the prediction models; the rest are the solver's
+    /// search missing the truth, and trials without a labelling).
+    pub monte_carlo_ambiguous: Option<f64>,
+    /// Trials run, wrong and failed (no labelling found), over the visible
+    /// scenarios.
+    pub trials: identifiability::TrialCounts,
+    /// The visible scenarios that are not identifiable (first dozen),
+    /// described with their margin and probabilities.
+    pub worst: Vec<String>,
+    /// Per axis with more than one value.
+    pub curves: Vec<IdentifiabilityCurve>,
+}
+
+/// Identifiability against one grid axis, over the visible scenarios at
+/// each value.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct IdentifiabilityCurve {
+    /// Axis name.
+    pub axis: String,
+    /// Axis unit.
+    pub unit: String,
+    /// The axis values.
+    pub values: Vec<f64>,
+    /// Visible scenarios at each value.
+    pub visible: Vec<usize>,
+    /// Share of them predicted identifiable.
+    pub identifiable_share: Vec<Option<f64>>,
+    /// Smallest margin, px (None: none found within the gate, or nothing
+    /// visible).
+    pub smallest_margin_px: Vec<Option<f64>>,
+    /// Mean predicted wrong-label probability.
+    pub predicted_wrong: Vec<Option<f64>>,
+    /// Monte-Carlo wrong-label rate.
+    pub monte_carlo_wrong: Vec<Option<f64>>,
 }
 
 /// RMS over scenarios of a signed per-axis error, with the RMS and largest
@@ -291,6 +388,9 @@ pub struct Analysis {
     pub summary: Summary,
     /// Per-scenario results, in grid order.
     pub outcomes: Vec<ScenarioOutcome>,
+    /// Per-scenario identifiability, in grid order (None for scenarios that
+    /// are not visible).
+    pub identifiability: Vec<Option<ScenarioIdentifiability>>,
 }
 
 /// Runs the Monte-Carlo validation of `layout`.
@@ -299,6 +399,7 @@ pub fn run(
     camera: &Camera,
     grid: &ScenarioGrid,
     config: &MonteCarloConfig,
+    check: &IdentifiabilityCheck,
     command: &str,
     on_scenario_done: &(dyn Fn(usize) + Sync),
 ) -> Result<Analysis, SensitivityError> {
@@ -308,6 +409,7 @@ pub fn run(
         camera,
         grid,
         config,
+        check,
         command,
         on_scenario_done,
         &never,
@@ -315,12 +417,16 @@ pub fn run(
 }
 
 /// [`run`], ended early with [`MonteCarloError::Interrupted`] once `stop` is
-/// set ([`montecarlo::run_until`]).
+/// set ([`montecarlo::run_until`]). `on_scenario_done` counts the
+/// Monte-Carlo scenarios, then the identifiability scenarios after them
+/// (twice the grid in all).
+#[allow(clippy::too_many_arguments)]
 pub fn run_until(
     layout: &Layout,
     camera: &Camera,
     grid: &ScenarioGrid,
     config: &MonteCarloConfig,
+    check: &IdentifiabilityCheck,
     command: &str,
     on_scenario_done: &(dyn Fn(usize) + Sync),
     stop: &std::sync::atomic::AtomicBool,
@@ -336,6 +442,23 @@ pub fn run_until(
     };
     let scenarios = grid.scenarios();
     let outcomes = montecarlo::run_until(&target, &scenarios, config, on_scenario_done, stop)?;
+    let settings = IdentifiabilitySettings {
+        min_correct: check.min_correct,
+        trials: check.trials,
+        seed: config.seed,
+        observation: config.observation,
+        noise: config.noise,
+    };
+    let visible_at: Vec<bool> = outcomes.iter().map(visible).collect();
+    let identified = identifiability::run_until(
+        &target,
+        &scenarios,
+        &settings,
+        &|s| visible_at.get(s.index).copied().unwrap_or(false),
+        &|done| on_scenario_done(scenarios.len() + done),
+        stop,
+    )
+    .ok_or(MonteCarloError::Interrupted)?;
     let header = Header {
         command: command.to_string(),
         version: env!("CARGO_PKG_VERSION").to_string(),
@@ -361,8 +484,13 @@ pub fn run_until(
         solvers: solver_rows(&outcomes, config.solvers.len()),
         curves: curves(grid, &outcomes, config),
         systematic: systematic(&outcomes, config),
+        identifiability: identifiability_summary(grid, &outcomes, &identified, &settings),
     };
-    Ok(Analysis { summary, outcomes })
+    Ok(Analysis {
+        summary,
+        outcomes,
+        identifiability: identified,
+    })
 }
 
 fn systematic(outcomes: &[ScenarioOutcome], config: &MonteCarloConfig) -> Systematic {
@@ -425,6 +553,123 @@ fn systematic(outcomes: &[ScenarioOutcome], config: &MonteCarloConfig) -> System
         first_order_random,
         first_order_bias: AxisErrors::of(&bias),
         solvers,
+    }
+}
+
+/// The identifiability summary of the visible scenarios.
+fn identifiability_summary(
+    grid: &ScenarioGrid,
+    outcomes: &[ScenarioOutcome],
+    identified: &[Option<ScenarioIdentifiability>],
+    settings: &IdentifiabilitySettings,
+) -> IdentifiabilitySummary {
+    let pairs: Vec<(&ScenarioOutcome, &ScenarioIdentifiability)> = outcomes
+        .iter()
+        .zip(identified)
+        .filter(|(o, _)| visible(o))
+        .filter_map(|(o, i)| Some((o, i.as_ref()?)))
+        .collect();
+    let stats = |group: &[&(&ScenarioOutcome, &ScenarioIdentifiability)]| {
+        let predictions: Vec<&identifiability::Prediction> = group
+            .iter()
+            .filter_map(|(_, i)| i.prediction.as_ref())
+            .collect();
+        let identifiable = group
+            .iter()
+            .filter(|(_, i)| i.identifiable(settings))
+            .count();
+        let smallest = predictions
+            .iter()
+            .filter_map(|p| p.margin_px)
+            .fold(None, |m: Option<f64>, v| Some(m.map_or(v, |m| m.min(v))));
+        let mean_predicted = (!predictions.is_empty()).then(|| {
+            predictions.iter().map(|p| p.wrong_probability).sum::<f64>() / predictions.len() as f64
+        });
+        let mut trials = identifiability::TrialCounts::default();
+        for (_, i) in group {
+            trials.trials += i.trials.trials;
+            trials.wrong += i.trials.wrong;
+            trials.failed += i.trials.failed;
+            trials.missed += i.trials.missed;
+        }
+        (
+            predictions.len(),
+            identifiable,
+            smallest,
+            mean_predicted,
+            trials,
+        )
+    };
+    let all: Vec<&(&ScenarioOutcome, &ScenarioIdentifiability)> = pairs.iter().collect();
+    let (predicted, identifiable, smallest_margin_px, mean_predicted_wrong, trials) = stats(&all);
+    let worst = pairs
+        .iter()
+        .filter(|(_, i)| !i.identifiable(settings))
+        .take(12)
+        .map(|(o, i)| {
+            let what = match &i.prediction {
+                Some(p) => format!(
+                    "margin {} px, predicted wrong {}, Monte-Carlo wrong {}",
+                    p.margin_px.map_or("—".into(), |m| significant(Some(m), 3)),
+                    significant(Some(p.wrong_probability), 3),
+                    i.trials
+                        .wrong_rate()
+                        .map_or("—".into(), |r| significant(Some(r), 3))
+                ),
+                None => format!("no prediction: {}", i.error.as_deref().unwrap_or("")),
+            };
+            format!("{}: {what}", describe_scenario(&o.scenario))
+        })
+        .collect();
+    let curves = grid
+        .named_ranges()
+        .iter()
+        .filter(|(_, range)| range.values.len() > 1)
+        .map(|(axis, range)| {
+            let groups: Vec<Vec<&(&ScenarioOutcome, &ScenarioIdentifiability)>> = range
+                .values
+                .iter()
+                .map(|&value| {
+                    pairs
+                        .iter()
+                        .filter(|(o, _)| axis_value(&o.scenario, axis) == value)
+                        .collect()
+                })
+                .collect();
+            let per_value: Vec<_> = groups.iter().map(|g| (g.len(), stats(g))).collect();
+            IdentifiabilityCurve {
+                axis: axis.to_string(),
+                unit: axis_unit(axis).to_string(),
+                values: range.values.clone(),
+                visible: per_value.iter().map(|(n, _)| *n).collect(),
+                identifiable_share: per_value
+                    .iter()
+                    .map(|(n, s)| (*n > 0).then(|| s.1 as f64 / *n as f64))
+                    .collect(),
+                smallest_margin_px: per_value.iter().map(|(_, s)| s.2).collect(),
+                predicted_wrong: per_value.iter().map(|(_, s)| s.3).collect(),
+                monte_carlo_wrong: per_value.iter().map(|(_, s)| s.4.wrong_rate()).collect(),
+            }
+        })
+        .collect();
+    IdentifiabilitySummary {
+        model: "P(wrong) = Φ(−E[D]/√Var[D]) for the best wrong consistent labelling of the noise-free view (D = ‖r‖² + 2rᵀe + eᵀ(P₁ − P₂)e, first order)".into(),
+        min_correct: settings.min_correct,
+        trials_per_scenario: settings.trials,
+        seed: settings.seed,
+        prediction_gate_sigmas: identifiability::PREDICTION_GATE_SIGMAS,
+        trial_gate_sigmas: identifiability::TRIAL_GATE_SIGMAS,
+        scenarios: pairs.len(),
+        predicted,
+        identifiable,
+        identifiable_share: (!pairs.is_empty()).then(|| identifiable as f64 / pairs.len() as f64),
+        smallest_margin_px,
+        mean_predicted_wrong,
+        monte_carlo_wrong: trials.wrong_rate(),
+        monte_carlo_ambiguous: trials.ambiguous_rate(),
+        trials,
+        worst,
+        curves,
     }
 }
 
@@ -786,6 +1031,9 @@ pub fn write_report(
     for curve in &summary.curves {
         write_curve(dir, curve)?;
     }
+    for curve in &summary.identifiability.curves {
+        write_identifiability_curve(dir, curve)?;
+    }
     let scatter: Vec<(String, Vec<(f64, f64)>)> = summary
         .solvers
         .iter()
@@ -915,6 +1163,79 @@ fn write_curve(dir: &Path, curve: &Curve) -> Result<(), SensitivityError> {
     Ok(())
 }
 
+fn write_identifiability_curve(
+    dir: &Path,
+    curve: &IdentifiabilityCurve,
+) -> Result<(), SensitivityError> {
+    let mut table = Table::new([
+        format!("{} ({})", curve.axis, curve.unit),
+        "visible".into(),
+        "identifiable share".into(),
+        "smallest margin (px)".into(),
+        "predicted wrong-label probability".into(),
+        "Monte-Carlo wrong-label rate".into(),
+    ]);
+    let cell = |v: Option<f64>| v.map_or(String::new(), |v| format!("{v:.6e}"));
+    for (k, value) in curve.values.iter().enumerate() {
+        table.row([
+            value.to_string(),
+            curve.visible[k].to_string(),
+            cell(curve.identifiable_share[k]),
+            cell(curve.smallest_margin_px[k]),
+            cell(curve.predicted_wrong[k]),
+            cell(curve.monte_carlo_wrong[k]),
+        ]);
+    }
+    let path = dir.join(format!("identifiability_vs_{}.csv", curve.axis));
+    write_text(
+        &path,
+        &table.csv().map_err(|e| ReportError::write(&path, e))?,
+    )?;
+    let xy = |values: &[Option<f64>]| -> Vec<(f64, f64)> {
+        curve
+            .values
+            .iter()
+            .zip(values)
+            .filter_map(|(&x, y)| y.map(|y| (x, y)))
+            .collect()
+    };
+    let series = [
+        plots::Series {
+            name: "Monte-Carlo wrong-label rate".into(),
+            points: xy(&curve.monte_carlo_wrong),
+            dashed: false,
+        },
+        plots::Series {
+            name: "predicted wrong-label probability".into(),
+            points: xy(&curve.predicted_wrong),
+            dashed: true,
+        },
+    ];
+    let visible_total: usize = curve.visible.iter().sum();
+    let availability = plots::Availability {
+        points: curve
+            .values
+            .iter()
+            .copied()
+            .zip(curve.identifiable_share.iter().map(|s| s.unwrap_or(0.0)))
+            .collect(),
+        axis: curve.axis.clone(),
+        unit: curve.unit.clone(),
+    };
+    plots::line_plot_with_availability(
+        &dir.join(format!("identifiability_vs_{}.svg", curve.axis)),
+        &format!(
+            "Wrong-label rate vs {} ({} visible scenarios; panel: share identifiable)",
+            curve.axis, visible_total
+        ),
+        &format!("{} ({})", curve.axis, curve.unit),
+        "wrong-label probability",
+        &series,
+        Some(&availability),
+    )?;
+    Ok(())
+}
+
 fn scenario_table(layout: &Layout, validation: &Analysis) -> Table {
     let mut table = Table::new([
         "scenario",
@@ -932,6 +1253,20 @@ fn scenario_table(layout: &Layout, validation: &Analysis) -> Table {
         "first_order_rms_trans_mm",
         "transfer_rms_rot_deg",
         "qu_hou_rms_rot_deg",
+        "bias_max_displacement_px",
+        "first_order_bias_rot_deg",
+        "first_order_bias_rot_x_deg",
+        "first_order_bias_rot_y_deg",
+        "first_order_bias_rot_z_deg",
+        "first_order_bias_trans_mm",
+        "first_order_bias_trans_x_mm",
+        "first_order_bias_trans_y_mm",
+        "first_order_bias_trans_z_mm",
+        "identify_margin_px",
+        "identify_predicted_wrong",
+        "identify_trials",
+        "identify_mc_wrong_rate",
+        "identify_mc_missed",
         "solver",
         "trials",
         "rms_rot_deg",
@@ -945,7 +1280,12 @@ fn scenario_table(layout: &Layout, validation: &Analysis) -> Table {
         "solver_errors",
     ]);
     let name = |i: usize| layout.points[i].name.clone();
-    for o in &validation.outcomes {
+    for (o, identified) in validation.outcomes.iter().zip(
+        validation
+            .identifiability
+            .iter()
+            .chain(std::iter::repeat(&None)),
+    ) {
         let s = &o.scenario;
         let v = &o.visibility;
         let mut issues: Vec<String> = Vec::new();
@@ -981,6 +1321,35 @@ fn scenario_table(layout: &Layout, validation: &Analysis) -> Table {
             opt(o.first_order.map(|f| f.rms_translation_mm)),
             opt(o.transfer.and_then(|t| t.rms_rotation_deg)),
             opt(o.qu_hou_rotation_deg),
+            opt(o.bias.map(|b| b.max_displacement_px)),
+            opt(o.bias.map(|b| b.pose.rotation_norm_deg())),
+            opt(o.bias.map(|b| b.pose.rotation_deg[0])),
+            opt(o.bias.map(|b| b.pose.rotation_deg[1])),
+            opt(o.bias.map(|b| b.pose.rotation_deg[2])),
+            opt(o.bias.map(|b| b.pose.translation_norm_mm())),
+            opt(o.bias.map(|b| b.pose.translation_mm[0])),
+            opt(o.bias.map(|b| b.pose.translation_mm[1])),
+            opt(o.bias.map(|b| b.pose.translation_mm[2])),
+            // A margin above the search gate is written as `>GATE`.
+            identified
+                .as_ref()
+                .and_then(|i| i.prediction.as_ref())
+                .map_or(String::new(), |p| match p.margin_px {
+                    Some(m) => format!("{m:.6e}"),
+                    None => format!(">{:.6e}", p.gate_px),
+                }),
+            opt(identified
+                .as_ref()
+                .and_then(|i| i.prediction.as_ref())
+                .map(|p| p.wrong_probability)),
+            identified
+                .as_ref()
+                .map_or(String::new(), |i| i.trials.trials.to_string()),
+            opt(identified.as_ref().and_then(|i| i.trials.wrong_rate())),
+            identified
+                .as_ref()
+                .filter(|i| i.trials.trials > 0)
+                .map_or(String::new(), |i| i.trials.missed.to_string()),
         ];
         if o.solvers.is_empty() {
             table.row(
@@ -1196,6 +1565,7 @@ fn markdown(summary: &Summary) -> String {
     );
 
     out.push_str(&systematic_markdown(&summary.systematic, &h.observation));
+    out.push_str(&identifiability_markdown(&summary.identifiability));
 
     if !summary.curves.is_empty() {
         let _ = writeln!(out, "## Error along each axis\n");
@@ -1209,6 +1579,71 @@ fn markdown(summary: &Summary) -> String {
         }
     }
     let _ = writeln!(out, "## Marker\n\n![three views](marker_views.svg)\n");
+    out
+}
+
+fn identifiability_markdown(s: &IdentifiabilitySummary) -> String {
+    let mut out = String::new();
+    let _ = writeln!(out, "## Identifiability (visible scenarios)\n");
+    let _ = writeln!(
+        out,
+        "Whether one image tells which blob is which sphere: the unlabelled solver on the blobs, shuffled. Predicted from the noise-free ambiguity margin (the residual norm ‖r‖ of the best wrong labelling that is geometrically consistent): {}. A scenario is identifiable when its predicted wrong-label probability is at most {}. Monte-Carlo: {} trials per visible scenario (the validation's noise draws, seed {}, blobs shuffled), per-point gate {}σ; the wrong labellings are counted, a trial without any labelling counts as wrong. A wrong labelling that fits the blobs worse than the true labelling (refitted) means the solver's search lost the truth, which no margin predicts; the last column is the rest, the wrong labellings that fit better, which is what the prediction models.\n",
+        s.model,
+        significant(Some(1.0 - s.min_correct), 3),
+        s.trials_per_scenario,
+        s.seed,
+        s.trial_gate_sigmas
+    );
+    let mut table = Table::new([
+        "visible scenarios",
+        "identifiable",
+        "share",
+        "smallest margin (px)",
+        "mean predicted wrong",
+        "Monte-Carlo wrong (trials)",
+        "of which a better fit than the truth",
+    ]);
+    table.row([
+        s.scenarios.to_string(),
+        s.identifiable.to_string(),
+        s.identifiable_share
+            .map_or("—".into(), |v| format!("{:.1}%", 100.0 * v)),
+        s.smallest_margin_px.map_or(
+            format!("> {}σ everywhere", s.prediction_gate_sigmas),
+            |m| significant(Some(m), 3),
+        ),
+        significant(s.mean_predicted_wrong, 3),
+        format!(
+            "{} ({} of {}, {} without a labelling, {} fitting worse than the truth)",
+            significant(s.monte_carlo_wrong, 3),
+            s.trials.wrong,
+            s.trials.trials,
+            s.trials.failed,
+            s.trials.missed
+        ),
+        significant(s.monte_carlo_ambiguous, 3),
+    ]);
+    out.push_str(&table.markdown());
+    if !s.worst.is_empty() {
+        let _ = writeln!(
+            out,
+            "\nScenarios that are not identifiable ({} of {}, first {}):\n",
+            s.scenarios - s.identifiable,
+            s.scenarios,
+            s.worst.len()
+        );
+        for line in &s.worst {
+            let _ = writeln!(out, "- {line}");
+        }
+    }
+    for curve in &s.curves {
+        let _ = writeln!(
+            out,
+            "\n### Identifiability vs {}\n\n![identifiability vs {}](identifiability_vs_{}.svg)\n\n[identifiability_vs_{}.csv](identifiability_vs_{}.csv)",
+            curve.axis, curve.axis, curve.axis, curve.axis, curve.axis
+        );
+    }
+    out.push('\n');
     out
 }
 
@@ -1318,7 +1753,8 @@ pub mod pipeline {
     use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
     use std::time::Instant;
 
-    /// Progress phase of the Monte-Carlo run (one step per scenario).
+    /// Progress phase of the run: one step per scenario for the Monte-Carlo
+    /// run, then one per scenario for identifiability.
     pub const PHASE: &str = "validating";
 
     /// Every input and the output directory of a validation.
@@ -1332,6 +1768,8 @@ pub mod pipeline {
         pub grid: ScenarioGrid,
         /// Trials, seed, solvers, noise and gross-failure threshold.
         pub monte_carlo: MonteCarloConfig,
+        /// How identifiability is checked.
+        pub identifiability: super::IdentifiabilityCheck,
         /// The command that asked for the run, for the report header.
         pub command: String,
         /// A remark on how the grid was chosen, recorded in `run.json`.
@@ -1373,7 +1811,7 @@ pub mod pipeline {
         let validation = watch(
             observer,
             PHASE,
-            config.grid.len() as u64,
+            2 * config.grid.len() as u64,
             || done.load(Ordering::Relaxed),
             Some(&stop),
             || {
@@ -1382,6 +1820,7 @@ pub mod pipeline {
                     &config.camera,
                     &config.grid,
                     &config.monte_carlo,
+                    &config.identifiability,
                     &config.command,
                     &|finished| done.store(finished as u64, Ordering::Relaxed),
                     &stop,
@@ -1445,6 +1884,7 @@ pub mod pipeline {
                     gross_threshold_deg: crate::montecarlo::DEFAULT_GROSS_THRESHOLD_DEG,
                     observation: Default::default(),
                 },
+                identifiability: super::super::IdentifiabilityCheck::default(),
                 command: "test".into(),
                 grid_note: None,
                 out_dir: dir.path().join("report"),
@@ -1484,6 +1924,7 @@ pub mod pipeline {
                     gross_threshold_deg: crate::montecarlo::DEFAULT_GROSS_THRESHOLD_DEG,
                     observation: Default::default(),
                 },
+                identifiability: super::super::IdentifiabilityCheck::default(),
                 command: "test".into(),
                 grid_note: None,
                 out_dir: dir.path().join("report"),

@@ -17,8 +17,8 @@ use layout_opt::report::{percent_lower, Table};
 use layout_opt::scenario::ScenarioGrid;
 use layout_opt::search::pipeline::{self, FrontOutput, MeshExport, SearchConfig};
 use layout_opt::search::{
-    hand_designs, Aggregate, AvailabilityFloor, Evaluator, FrontSettings, Objective,
-    ObjectiveSettings, Optimiser, SearchSettings, Term, FINAL_POLISH_STARTS,
+    hand_designs, Aggregate, AvailabilityFloor, Evaluator, FrontSettings, IdentifiabilityFloor,
+    Objective, ObjectiveSettings, Optimiser, SearchSettings, Term, FINAL_POLISH_STARTS,
 };
 use layout_opt::sphere_image::Observation;
 use std::path::PathBuf;
@@ -70,10 +70,27 @@ pub struct SearchArgs {
     /// Smallest gap between sphere surfaces, mm.
     #[arg(long, default_value_t = 2.0)]
     min_gap: f64,
-    /// Smallest difference between two pairwise centre distances, mm, so that
-    /// spheres can be identified without labels (0 disables).
-    #[arg(long, default_value_t = 1.0)]
+    /// Smallest difference between two pairwise centre distances, mm: the
+    /// identification rule of stereo trackers, which measure 3D points
+    /// (0, the default, disables it; a single camera is served by
+    /// --min-identifiability).
+    #[arg(long, default_value_t = 0.0)]
     min_distance_diff: f64,
+    /// Least share of the visible scenarios in which one image identifies
+    /// the spheres: the unlabelled solver is predicted to label the blobs
+    /// correctly with probability ≥ 99.9% (--identify-criterion). A share
+    /// (0.999 or 99.9%) or `none` (for stereo trackers, which identify by
+    /// --min-distance-diff).
+    #[arg(long, default_value = "99.9%", value_name = "SHARE")]
+    min_identifiability: IdentifiabilityShare,
+    /// Least predicted probability of a correct labelling for a scenario to
+    /// count as identifiable.
+    #[arg(long, default_value = "99.9%", value_name = "PROBABILITY")]
+    identify_criterion: IdentifiabilityShare,
+    /// Monte-Carlo trials of the unlabelled solver per visible scenario in
+    /// the winner's validation (0: the prediction alone).
+    #[arg(long, default_value_t = pipeline::DEFAULT_IDENTIFY_TRIALS)]
+    identify_trials: usize,
     #[command(flatten)]
     grid: GridArgs,
     #[command(flatten)]
@@ -187,11 +204,54 @@ pub struct SearchArgs {
     front_levels: usize,
 }
 
+/// A share given as `0.999`, `99.9%` or `none`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct IdentifiabilityShare(Option<f64>);
+
+impl std::str::FromStr for IdentifiabilityShare {
+    type Err = String;
+    fn from_str(text: &str) -> Result<Self, Self::Err> {
+        let text = text.trim();
+        if text == "none" {
+            return Ok(Self(None));
+        }
+        let (number, scale) = match text.strip_suffix('%') {
+            Some(number) => (number, 0.01),
+            None => (text, 1.0),
+        };
+        let share = number
+            .trim()
+            .parse::<f64>()
+            .map(|v| v * scale)
+            .map_err(|_| format!("'{text}' is not a share (0.999, 99.9% or none)"))?;
+        if !(0.0..=1.0).contains(&share) {
+            return Err(format!("'{text}' is not a share between 0 and 1 (0%…100%)"));
+        }
+        Ok(Self(Some(share)))
+    }
+}
+
 /// The flags as a pipeline configuration; the default paths are relative to
 /// the working directory.
 fn config(args: SearchArgs, global: &GlobalOptions) -> anyhow::Result<SearchConfig> {
     let camera = args.camera.camera()?;
     let grid = args.grid.grid(&pipeline::default_grid())?;
+    let min_identifiability = match (args.min_identifiability.0, args.identify_criterion.0) {
+        (None, _) => None,
+        (Some(_), None) => anyhow::bail!(
+            "--identify-criterion must be a probability, not none (turn the floor off with --min-identifiability none)"
+        ),
+        (Some(min_share), Some(min_correct)) => {
+            anyhow::ensure!(
+                min_correct > 0.0 && min_correct < 1.0,
+                "--identify-criterion must be a probability strictly between 0 and 1, got {min_correct}"
+            );
+            Some(IdentifiabilityFloor {
+                min_share,
+                min_correct,
+            })
+        }
+    };
     check_degenerate(&args, &grid)?;
     if args.init.is_some() && args.family != FamilyName::Custom {
         anyhow::bail!("--init applies to --family custom");
@@ -301,6 +361,8 @@ fn config(args: SearchArgs, global: &GlobalOptions) -> anyhow::Result<SearchConf
         export,
         front,
         name,
+        min_identifiability,
+        identify_trials: args.identify_trials,
     })
 }
 
@@ -535,6 +597,39 @@ pub fn run(args: SearchArgs, global: &GlobalOptions) -> anyhow::Result<()> {
             "NOT met"
         }
     );
+    if let Some(books) = &summary.identifiability {
+        let figures = |f: &Option<layout_opt::search::IdentifiabilityFigures>| {
+            f.as_ref().map_or("—".to_string(), |f| {
+                format!(
+                    "{} of {} visible scenarios, smallest margin {} px",
+                    f.identifiable,
+                    f.checked,
+                    f.smallest_margin_px
+                        .map_or("above the gate".into(), |m| format!("{m:.2}"))
+                )
+            })
+        };
+        println!(
+            "identifiability floor {:.1}% (each scenario ≥ {:.1}% correct labels): {}; the search's winner {}, after {} repair round(s) ({} evaluations, {:.1} s) {}",
+            100.0 * books.floor.min_share,
+            100.0 * books.floor.min_correct,
+            if summary.outcome.best.evaluation.meets_identifiability_floor() {
+                "met"
+            } else {
+                "NOT met"
+            },
+            figures(&books.before),
+            books.rounds,
+            books.evaluations,
+            books.seconds,
+            figures(&books.after)
+        );
+        for row in &summary.designs {
+            if let Some(text) = &row.not_identifiable {
+                println!("  {}: {text}", row.name);
+            }
+        }
+    }
     let yes_no = |b: bool| if b { "yes" } else { "no" };
     println!(
         "winner's objective below every hand design's: {} as drawn, {} among the admissible ones ({})",

@@ -52,6 +52,15 @@ pub struct ValidateArgs {
     /// Noise is added on top.
     #[arg(long, default_value = "ellipse-centre")]
     observation: Observation,
+    /// Monte-Carlo trials of the unlabelled solver per visible scenario: the
+    /// blobs shuffled, how often it labels them wrongly (0: the prediction
+    /// from the noise-free margin alone).
+    #[arg(long, default_value_t = layout_opt::sensitivity::DEFAULT_IDENTIFY_TRIALS)]
+    identify_trials: usize,
+    /// Least predicted probability of a correct labelling for a scenario to
+    /// count as identifiable (0.999 or 99.9%).
+    #[arg(long, default_value = "0.999", value_name = "PROBABILITY")]
+    identify_criterion: String,
     /// Output directory. Default: reports/<layout name>/.
     #[arg(long, value_name = "DIR")]
     out: Option<PathBuf>,
@@ -77,6 +86,21 @@ pub fn parse_solvers(text: &str) -> anyhow::Result<Vec<Solver>> {
     }
     anyhow::ensure!(!solvers.is_empty(), "--solvers names no solver");
     Ok(solvers)
+}
+
+/// A probability strictly between 0 and 1, as `0.999` or `99.9%`.
+fn parse_probability(text: &str) -> anyhow::Result<f64> {
+    let text = text.trim();
+    let value = match text.strip_suffix('%') {
+        Some(number) => number.trim().parse::<f64>().map(|v| v / 100.0),
+        None => text.parse::<f64>(),
+    }
+    .map_err(|_| anyhow::anyhow!("'{text}' is not a probability (0.999 or 99.9%)"))?;
+    anyhow::ensure!(
+        value > 0.0 && value < 1.0,
+        "'{text}' must be a probability strictly between 0 and 1"
+    );
+    Ok(value)
 }
 
 pub fn run(args: ValidateArgs, global: &GlobalOptions) -> anyhow::Result<()> {
@@ -115,6 +139,8 @@ pub fn run(args: ValidateArgs, global: &GlobalOptions) -> anyhow::Result<()> {
         "{}",
         FabricationError::BadSigma(args.fabrication_sigma)
     );
+    let identify_criterion =
+        parse_probability(&args.identify_criterion).context("--identify-criterion")?;
     let config = SensitivityConfig {
         out_dir: args
             .out
@@ -130,6 +156,10 @@ pub fn run(args: ValidateArgs, global: &GlobalOptions) -> anyhow::Result<()> {
             noise: args.noise_model,
             gross_threshold_deg: args.gross_threshold,
             observation: args.observation,
+        },
+        identifiability: layout_opt::sensitivity::IdentifiabilityCheck {
+            min_correct: identify_criterion,
+            trials: args.identify_trials,
         },
         command: command_line(),
         grid_note: tilt_note.clone(),
@@ -239,6 +269,21 @@ pub fn run(args: ValidateArgs, global: &GlobalOptions) -> anyhow::Result<()> {
         s.first_order_random.rms_rotation_deg,
         s.first_order_bias.rms_translation_mm,
         s.first_order_random.rms_translation_mm
+    );
+    let id = &summary.identifiability;
+    println!(
+        "identifiability (criterion {:.1}% correct labels): {} of {} visible scenarios, smallest margin {}; predicted wrong-label rate {} (mean), Monte-Carlo {} ({} of {} trials)",
+        100.0 * id.min_correct,
+        id.identifiable,
+        id.scenarios,
+        id.smallest_margin_px
+            .map_or("above the gate".to_string(), |m| format!("{m:.3} px")),
+        id.mean_predicted_wrong
+            .map_or("—".to_string(), |p| format!("{p:.2e}")),
+        id.monte_carlo_wrong
+            .map_or("—".to_string(), |p| format!("{p:.2e}")),
+        id.trials.wrong,
+        id.trials.trials
     );
     println!(
         "{solves} solves in {seconds:.1} s on {threads} threads ({:.0} solves/s); report in {}",

@@ -94,6 +94,78 @@ pub struct DesignRow {
     pub evaluation: Evaluation,
     /// Monte-Carlo on the search seed and on the validation seed.
     pub monte_carlo: Vec<MonteCarloFigures>,
+    /// Where one image cannot identify its spheres, in words (None when
+    /// identifiability is not checked).
+    pub not_identifiable: Option<String>,
+}
+
+/// Where a design cannot be identified: the visible scenarios that fail the
+/// criterion, as the values of each axis at which they occur.
+pub fn where_not_identifiable(
+    figures: &super::IdentifiabilityFigures,
+    scenarios: &[crate::scenario::Scenario],
+) -> String {
+    if figures.failing.is_empty() {
+        return format!("identifiable in all {} visible scenarios", figures.checked);
+    }
+    let twins = if figures.twins > 0 {
+        format!(
+            "; {} of them symmetric (a wrong labelling fits the noise-free image to within {} px)",
+            figures.twins,
+            crate::identifiability::TWIN_MARGIN_PX
+        )
+    } else {
+        String::new()
+    };
+    if figures.failing.len() == figures.checked {
+        return format!(
+            "not identifiable in any of its {} visible scenarios{twins}",
+            figures.checked
+        );
+    }
+    let failing: Vec<&crate::scenario::Scenario> = figures
+        .failing
+        .iter()
+        .filter_map(|&k| scenarios.get(k))
+        .collect();
+    type Axis = (
+        &'static str,
+        &'static str,
+        fn(&crate::scenario::Scenario) -> f64,
+    );
+    let axes: [Axis; 7] = [
+        ("depth", "mm", |s| s.depth_mm),
+        ("offset x", "mm", |s| s.offset_x_mm),
+        ("offset y", "mm", |s| s.offset_y_mm),
+        ("tilt", "°", |s| s.tilt_deg),
+        ("pan", "°", |s| s.pan_deg),
+        ("roll", "°", |s| s.roll_deg),
+        ("σ", "px", |s| s.sigma_px),
+    ];
+    let mut parts = Vec::new();
+    for (name, unit, value) in axes {
+        let all: Vec<f64> = scenarios.iter().map(value).collect();
+        let mut distinct: Vec<f64> = failing.iter().map(|s| value(s)).collect();
+        distinct.sort_by(f64::total_cmp);
+        distinct.dedup();
+        let mut every: Vec<f64> = all;
+        every.sort_by(f64::total_cmp);
+        every.dedup();
+        if every.len() > 1 && distinct.len() < every.len() {
+            let values: Vec<String> = distinct.iter().map(|v| v.to_string()).collect();
+            parts.push(format!("{name} {} {unit}", values.join(", ")));
+        }
+    }
+    format!(
+        "not identifiable in {} of {} visible scenarios{}{twins}",
+        figures.failing.len(),
+        figures.checked,
+        if parts.is_empty() {
+            String::new()
+        } else {
+            format!(", at {}", parts.join("; "))
+        }
+    )
 }
 
 /// The hand designs every search report includes, in `envelope` with spheres
@@ -241,10 +313,15 @@ pub fn compare(
         .zip(&outcomes)
         .map(|((name, layout), mine)| {
             let sigmas = layout.point_sigmas();
+            let evaluation = evaluator.evaluate(&layout.positions(), &sigmas);
             DesignRow {
                 name: name.clone(),
                 layout: layout.clone(),
-                evaluation: evaluator.evaluate(&layout.positions(), &sigmas),
+                not_identifiable: evaluation
+                    .identifiability
+                    .as_ref()
+                    .map(|f| where_not_identifiable(f, evaluator.scenarios())),
+                evaluation,
                 monte_carlo: seeds
                     .iter()
                     .enumerate()

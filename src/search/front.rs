@@ -536,6 +536,7 @@ mod tests {
             availability_floor: None,
             floor_penalty: 0.0,
             violations: Default::default(),
+            identifiability: None,
         }
     }
 

@@ -85,6 +85,7 @@ pub use optimise::{
     Candidate, Optimiser, SearchError, SearchOutcome as OptimiseOutcome, SearchSettings,
     FINAL_POLISH_STARTS,
 };
+pub use pipeline::IdentifyBooks;
 pub use report::{HeldOutCheck, SearchHeader, SearchSummary, Verdicts};
 
 use crate::camera::Camera;
@@ -118,6 +119,83 @@ pub const UNMEASURABLE_COST: f64 = 1e3;
 /// Cost per unit of availability below the floor (so one scenario of a
 /// 325-scenario grid costs 0.31, a third of the reference layout's accuracy).
 pub const AVAILABILITY_PENALTY: f64 = 100.0;
+/// Cost per decade by which a checked scenario's predicted wrong-label
+/// probability exceeds the identifiability criterion, summed over the
+/// failing scenarios once more fail than the floor allows.
+pub const IDENTIFIABILITY_PENALTY: f64 = 1.0;
+
+/// The identifiability floor: the least share of visible scenarios in which
+/// the unlabelled solver is predicted to label the blobs correctly with
+/// probability at least `min_correct` ([`crate::identifiability`]).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct IdentifiabilityFloor {
+    /// Least share of the visible scenarios that must be identifiable.
+    pub min_share: f64,
+    /// Least predicted share of correct labellings of an identifiable
+    /// scenario.
+    pub min_correct: f64,
+}
+
+impl IdentifiabilityFloor {
+    /// The default floor: 99.9% of the visible scenarios, each labelled
+    /// correctly with probability 99.9% or more.
+    pub const DEFAULT: IdentifiabilityFloor = IdentifiabilityFloor {
+        min_share: 0.999,
+        min_correct: crate::identifiability::DEFAULT_MIN_CORRECT,
+    };
+
+    /// How many of `visible` scenarios may fail the criterion.
+    pub fn allowed_failures(&self, visible: usize) -> usize {
+        ((1.0 - self.min_share) * visible as f64 + 1e-9).floor() as usize
+    }
+}
+
+/// Which scenarios an evaluation checks for identifiability (each check
+/// runs the unlabelled solver, 0.1–1 ms, so the search checks a chosen
+/// few; see [`pipeline`]).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub enum IdentifyScope {
+    /// None.
+    #[default]
+    Off,
+    /// These positions in the evaluator's scenario list (the visible ones
+    /// among them).
+    Scenarios(std::sync::Arc<Vec<usize>>),
+    /// Every visible scenario.
+    All,
+}
+
+/// Identifiability of an evaluated layout over the scenarios checked.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct IdentifiabilityFigures {
+    /// Whether every visible scenario was checked (else a chosen subset).
+    pub all_checked: bool,
+    /// Visible scenarios checked.
+    pub checked: usize,
+    /// Of them, those predicted identifiable.
+    pub identifiable: usize,
+    /// Failures the floor allows over the layout's visible scenarios.
+    pub allowed_failures: usize,
+    /// Smallest margin over the checked scenarios, px (None: none within
+    /// the search gate).
+    pub smallest_margin_px: Option<f64>,
+    /// Positions (in the evaluator's scenario list) of the checked
+    /// scenarios that are not identifiable.
+    pub failing: Vec<usize>,
+    /// Of them, those where a wrong labelling fits the noise-free view
+    /// (margin below [`crate::identifiability::TWIN_MARGIN_PX`]): symmetric
+    /// twins.
+    pub twins: usize,
+    /// The floor's penalty (0 when it is met).
+    pub penalty: f64,
+}
+
+impl IdentifiabilityFigures {
+    /// Whether the checked scenarios meet the floor.
+    pub fn meets_floor(&self) -> bool {
+        self.failing.len() <= self.allowed_failures
+    }
+}
 
 /// The least availability a layout must reach.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -380,6 +458,9 @@ pub struct Evaluation {
     pub floor_penalty: f64,
     /// Constraint violations.
     pub violations: Violations,
+    /// Identifiability over the scenarios the evaluator checks (None when
+    /// it checks none).
+    pub identifiability: Option<IdentifiabilityFigures>,
 }
 
 impl Evaluation {
@@ -389,9 +470,20 @@ impl Evaluation {
             .is_none_or(|floor| self.availability + 1e-12 >= floor)
     }
 
-    /// Meets every constraint and the availability floor.
+    /// The checked scenarios meet the identifiability floor (or none was
+    /// checked).
+    pub fn meets_identifiability_floor(&self) -> bool {
+        self.identifiability
+            .as_ref()
+            .is_none_or(IdentifiabilityFigures::meets_floor)
+    }
+
+    /// Meets every constraint, the availability floor and, over the
+    /// scenarios checked, the identifiability floor.
     pub fn admissible(&self) -> bool {
-        self.violations.feasible() && self.meets_availability_floor()
+        self.violations.feasible()
+            && self.meets_availability_floor()
+            && self.meets_identifiability_floor()
     }
 }
 
@@ -410,6 +502,10 @@ pub struct Evaluator {
     reference_availability: f64,
     /// The availability floor in force.
     floor: Option<f64>,
+    /// The identifiability floor in force.
+    identify_floor: Option<IdentifiabilityFloor>,
+    /// The scenarios checked for identifiability.
+    identify_scope: IdentifyScope,
 }
 
 /// Per-scenario raw values of one layout: visibility flags and, per term,
@@ -429,6 +525,9 @@ struct ScenarioValues {
     failed: Vec<usize>,
     /// Scenarios in front with usable noise.
     usable: Vec<bool>,
+    /// Per checked visible scenario: (position, predicted wrong-label
+    /// probability, margin px).
+    identified: Vec<(usize, f64, Option<f64>)>,
 }
 
 /// One term's (rotations, translations) over the scored scenarios.
@@ -491,6 +590,8 @@ impl Evaluator {
             reference: vec![(1.0, 1.0); settings.objective.terms.len()],
             reference_availability: 0.0,
             floor: None,
+            identify_floor: None,
+            identify_scope: IdentifyScope::Off,
             settings,
             constraints,
             penalised,
@@ -581,6 +682,28 @@ impl Evaluator {
         evaluator
     }
 
+    /// The same evaluator with an identifiability floor checked on `scope`
+    /// (the reference aggregates and the availability floor are kept).
+    pub fn with_identifiability(
+        &self,
+        floor: Option<IdentifiabilityFloor>,
+        scope: IdentifyScope,
+    ) -> Self {
+        let mut evaluator = self.clone();
+        evaluator.identify_floor = floor;
+        evaluator.identify_scope = if floor.is_some() {
+            scope
+        } else {
+            IdentifyScope::Off
+        };
+        evaluator
+    }
+
+    /// The identifiability floor in force.
+    pub fn identifiability_floor(&self) -> Option<IdentifiabilityFloor> {
+        self.identify_floor
+    }
+
     /// The same evaluator with another availability weight (the weighted
     /// blend; the reference aggregates and the floor are kept).
     pub fn with_availability_weight(&self, weight: f64) -> Self {
@@ -615,6 +738,7 @@ impl Evaluator {
             per_term: vec![vec![None; n]; terms.len()],
             failed: vec![0; terms.len()],
             usable: vec![false; n],
+            identified: Vec::new(),
         };
         let needs_models = terms
             .iter()
@@ -634,6 +758,16 @@ impl Evaluator {
             values.outside += usize::from(!v.outside.is_empty());
             values.behind += usize::from(!v.behind.is_empty());
             values.visible += usize::from(v.is_visible());
+            if v.is_visible() && self.checks_identifiability(s) {
+                values.identified.push(self.identify(
+                    s,
+                    scenario,
+                    &pose,
+                    points,
+                    point_sigma,
+                    &images,
+                ));
+            }
             let margin = visibility_margin_px(&images, &self.camera);
             values.soft_visible += (0.5 + margin / (2.0 * SOFT_MARGIN_PX)).clamp(0.0, 1.0);
             if !v.all_in_front() {
@@ -739,6 +873,95 @@ impl Evaluator {
         values
     }
 
+    fn checks_identifiability(&self, position: usize) -> bool {
+        match &self.identify_scope {
+            IdentifyScope::Off => false,
+            IdentifyScope::All => true,
+            IdentifyScope::Scenarios(positions) => positions.binary_search(&position).is_ok(),
+        }
+    }
+
+    /// One visible scenario's predicted wrong-label probability and margin
+    /// (probability 1 where no prediction can be made).
+    fn identify(
+        &self,
+        position: usize,
+        scenario: &Scenario,
+        pose: &crate::pose::Pose,
+        points: &[Vector3<f64>],
+        point_sigma: &[Option<f64>],
+        images: &[Option<crate::scenario::SphereImage>],
+    ) -> (usize, f64, Option<f64>) {
+        let radius_mm = 0.5 * self.constraints.sphere_diameter_mm;
+        let observed: Option<Vec<nalgebra::Vector2<f64>>> = points
+            .iter()
+            .map(|p| {
+                self.settings
+                    .observation
+                    .normalised(&pose.transform(p), radius_mm)
+                    .ok()
+            })
+            .collect();
+        let sigmas = point_sigmas(&self.settings.noise, scenario.sigma_px, images, point_sigma);
+        let sigma = sigmas.iter().copied().fold(0.0, f64::max);
+        let prediction = observed.and_then(|observed| {
+            crate::identifiability::predict(
+                &self.camera,
+                pose,
+                points,
+                &observed,
+                &sigmas,
+                crate::identifiability::PREDICTION_GATE_SIGMAS * sigma,
+            )
+            .ok()
+        });
+        match prediction {
+            Some(p) => (position, p.wrong_probability, p.margin_px),
+            None => (position, 1.0, Some(0.0)),
+        }
+    }
+
+    /// The identifiability figures of `values` (None when none is checked).
+    fn identifiability_figures(&self, values: &ScenarioValues) -> Option<IdentifiabilityFigures> {
+        let floor = self.identify_floor?;
+        if self.identify_scope == IdentifyScope::Off {
+            return None;
+        }
+        let max_wrong = 1.0 - floor.min_correct;
+        let failing: Vec<&(usize, f64, Option<f64>)> = values
+            .identified
+            .iter()
+            .filter(|(_, p, _)| *p > max_wrong)
+            .collect();
+        let allowed_failures = floor.allowed_failures(values.visible);
+        let penalty = if failing.len() > allowed_failures {
+            IDENTIFIABILITY_PENALTY
+                * failing
+                    .iter()
+                    .map(|(_, p, _)| (p / max_wrong).log10())
+                    .sum::<f64>()
+        } else {
+            0.0
+        };
+        Some(IdentifiabilityFigures {
+            all_checked: self.identify_scope == IdentifyScope::All,
+            checked: values.identified.len(),
+            identifiable: values.identified.len() - failing.len(),
+            allowed_failures,
+            smallest_margin_px: values
+                .identified
+                .iter()
+                .filter_map(|(_, _, m)| *m)
+                .reduce(f64::min),
+            failing: failing.iter().map(|(s, _, _)| *s).collect(),
+            twins: failing
+                .iter()
+                .filter(|(_, _, m)| m.is_some_and(|m| m < crate::identifiability::TWIN_MARGIN_PX))
+                .count(),
+            penalty,
+        })
+    }
+
     /// The constraint penalty of `points` alone (tightened constraints,
     /// [`CONSTRAINT_PENALTY`] per mm): zero when they are met with margin.
     pub fn penalty(&self, points: &[Vector3<f64>]) -> f64 {
@@ -788,8 +1011,10 @@ impl Evaluator {
         let violations = self.constraints.violations(points);
         let objective = accuracy + self.settings.availability_weight * (1.0 - soft_availability);
         let floor_penalty = self.floor_penalty(availability, soft_availability);
+        let identifiability = self.identifiability_figures(&values);
+        let identify_penalty = identifiability.as_ref().map_or(0.0, |f| f.penalty);
         Evaluation {
-            cost: objective + self.penalty(points) + floor_penalty,
+            cost: objective + self.penalty(points) + floor_penalty + identify_penalty,
             objective,
             accuracy,
             terms,
@@ -805,6 +1030,7 @@ impl Evaluator {
             availability_floor: self.floor,
             floor_penalty,
             violations,
+            identifiability,
         }
     }
 
@@ -861,6 +1087,53 @@ mod tests {
             },
             &crate::synthetic::biprism_points(50.0),
         )
+    }
+
+    /// The identifiability floor: the symmetric paper biprism fails it in
+    /// every visible scenario (twins), pays a penalty and is not admissible;
+    /// a generic layout of the same size meets it at no cost; a scope of
+    /// chosen scenarios checks only those.
+    #[test]
+    fn the_identifiability_floor_rules_out_the_symmetric_biprism() {
+        let plain = evaluator("crlb");
+        let floor = Some(IdentifiabilityFloor::DEFAULT);
+        let all = plain.with_identifiability(floor, IdentifyScope::All);
+        let paper = crate::synthetic::biprism_points(50.0);
+        let symmetric = all.evaluate(&paper, &[None; 7]);
+        let figures = symmetric.identifiability.clone().unwrap();
+        assert!(figures.all_checked);
+        assert_eq!(figures.checked, symmetric.visible);
+        assert_eq!(figures.identifiable, 0);
+        assert_eq!(figures.twins, figures.checked);
+        assert!(figures.penalty > 0.0 && !figures.meets_floor());
+        assert!(!symmetric.admissible());
+        let unchecked = plain.evaluate(&paper, &[None; 7]);
+        assert!(unchecked.identifiability.is_none() && unchecked.admissible());
+        assert!((symmetric.cost - unchecked.cost - figures.penalty).abs() < 1e-9);
+
+        let generic = [
+            Vector3::new(0.0, 0.0, 0.0),
+            Vector3::new(47.0, -6.0, 3.0),
+            Vector3::new(-8.0, 38.0, -5.0),
+            Vector3::new(-41.0, -12.0, 9.0),
+            Vector3::new(7.0, 4.0, 45.0),
+            Vector3::new(3.0, -44.0, -7.0),
+            Vector3::new(-5.0, 9.0, -40.0),
+        ];
+        let good = all.evaluate(&generic, &[None; 7]);
+        let figures = good.identifiability.clone().unwrap();
+        assert_eq!(figures.identifiable, figures.checked, "{figures:?}");
+        assert_eq!(figures.penalty, 0.0);
+        assert!(good.admissible());
+
+        let scoped = plain.with_identifiability(
+            floor,
+            IdentifyScope::Scenarios(std::sync::Arc::new(vec![0, 5])),
+        );
+        let some = scoped.evaluate(&paper, &[None; 7]);
+        let figures = some.identifiability.unwrap();
+        assert!(!figures.all_checked && figures.checked <= 2);
+        assert!(figures.failing.iter().all(|k| [0, 5].contains(k)));
     }
 
     #[test]

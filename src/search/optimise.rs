@@ -864,7 +864,12 @@ pub fn run_with_starts(
     observer: Arc<dyn SearchObserver + Send>,
     checkpoints: Option<&Checkpoints>,
 ) -> Result<SearchOutcome, SearchError> {
-    settings.check()?;
+    // Warm starts alone (no own starts) are a valid run.
+    SearchSettings {
+        starts: settings.starts.max(usize::from(!extra.is_empty())),
+        ..settings.clone()
+    }
+    .check()?;
     let bounds = family.bounds();
     let point_sigma = family.layout("", &family.initial()).point_sigmas();
     let shared = Shared {

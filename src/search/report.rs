@@ -65,8 +65,9 @@ pub struct Verdicts {
     /// Winner's objective below that of every *admissible* hand design: each
     /// hand design as drawn when it meets the constraints, otherwise its
     /// nearest admissible version (the search's own repair). A design the
-    /// user's constraints rule out (spheres that cannot be identified) is
-    /// not an alternative the user has.
+    /// user's constraints rule out (spheres that cannot be identified: by
+    /// the stereo distance rule or, over every visible scenario, the
+    /// identifiability floor) is not an alternative the user has.
     pub beats_admissible_hand_designs_on_objective: bool,
     /// The admissible hand designs' names.
     pub admissible_hand_designs: Vec<String>,
@@ -76,6 +77,9 @@ pub struct Verdicts {
     pub availability_floor: Option<f64>,
     /// Whether the winner reaches it.
     pub winner_meets_availability_floor: bool,
+    /// Whether the winner meets the identifiability floor on every visible
+    /// scenario (None: no floor).
+    pub winner_meets_identifiability_floor: Option<bool>,
 }
 
 /// First-order figures of the winner and the paper's biprism on a held-out
@@ -145,6 +149,8 @@ pub struct SearchSummary {
     pub held_out: HeldOutCheck,
     /// The Pareto front, when asked for.
     pub front: Option<FrontReport>,
+    /// How the identifiability floor was enforced (None: no floor).
+    pub identifiability: Option<super::pipeline::IdentifyBooks>,
 }
 
 /// Computes the verdicts: rows are winner, start, then the hand designs with
@@ -160,7 +166,9 @@ pub fn verdicts(
     let admissible_rows: Vec<&DesignRow> = rows[hand.clone()]
         .iter()
         .chain(&rows[admissible])
-        .filter(|r| r.evaluation.violations.feasible())
+        .filter(|r| {
+            r.evaluation.violations.feasible() && r.evaluation.meets_identifiability_floor()
+        })
         .collect();
     let paper = &rows[paper_index];
     let seeds = winner.monte_carlo.len();
@@ -198,6 +206,11 @@ pub fn verdicts(
         winner_feasible: winner.evaluation.violations.feasible(),
         availability_floor: winner.evaluation.availability_floor,
         winner_meets_availability_floor: winner.evaluation.meets_availability_floor(),
+        winner_meets_identifiability_floor: winner
+            .evaluation
+            .identifiability
+            .as_ref()
+            .map(|f| f.meets_floor()),
     }
 }
 
@@ -255,6 +268,8 @@ fn designs_table(summary: &SearchSummary) -> Table {
         "scored scenarios (of in front)".into(),
         "per term: evaluated / failed".into(),
         "constraints".into(),
+        "identifiable (visible)".into(),
+        "smallest margin (px)".into(),
     ];
     for seed in seeds {
         header.push(format!("seed {seed}: {solver} RMS rot (°), all scenarios"));
@@ -285,6 +300,12 @@ fn designs_table(summary: &SearchSummary) -> Table {
             } else {
                 problems.join("; ")
             },
+            e.identifiability.as_ref().map_or("—".into(), |f| {
+                format!("{} of {}", f.identifiable, f.checked)
+            }),
+            e.identifiability
+                .as_ref()
+                .map_or("—".into(), |f| significant(f.smallest_margin_px, 3)),
         ];
         for mc in &row.monte_carlo {
             cells.push(significant(Some(mc.all.rms_rotation_deg), 4));
@@ -301,6 +322,43 @@ fn designs_table(summary: &SearchSummary) -> Table {
         table.row(cells);
     }
     table
+}
+
+fn identifiability_markdown(summary: &SearchSummary) -> String {
+    let mut out = String::new();
+    let Some(books) = &summary.identifiability else {
+        return out;
+    };
+    let _ = writeln!(out, "\n## Identifiability from one image\n");
+    let figures = |f: &Option<super::IdentifiabilityFigures>| {
+        f.as_ref().map_or("—".to_string(), |f| {
+            format!(
+                "{} of {} visible scenarios identifiable, smallest margin {} px",
+                f.identifiable,
+                f.checked,
+                significant(f.smallest_margin_px, 3)
+            )
+        })
+    };
+    let _ = writeln!(
+        out,
+        "The search's winner as found: {} (accuracy {}). {} repair round(s) ({} evaluations, scenarios checked per round {:?}, {:.1} s); the winner: {} (accuracy {}).\n",
+        figures(&books.before),
+        significant(Some(books.accuracy_before), 4),
+        books.rounds,
+        books.evaluations,
+        books.checked_per_round,
+        books.seconds,
+        figures(&books.after),
+        significant(Some(summary.designs[0].evaluation.accuracy), 4),
+    );
+    let _ = writeln!(out, "Where each design can be identified (predicted on the noise-free images of the search grid; the winner's validation report measures it by Monte-Carlo):\n");
+    for row in &summary.designs {
+        if let Some(text) = &row.not_identifiable {
+            let _ = writeln!(out, "- **{}**: {text}", row.name);
+        }
+    }
+    out
 }
 
 fn markdown(summary: &SearchSummary, table: &Table) -> String {
@@ -337,6 +395,19 @@ fn markdown(summary: &SearchSummary, table: &Table) -> String {
     let _ = writeln!(
         out,
         "| availability floor | {floor}; enforced by an exact penalty ({AVAILABILITY_PENALTY} per unit of missing availability, counted exactly and by the soft visibility ramp so the optimiser sees a slope; zero above the floor), and layouts below it rank behind every layout above it |"
+    );
+    let _ = writeln!(
+        out,
+        "| identifiability floor | {} |",
+        match &summary.identifiability {
+            Some(books) => format!(
+                "{:.1}% of the visible scenarios, each labelled correctly by the unlabelled solver from one image with predicted probability ≥ {:.1}% (docs/formats.md, \"Identifiability\"); enforced by {}",
+                100.0 * books.floor.min_share,
+                100.0 * books.floor.min_correct,
+                books.method
+            ),
+            None => "none (stereo identification by pairwise distances alone)".to_string(),
+        }
     );
     let further_starts = if h.search.start_jitter > 0.0 {
         format!(
@@ -390,6 +461,7 @@ fn markdown(summary: &SearchSummary, table: &Table) -> String {
     let _ = writeln!(out, "## Designs on the same scenarios and draws\n");
     let _ = writeln!(out, "The objective is accuracy (1 = the paper's biprism; scored on every scenario with all spheres in front) plus the availability term, without constraint penalties; lower is better. Monte-Carlo columns pool every scenario (\"all\"), the design's own visible scenarios, and the scenarios visible to both the design and the winner, where the two are compared like for like.\n");
     out.push_str(&table.markdown());
+    out.push_str(&identifiability_markdown(summary));
     let _ = writeln!(out, "\n## Verdicts\n");
     let mut verdicts = Table::new(["claim", "result"]);
     for (k, seed) in h.comparison_seeds.iter().enumerate() {

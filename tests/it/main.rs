@@ -13,6 +13,7 @@ mod export_common;
 mod bad_input;
 mod conformance_generator;
 mod export;
+mod identifiability;
 mod noise_free;
 mod noisy;
 mod plots;

@@ -235,6 +235,10 @@ fn write_reports(dir: &Path) {
             gross_threshold_deg: DEFAULT_GROSS_THRESHOLD_DEG,
             observation: Default::default(),
         },
+        identifiability: layout_opt::sensitivity::IdentifiabilityCheck {
+            trials: 4,
+            ..Default::default()
+        },
         command: "plots test".into(),
         grid_note: None,
         out_dir: dir.join("sensitivity"),

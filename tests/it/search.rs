@@ -49,9 +49,11 @@ fn run_search(dir: &Path, threads: &str, extra: &[&str]) -> assert_cmd::assert::
 #[test]
 fn search_writes_a_valid_layout_and_a_report() {
     let dir = tempfile::tempdir().unwrap();
-    // Without the identifiability constraint the paper's biprism, the
-    // family's natural start, is admissible, so the search must not lose it.
-    run_search(dir.path(), "2", &["--min-distance-diff", "0"])
+    // Without an identifiability constraint (neither the monocular floor nor
+    // the stereo distance rule, which is off by default) the paper's
+    // biprism, the family's natural start, is admissible, so the search must
+    // not lose it.
+    run_search(dir.path(), "2", &["--min-identifiability", "none"])
         .success()
         .stdout(predicate::str::contains("paper-biprism"));
     let layout = layout_opt::layout::Layout::load(&dir.path().join("t.json")).unwrap();
@@ -340,9 +342,15 @@ fn out_elsewhere_puts_the_report_beside_the_layout() {
 #[test]
 fn front_writes_members_that_meet_the_constraints_and_rank_the_hand_designs() {
     let dir = tempfile::tempdir().unwrap();
-    run_search(dir.path(), "2", &["--front", "--front-levels", "2"])
-        .success()
-        .stdout(predicate::str::contains("Pareto front"));
+    // The stereo rule, so that the symmetric hand designs have admissible
+    // versions.
+    run_search(
+        dir.path(),
+        "2",
+        &["--front", "--front-levels", "2", "--min-distance-diff", "1"],
+    )
+    .success()
+    .stdout(predicate::str::contains("Pareto front"));
     let front: serde_json::Value = serde_json::from_str(
         &std::fs::read_to_string(dir.path().join("report/front.json")).unwrap(),
     )
@@ -385,4 +393,48 @@ fn front_writes_members_that_meet_the_constraints_and_rank_the_hand_designs() {
     let report = std::fs::read_to_string(dir.path().join("report/report.md")).unwrap();
     assert!(report.contains("## Pareto front"));
     assert!(report.contains("availability floor"));
+}
+
+/// With the default identifiability floor the winner is identifiable in
+/// every visible scenario of the grid (99.9% of 20 allows no failure),
+/// while the symmetric paper biprism is identifiable in none; the report
+/// says so for each design.
+#[test]
+fn the_winner_meets_the_identifiability_floor_and_the_report_says_where_designs_fail() {
+    let dir = tempfile::tempdir().unwrap();
+    run_search(dir.path(), "2", &["--identify-trials", "10"])
+        .success()
+        .stdout(predicate::str::contains("identifiability floor 99.9%"));
+    let summary: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(dir.path().join("report/summary.json")).unwrap(),
+    )
+    .unwrap();
+    assert_eq!(
+        summary["verdicts"]["winner_meets_identifiability_floor"],
+        true
+    );
+    let designs = summary["designs"].as_array().unwrap();
+    let winner = &designs[0]["evaluation"]["identifiability"];
+    assert_eq!(winner["all_checked"], true);
+    assert_eq!(winner["failing"].as_array().unwrap().len(), 0);
+    assert_eq!(winner["identifiable"], winner["checked"]);
+    let paper = &designs[2];
+    assert_eq!(paper["name"], "paper-biprism");
+    assert_eq!(paper["evaluation"]["identifiability"]["identifiable"], 0);
+    assert!(paper["not_identifiable"]
+        .as_str()
+        .unwrap()
+        .contains("symmetric"));
+    // Not identifiable, so not an admissible alternative.
+    let admissible = summary["verdicts"]["admissible_hand_designs"]
+        .as_array()
+        .unwrap();
+    assert!(!admissible.iter().any(|n| n == "paper-biprism"));
+    let report = std::fs::read_to_string(dir.path().join("report/report.md")).unwrap();
+    assert!(report.contains("## Identifiability from one image"));
+    let validation: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(dir.path().join("report/winner-validation/summary.json")).unwrap(),
+    )
+    .unwrap();
+    assert_eq!(validation["identifiability"]["trials_per_scenario"], 10);
 }

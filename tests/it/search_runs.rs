@@ -329,7 +329,16 @@ fn unwritable_outputs_and_refused_flags_fail_before_any_work() {
         &["--iterations", "0"][..],
         &["--starts", "0"][..],
         &["--compare-trials", "0"][..],
-        &["--family", "custom", "--points", "30"][..],
+        // Refused before the search by the stereo distance rule's capacity
+        // (the rule is off by default).
+        &[
+            "--family",
+            "custom",
+            "--points",
+            "30",
+            "--min-distance-diff",
+            "1",
+        ][..],
     ] {
         let output = Command::new(env!("CARGO_BIN_EXE_layout-opt"))
             .current_dir(dir.path())
