@@ -728,23 +728,35 @@ impl Violations {
 
     /// The unmet constraints, in words.
     pub fn describe(&self, constraints: &Constraints) -> Vec<String> {
+        // Two decimals, or two significant digits below 0.01 mm, so that a
+        // violation never reads as "0.00 mm".
+        let mm = |value: f64| {
+            if value.abs() >= 0.01 || value == 0.0 {
+                format!("{value:.2}")
+            } else {
+                format!("{value:.1e}")
+            }
+        };
         let mut out = Vec::new();
         if self.envelope_mm > 1e-9 {
             out.push(format!(
-                "sphere centres outside the {:?} mm envelope by {:.2} mm in total",
-                constraints.envelope.size_mm, self.envelope_mm
+                "sphere centres outside the {:?} mm envelope by {} mm in total",
+                constraints.envelope.size_mm,
+                mm(self.envelope_mm)
             ));
         }
         if self.gap_mm > 1e-9 {
             out.push(format!(
-                "smallest gap between spheres {:.2} mm < {} mm",
-                self.smallest_gap_mm, constraints.min_gap_mm
+                "smallest gap between spheres {} mm < {} mm",
+                mm(self.smallest_gap_mm),
+                constraints.min_gap_mm
             ));
         }
         if self.distance_diff_mm > 1e-9 {
             out.push(format!(
-                "pairwise distances differ by as little as {:.2} mm < {} mm (spheres not identifiable)",
-                self.smallest_distance_diff_mm, constraints.min_distance_diff_mm
+                "pairwise distances differ by as little as {} mm < {} mm (spheres not identifiable)",
+                mm(self.smallest_distance_diff_mm),
+                constraints.min_distance_diff_mm
             ));
         }
         out

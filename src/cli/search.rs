@@ -609,21 +609,37 @@ pub fn run(args: SearchArgs, global: &GlobalOptions) -> anyhow::Result<()> {
                 )
             })
         };
-        println!(
-            "identifiability floor {:.1}% (each scenario ≥ {:.1}% correct labels): {}; the search's winner {}, after {} repair round(s) ({} evaluations, {:.1} s) {}",
+        let met = if summary
+            .outcome
+            .best
+            .evaluation
+            .meets_identifiability_floor()
+        {
+            "met"
+        } else {
+            "NOT met"
+        };
+        let floor = format!(
+            "identifiability floor {:.1}% (each scenario ≥ {:.1}% correct labels): {met}",
             100.0 * books.floor.min_share,
             100.0 * books.floor.min_correct,
-            if summary.outcome.best.evaluation.meets_identifiability_floor() {
-                "met"
-            } else {
-                "NOT met"
-            },
-            figures(&books.before),
-            books.rounds,
-            books.evaluations,
-            books.seconds,
-            figures(&books.after)
         );
+        if books.rounds == 0 {
+            println!(
+                "{floor}; the search's winner: {} (checked in {:.1} s, no repair needed)",
+                figures(&books.after),
+                books.seconds
+            );
+        } else {
+            println!(
+                "{floor}; the search's winner: {}; after {} repair round(s) ({} evaluations, {:.1} s): {}",
+                figures(&books.before),
+                books.rounds,
+                books.evaluations,
+                books.seconds,
+                figures(&books.after)
+            );
+        }
         for row in &summary.designs {
             if let Some(text) = &row.not_identifiable {
                 println!("  {}: {text}", row.name);
@@ -631,12 +647,19 @@ pub fn run(args: SearchArgs, global: &GlobalOptions) -> anyhow::Result<()> {
         }
     }
     let yes_no = |b: bool| if b { "yes" } else { "no" };
-    println!(
-        "winner's objective below every hand design's: {} as drawn, {} among the admissible ones ({})",
-        yes_no(v.beats_hand_designs_on_objective),
-        yes_no(v.beats_admissible_hand_designs_on_objective),
-        v.admissible_hand_designs.join(", ")
-    );
+    if v.admissible_hand_designs.is_empty() {
+        println!(
+            "winner's objective below every hand design's: {} as drawn (no hand design meets the constraints)",
+            yes_no(v.beats_hand_designs_on_objective),
+        );
+    } else {
+        println!(
+            "winner's objective below every hand design's: {} as drawn, {} among the admissible ones ({})",
+            yes_no(v.beats_hand_designs_on_objective),
+            yes_no(v.beats_admissible_hand_designs_on_objective),
+            v.admissible_hand_designs.join(", ")
+        );
+    }
     if let Some(front) = &outcome.front {
         println!(
             "Pareto front ({} members, {} evaluations in {:.1} s; every hand design dominated: {}):",

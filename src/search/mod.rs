@@ -568,22 +568,9 @@ impl Evaluator {
         constraints: Constraints,
         reference: &[Vector3<f64>],
     ) -> Self {
-        let tighten = |value: f64| {
-            if value > 0.0 {
-                value * (1.0 + PENALTY_MARGIN_FRACTION) + PENALTY_MARGIN_MM
-            } else {
-                0.0
-            }
-        };
         // The envelope is not tightened: its excess is continuous and the
         // best layouts sit on it, so shrinking it would cost real accuracy.
-        let penalised = Constraints {
-            envelope: constraints.envelope,
-            sphere_diameter_mm: constraints.sphere_diameter_mm,
-            min_gap_mm: constraints.min_gap_mm * (1.0 + PENALTY_MARGIN_FRACTION)
-                + PENALTY_MARGIN_MM,
-            min_distance_diff_mm: tighten(constraints.min_distance_diff_mm),
-        };
+        let penalised = constraints.tightened(PENALTY_MARGIN_FRACTION, PENALTY_MARGIN_MM);
         let mut evaluator = Self {
             camera,
             scenarios,
