@@ -97,16 +97,17 @@ pub const MAX_IMAGE_TRIPLES: usize = 4;
 /// has an RMS below this fraction of the gate. A labelling that only just
 /// passes the gate may be a wrong one standing in for a true root that the
 /// triple's P3P lost (a near-degenerate view of that triple): the next
-/// triple is tried then. With the gate at 5–6σ, this stops at 1.25–1.5σ:
+/// triple is tried then. With the gate at 5–6σ, this stops at 1.5–1.8σ;
 /// the true labelling of 7 points has an RMS of about 1.07σ, so most calls
-/// stop after one triple. At half the gate, wrong labellings up to 3σ
-/// stopped the search too: on a 7-point search winner over 200–1000 mm at
-/// σ = 0.5 px (6σ gate), 52 of 38,200 noisy trials ended on a labelling
-/// that fits worse than the truth; at a quarter, none did, for 11% more
-/// time (`layout-opt validate <winner> --depth 200..1000 --offset-x 0..100
-/// --tilt -60..60:10 --solvers ml --trials 50`, the identifiability
-/// section's `missed` count).
-pub const SETTLED_FRACTION: f64 = 0.25;
+/// stop after one triple. Measured on the 7-point search winner over
+/// 200–1000 mm at σ = 0.5 px with a 6σ gate (`layout-opt validate
+/// layouts/biprism-search.json --depth 200..1000 --offset-x 0..100 --tilt
+/// -60..60:10 --solvers ml --trials 50`, the identifiability section's
+/// `missed` count: trials ending on a labelling that fits worse than the
+/// truth, of 38,200): 52 at 0.5, 12 at 0.42, none at 0.35, 0.3 and 0.25.
+/// 0.3 keeps a margin; `cargo bench --bench unlabelled` for n = 7 reads
+/// 0.70 ms at 0.35, 0.77 ms at 0.3 and 1.06 ms at 0.25 (idle machine).
+pub const SETTLED_FRACTION: f64 = 0.3;
 /// [`Identification::ambiguity`] counts RMS values below this (normalised
 /// units, 1e-9 px on a 1000 px focal length) as this: rounding-level fits
 /// are equally exact, so two of them have ambiguity 1 and a noise-free fit
