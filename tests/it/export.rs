@@ -610,7 +610,9 @@ fn datum_positions_match_the_mesh() {
             assert!(
                 axis_labels
                     .iter()
-                    .any(|(names, v)| names.contains(sphere) && (v - datum[k]).abs() < 1e-3),
+                    // Spheres whose ordinates print alike (two decimals)
+                    // share one label, placed at the first one's value.
+                    .any(|(names, v)| names.contains(sphere) && (v - datum[k]).abs() < 5e-3),
                 "{sphere}: no ordinate {} of {:.3} in the views",
                 ["X", "Y", "Z"][k],
                 datum[k]
