@@ -518,18 +518,7 @@ pub fn validate_input(
             got: object.len(),
         });
     }
-    if let Some(index) = object.iter().position(|p| !p.iter().all(|v| v.is_finite())) {
-        return Err(PnpError::NonFinite {
-            kind: "object",
-            index,
-        });
-    }
-    if let Some(index) = image.iter().position(|p| !p.iter().all(|v| v.is_finite())) {
-        return Err(PnpError::NonFinite {
-            kind: "image",
-            index,
-        });
-    }
+    check_finite(object, image)?;
     let centroid = object.iter().sum::<Vector3<f64>>() / object.len() as f64;
     let object_magnitude = object
         .iter()
@@ -577,6 +566,27 @@ pub fn validate_input(
 
 /// Refuses object coordinates whose size (about the centroid) cannot be
 /// squared and raised to the fourth power in double precision.
+/// The first object or image point with a NaN or infinite coordinate, as
+/// [`PnpError::NonFinite`].
+pub(crate) fn check_finite(
+    object: &[Vector3<f64>],
+    image: &[Vector2<f64>],
+) -> Result<(), PnpError> {
+    if let Some(index) = object.iter().position(|p| !p.iter().all(|v| v.is_finite())) {
+        return Err(PnpError::NonFinite {
+            kind: "object",
+            index,
+        });
+    }
+    if let Some(index) = image.iter().position(|m| !m.iter().all(|v| v.is_finite())) {
+        return Err(PnpError::NonFinite {
+            kind: "image",
+            index,
+        });
+    }
+    Ok(())
+}
+
 fn check_scale(kind: &'static str, magnitude: f64) -> Result<(), PnpError> {
     if (MIN_COORDINATE_SCALE..=MAX_COORDINATE_SCALE).contains(&magnitude) {
         Ok(())

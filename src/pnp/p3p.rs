@@ -54,7 +54,7 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 use super::polynomial::Polynomial;
-use super::PnpError;
+use super::{check_finite, PnpError};
 use crate::pose::{nearest_rotation, Pose};
 use nalgebra::{Matrix2, Matrix3, Vector2, Vector3};
 use smallvec::SmallVec;
@@ -104,18 +104,7 @@ pub fn solve(
     object: &[Vector3<f64>; 3],
     image: &[Vector2<f64>; 3],
 ) -> Result<P3pCandidates, PnpError> {
-    if let Some(index) = object.iter().position(|p| !p.iter().all(|v| v.is_finite())) {
-        return Err(PnpError::NonFinite {
-            kind: "object",
-            index,
-        });
-    }
-    if let Some(index) = image.iter().position(|m| !m.iter().all(|v| v.is_finite())) {
-        return Err(PnpError::NonFinite {
-            kind: "image",
-            index,
-        });
-    }
+    check_finite(object, image)?;
     for (first, second) in [(0, 1), (0, 2), (1, 2)] {
         if object[first] == object[second] {
             return Err(PnpError::DuplicatePoints { first, second });

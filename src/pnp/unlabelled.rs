@@ -72,7 +72,7 @@
 
 use super::ml;
 use super::p3p::{self, P3pCandidates};
-use super::{check_image_spread, check_scale, PnpError};
+use super::{check_finite, check_image_spread, check_scale, PnpError};
 use crate::pose::Pose;
 use crate::spread::{Spread, DUPLICATE_TOLERANCE, PLANARITY_TOLERANCE};
 use nalgebra::{Vector2, Vector3};
@@ -260,18 +260,7 @@ fn validate(
             got: image.len(),
         });
     }
-    if let Some(index) = object.iter().position(|p| !p.iter().all(|v| v.is_finite())) {
-        return Err(PnpError::NonFinite {
-            kind: "object",
-            index,
-        });
-    }
-    if let Some(index) = image.iter().position(|m| !m.iter().all(|v| v.is_finite())) {
-        return Err(PnpError::NonFinite {
-            kind: "image",
-            index,
-        });
-    }
+    check_finite(object, image)?;
     let centroid = object.iter().sum::<Vector3<f64>>() / object.len() as f64;
     let magnitude = object
         .iter()
