@@ -314,16 +314,8 @@ fn solve_one(
         );
     }
     if let Some(diameter_mm) = sphere_diameter_mm {
-        if !(diameter_mm > 0.0 && diameter_mm.is_finite()) {
-            return failed(format!(
-                "sphere_diameter must be a positive number of mm, got {diameter_mm}"
-            ));
-        }
-        if solver != Solver::Ml {
-            return failed(format!(
-                "a sphere diameter needs the ml solver, which fits the sphere-image model; {} fits projected centres and would be biased",
-                solver.name()
-            ));
+        if let Err(error) = check_sphere_diameter(diameter_mm, solver) {
+            return failed(error);
         }
         let radius_mm = 0.5 * diameter_mm;
         let start = Instant::now();
@@ -354,6 +346,23 @@ fn solve_one(
     }
 }
 
+/// A problem's sphere diameter must be a positive number of mm, and only
+/// `ml` fits the sphere-image model.
+fn check_sphere_diameter(diameter_mm: f64, solver: Solver) -> Result<(), String> {
+    if !(diameter_mm > 0.0 && diameter_mm.is_finite()) {
+        return Err(format!(
+            "sphere_diameter must be a positive number of mm, got {diameter_mm}"
+        ));
+    }
+    if solver != Solver::Ml {
+        return Err(format!(
+            "a sphere diameter needs the ml solver, which fits the sphere-image model; {} fits projected centres and would be biased",
+            solver.name()
+        ));
+    }
+    Ok(())
+}
+
 /// One unlabelled problem: identify, then the final fit on the labels.
 #[allow(clippy::too_many_arguments)]
 fn solve_one_unlabelled(
@@ -377,16 +386,8 @@ fn solve_one_unlabelled(
         ));
     }
     if let Some(diameter_mm) = sphere_diameter_mm {
-        if !(diameter_mm > 0.0 && diameter_mm.is_finite()) {
-            return failed(format!(
-                "sphere_diameter must be a positive number of mm, got {diameter_mm}"
-            ));
-        }
-        if solver != Solver::Ml {
-            return failed(format!(
-                "a sphere diameter needs the ml solver, which fits the sphere-image model; {} fits projected centres and would be biased",
-                solver.name()
-            ));
+        if let Err(error) = check_sphere_diameter(diameter_mm, solver) {
+            return failed(error);
         }
     }
     let options = UnlabelledOptions::with_gate_px(
