@@ -13,6 +13,7 @@
 
 pub mod batch;
 pub mod camera;
+pub mod config;
 pub mod conformance;
 pub mod error_model;
 pub mod family;
