@@ -165,45 +165,6 @@ pub enum PnpError {
         /// Number given.
         got: usize,
     },
-    /// Unlabelled pose: more image blobs than object points.
-    #[error("{image} image points but only {object} object points: every blob must be one of the object points")]
-    TooManyBlobs {
-        /// Number of object points.
-        object: usize,
-        /// Number of image points.
-        image: usize,
-    },
-    /// Unlabelled pose: more object points without a blob than allowed.
-    #[error("{image} image points for {object} object points: {} missing, at most {max_missing} allowed", object - image)]
-    TooManyMissing {
-        /// Number of object points.
-        object: usize,
-        /// Number of image points.
-        image: usize,
-        /// Most object points allowed to have no blob.
-        max_missing: usize,
-    },
-    /// Unlabelled pose: two blobs at the same place.
-    #[error("image points {first} and {second} coincide")]
-    DuplicateBlobs {
-        /// Index of the first blob.
-        first: usize,
-        /// Index of the second blob.
-        second: usize,
-    },
-    /// Unlabelled pose: the reprojection gate must be a positive distance.
-    #[error("the reprojection gate must be a positive finite distance, got {gate}")]
-    BadGate {
-        /// The gate given (normalised units).
-        gate: f64,
-    },
-    /// Unlabelled pose: no labelling puts every blob within the gate of its
-    /// reprojection.
-    #[error("no labelling of the image points is geometrically consistent with the object points ({hypotheses} P3P hypotheses tried); the blobs may not come from this marker, or the gate is too tight for the noise")]
-    NoConsistentLabelling {
-        /// P3P hypotheses tried.
-        hypotheses: usize,
-    },
     /// The method's numerics broke down on this input.
     #[error("{solver} failed: {reason}")]
     Degenerate {
