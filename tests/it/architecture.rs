@@ -42,6 +42,28 @@ enum Token {
     Punct(char),
 }
 
+/// Whether `chars[i..]` starts a prefixed string literal: `b"`, `c"`,
+/// `r"`, `br"`, or a raw string with hashes (`r#"`, `br##"`), but not a
+/// raw identifier (`r#type`).
+fn string_prefix(chars: &[char], i: usize) -> bool {
+    let at = |k: usize| chars.get(k).copied().unwrap_or('\0');
+    let mut j = i;
+    if at(j) == 'b' || at(j) == 'c' {
+        j += 1;
+        if at(j) == '"' {
+            return true;
+        }
+    }
+    if at(j) != 'r' {
+        return false;
+    }
+    j += 1;
+    while at(j) == '#' {
+        j += 1;
+    }
+    at(j) == '"'
+}
+
 /// Tokens with their line numbers; comments, strings and char literals
 /// dropped.
 fn tokenize(text: &str) -> Vec<(Token, usize)> {
@@ -80,12 +102,7 @@ fn tokenize(text: &str) -> Vec<(Token, usize)> {
                     i += 1;
                 }
             }
-        } else if c == '"'
-            || ((c == 'r' || c == 'b' || c == 'c')
-                && (at(i + 1) == '"'
-                    || (at(i + 1) == '#' && c == 'r')
-                    || (c == 'b' && at(i + 1) == 'r' && matches!(at(i + 2), '"' | '#'))))
-        {
+        } else if c == '"' || string_prefix(&chars, i) {
             // A string literal: plain, byte, C, or raw with any number of #.
             let mut j = i;
             let mut raw = false;
@@ -806,7 +823,7 @@ fn the_graph_builder_finds_the_imports_it_must() {
     // `layout_opt::…` from the binary.
     assert!(edge("cli/solve", "pnp"));
     // `use crate::{…}`-style trees and re-exports are followed.
-    let tokens = tokenize("use crate::{a::{b, c as d}, e::*}; // crate::x::y\nlet s = \"crate::z::w\"; let c = '\"'; crate::f::g();");
+    let tokens = tokenize("use crate::{a::{b, c as d}, e::*}; // crate::x::y\nlet s = \"crate::z::w\"; let c = '\"'; let r = r#\"crate::v::u\"#; r#type(); crate::f::g();");
     let mut leaves = Vec::new();
     parse_use_tree(&tokens, 1, &[], &mut leaves);
     let paths: Vec<String> = leaves.iter().map(|(s, _, _)| s.join("::")).collect();
@@ -818,7 +835,13 @@ fn the_graph_builder_finds_the_imports_it_must() {
             _ => None,
         })
         .collect();
-    assert!(!words.contains(&"x".to_string()) && !words.contains(&"z".to_string()));
+    for hidden in ["x", "z", "v"] {
+        assert!(
+            !words.contains(&hidden.to_string()),
+            "{hidden} is in a comment or string"
+        );
+    }
+    assert!(words.contains(&"type".to_string()));
     assert!(words.contains(&"f".to_string()));
     let (kept, test_modules) = strip_test_code(tokenize(
         "use a::b;\n#[cfg(test)]\nmod tests { use crate::q::r; }\n#[cfg(test)]\nmod more;\nfn f() {}",
