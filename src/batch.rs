@@ -302,16 +302,13 @@ fn solve_one(
         }
     }
     if let Some(config) = unlabelled {
-        return solve_one_unlabelled(
-            camera,
-            solver,
+        let points = ProblemPoints {
             id,
-            &object,
-            &pixels,
-            &normalised,
-            sphere_diameter_mm,
-            config,
-        );
+            object: &object,
+            pixels: &pixels,
+            normalised: &normalised,
+        };
+        return solve_one_unlabelled(camera, solver, points, sphere_diameter_mm, config);
     }
     if let Some(diameter_mm) = sphere_diameter_mm {
         if let Err(error) = check_sphere_diameter(diameter_mm, solver) {
@@ -363,18 +360,30 @@ fn check_sphere_diameter(diameter_mm: f64, solver: Solver) -> Result<(), String>
     Ok(())
 }
 
+/// One problem's points, read and checked: its id, the object points, the
+/// observed pixels and their undistorted normalised coordinates.
+#[derive(Debug, Clone, Copy)]
+struct ProblemPoints<'a> {
+    id: &'a str,
+    object: &'a [Vector3<f64>],
+    pixels: &'a [Vector2<f64>],
+    normalised: &'a [Vector2<f64>],
+}
+
 /// One unlabelled problem: identify, then the final fit on the labels.
-#[allow(clippy::too_many_arguments)]
 fn solve_one_unlabelled(
     camera: &Camera,
     solver: Solver,
-    id: &str,
-    object: &[Vector3<f64>],
-    pixels: &[Vector2<f64>],
-    normalised: &[Vector2<f64>],
+    points: ProblemPoints<'_>,
     sphere_diameter_mm: Option<f64>,
     config: UnlabelledConfig,
 ) -> ProblemResult {
+    let ProblemPoints {
+        id,
+        object,
+        pixels,
+        normalised,
+    } = points;
     let failed = |error: String| ProblemResult::Failed {
         id: id.to_string(),
         error,

@@ -48,8 +48,8 @@ use crate::camera::Camera;
 use crate::error_model::first_order::pixel_jacobian;
 use crate::montecarlo::{point_sigmas, Target};
 use crate::noise::NoiseModel;
-use crate::pnp::unlabelled::{identify, Labelling, UnlabelledOptions};
-use crate::pnp::{ml, PnpError};
+use crate::pnp::ml;
+use crate::pnp::unlabelled::{identify, Labelling, LabellingError, UnlabelledOptions};
 use crate::pose::Pose;
 use crate::scenario::{sphere_images, visibility, Scenario};
 use crate::sphere_image::Observation;
@@ -176,7 +176,7 @@ pub struct Prediction {
 pub enum IdentifiabilityError {
     /// The unlabelled solver refused the view.
     #[error("the unlabelled solver failed on the noise-free view: {0}")]
-    Solver(#[from] PnpError),
+    Solver(#[from] LabellingError),
     /// A noise σ is not positive.
     #[error("identifiability needs a positive noise σ at every point, got {0} px")]
     Noise(f64),

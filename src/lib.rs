@@ -34,4 +34,5 @@ pub mod search;
 pub mod sensitivity;
 pub mod sphere_image;
 pub mod spread;
+pub mod statistics;
 pub mod synthetic;

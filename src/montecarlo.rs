@@ -77,6 +77,7 @@ use crate::pose::{
 };
 use crate::scenario::{sphere_images, visibility, Scenario, SphereImage, Visibility};
 use crate::sphere_image::Observation;
+pub use crate::statistics::{median, median_of_sorted};
 use crate::synthetic::stream_rng;
 use nalgebra::{Vector2, Vector3};
 use rayon::prelude::*;
@@ -116,26 +117,10 @@ pub struct MonteCarloConfig {
     pub observation: Observation,
 }
 
-/// Median of sorted, non-empty values.
-pub fn median_of_sorted(sorted: &[f64]) -> f64 {
-    let n = sorted.len();
-    if n % 2 == 1 {
-        sorted[n / 2]
-    } else {
-        0.5 * (sorted[n / 2 - 1] + sorted[n / 2])
-    }
-}
-
 /// The `q`-quantile (0 < q ≤ 1) of sorted, non-empty values by nearest rank.
 pub fn nearest_rank_of_sorted(sorted: &[f64], q: f64) -> f64 {
     let n = sorted.len();
     sorted[((q * n as f64).ceil() as usize).clamp(1, n) - 1]
-}
-
-/// Median of `values` (sorted in place); `None` when empty.
-pub fn median(values: &mut [f64]) -> Option<f64> {
-    values.sort_by(f64::total_cmp);
-    (!values.is_empty()).then(|| median_of_sorted(values))
 }
 
 /// Statistics of one error over the trials that returned a pose.

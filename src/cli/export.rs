@@ -7,12 +7,14 @@ use anyhow::Context;
 use clap::Args;
 use layout_opt::layout::{Layout, ObjImport};
 use layout_opt::mesh::geometry::{
-    Bed, Structure, DEFAULT_MIN_FEATURE_MM, DEFAULT_STRUT_DIAMETER_MM, DEFAULT_VIEW_CONE_DEG,
+    Bed, Structure, DEFAULT_MIN_FEATURE_MM, DEFAULT_STRUT_DIAMETER_MM,
 };
 use layout_opt::mesh::pipeline::{self, ExportConfig};
+use layout_opt::mesh::summary::summary;
+use layout_opt::mesh::view_cone::view_cone_deg;
 use layout_opt::mesh::{Axis, ExportError, ExportOptions, Format, MarkerOptions, MountHoles};
 use layout_opt::scenario::Range;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 /// Flags of `export`.
 #[derive(Debug, Args)]
@@ -132,38 +134,6 @@ fn load_layout(args: &ExportArgs) -> anyhow::Result<(Layout, String)> {
     Ok((layout, path.display().to_string()))
 }
 
-fn megabytes(bytes: u64) -> String {
-    if bytes >= 1 << 20 {
-        format!("{:.1} MB", bytes as f64 / (1u64 << 20) as f64)
-    } else {
-        format!("{:.1} kB", bytes as f64 / 1024.0)
-    }
-}
-
-/// The view cone's half-angle: `--view-cone`, else the largest angle
-/// between the main view and the view at a tilt t and pan p of the ranges
-/// given (`acos(cos t · cos p)`, the camera turned about X then Y), else
-/// [`DEFAULT_VIEW_CONE_DEG`].
-fn view_cone_deg(view_cone: Option<f64>, tilt: Option<&Range>, pan: Option<&Range>) -> f64 {
-    if let Some(cone) = view_cone {
-        return cone;
-    }
-    if tilt.is_none() && pan.is_none() {
-        return DEFAULT_VIEW_CONE_DEG;
-    }
-    let zero = Range::single(0.0);
-    let (tilt, pan) = (tilt.unwrap_or(&zero), pan.unwrap_or(&zero));
-    let mut cone: f64 = 0.0;
-    for t in &tilt.values {
-        for p in &pan.values {
-            let cosine = (t.to_radians().cos() * p.to_radians().cos()).clamp(-1.0, 1.0);
-            cone = cone.max(cosine.acos().to_degrees());
-        }
-    }
-    // acos(cos 25°) is 25.000000000000004°: whole nanodegrees read better.
-    (cone * 1e9).round() / 1e9
-}
-
 pub fn run(args: ExportArgs, global: &GlobalOptions) -> anyhow::Result<()> {
     let (layout, source) = load_layout(&args)?;
     let view_cone = view_cone_deg(args.view_cone, args.tilt.as_deref(), args.pan.as_deref());
@@ -201,87 +171,6 @@ pub fn run(args: ExportArgs, global: &GlobalOptions) -> anyhow::Result<()> {
     }
     let report = result.with_context(|| format!("cannot export {source}"))?;
 
-    let m = &report.mesh;
-    let t = &m.topology;
-    println!(
-        "{}: {} triangles, {} vertices, volume {:.1} mm³, grid {} mm, meshed in {:.2} s",
-        report.name, t.faces, t.vertices, t.signed_volume_mm3, m.resolution_mm, m.seconds
-    );
-    println!(
-        "watertight: all {} edges shared by exactly 2 faces in opposite directions; {} body; Euler characteristic {} (2 - 2 x {} holes); no degenerate or inverted faces; max surface error {:.3} mm",
-        t.edges, t.components, t.euler_characteristic, m.holes, m.max_surface_error_mm
-    );
-    for file in &report.files {
-        let timing = match file.format {
-            Some(format) => format!(", {format} in {:.2} s", file.seconds),
-            None => String::new(),
-        };
-        println!(
-            "wrote {} ({}{timing})",
-            display(&file.path),
-            megabytes(file.bytes)
-        );
-    }
-    let strut_covered = |fraction: f64, sphere: &str| {
-        (fraction > 0.0).then(|| format!("{sphere} {:.1} %", 100.0 * fraction))
-    };
-    let main: Vec<String> = report
-        .main_view_coverage
-        .iter()
-        .filter_map(|c| strut_covered(c.covered_by_struts, &c.sphere))
-        .collect();
-    let cone: Vec<String> = report
-        .main_view_coverage
-        .iter()
-        .filter_map(|c| strut_covered(c.cone_covered_by_struts, &c.sphere))
-        .collect();
-    let verdict = |covered: &[String]| {
-        if covered.is_empty() {
-            "no strut covers a sphere".to_string()
-        } else {
-            format!("struts cover {}", covered.join(", "))
-        }
-    };
-    println!(
-        "main view ({}): {}; view cone ±{}°: {}{}; identification margin {:.3} mm",
-        report.view,
-        verdict(&main),
-        report.view_cone_deg,
-        verdict(&cone),
-        if report.occlusion_allowed && !cone.is_empty() {
-            " (allowed by --allow-occlusion)"
-        } else {
-            ""
-        },
-        report.identification_margin_mm
-    );
-    match &report.tolerances.centre {
-        Some(c) => println!(
-            "sphere-centre tolerance ±{:.3} mm per coordinate, from the datum on the plate (keeps the fabrication share of the RMS rotation error at most {:.0} % of the image noise's over {} scenarios; see the sheet)",
-            c.tolerance_mm,
-            100.0 * c.share,
-            c.scenarios
-        ),
-        None => println!("sphere-centre tolerance: none from the error model (no default scenario sees every sphere)"),
-    }
-    let o = &report.overhang;
-    let [x, y, z] = report.print_size_mm;
-    println!(
-        "print ({}): {x:.1} × {y:.1} × {z:.1} mm on a {} × {} × {} mm bed, lowest point at z = 0; overhangs steeper than {}° from vertical: {:.1} mm² (plus {:.1} mm² of sphere undersides); support estimate {:.0} mm³ ({:.1} % of the part); {:.0} mm² on the bed",
-        report.structure,
-        report.bed_mm[0],
-        report.bed_mm[1],
-        report.bed_mm[2],
-        o.limit_deg,
-        o.area_mm2,
-        o.sphere_area_mm2,
-        o.support_estimate_mm3,
-        100.0 * o.support_estimate_mm3 / t.signed_volume_mm3,
-        o.bed_contact_mm2,
-    );
+    print!("{}", summary(&report));
     Ok(())
-}
-
-fn display(path: &Path) -> String {
-    path.display().to_string()
 }

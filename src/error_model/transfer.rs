@@ -42,14 +42,6 @@ use nalgebra::{Matrix3, Vector2, Vector3};
 /// Below this, sinβ or cosβ counts as zero (the eq. 29 ratios are infinite).
 pub const ANGLE_EPSILON: f64 = 1e-9;
 
-/// The paper's eq. 30 weight `w = d² / (tz² · m_o · m)`. Only relative
-/// weights matter; callers floor `m_o` and `m` (see
-/// [`crate::pnp::parallel`]).
-#[inline]
-pub fn eq30_weight(length_mm: f64, depth_mm: f64, m_o: f64, m: f64) -> f64 {
-    length_mm * length_mm / (depth_mm * depth_mm * m_o * m)
-}
-
 /// The eqs. 28–29 sensitivities of one segment through the reference point.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SegmentSensitivity {
@@ -313,13 +305,5 @@ mod tests {
         assert_relative_eq!(model.azimuth_per_px, 10.0 / 2600.0);
         assert_relative_eq!(model.pitch_per_px, 100.0 / 2600.0);
         assert_relative_eq!(model.tilt_per_px, 50.0 / 2600.0, max_relative = 1e-12);
-    }
-
-    #[test]
-    fn eq30_weight_formula() {
-        assert_relative_eq!(
-            eq30_weight(50.0, 500.0, 0.1, 0.05),
-            2500.0 / (250000.0 * 0.005)
-        );
     }
 }

@@ -55,8 +55,10 @@ pub(crate) mod repair;
 pub(crate) mod sdf;
 pub(crate) mod sheet;
 pub(crate) mod stl;
+pub mod summary;
 pub(crate) mod threemf;
 pub mod trimesh;
+pub mod view_cone;
 
 pub use geometry::{Axis, GeometryError, Marker, MarkerOptions, MountHoles};
 pub use sheet::{datum_positions, Datum, DatumPosition, Tolerances, CSV_HEADER};

@@ -133,7 +133,7 @@
 //! the charts' `J'` weight `J` differently and are not comparable.
 
 use super::three_cubics::{self, monomials, Cubic, CubicSystemError};
-use super::{Candidates, PnpError};
+use super::{Candidates, Method, PnpError};
 use crate::pose::{rotation_error_deg, Pose};
 use nalgebra::{
     Matrix3, Rotation3, SMatrix, SVector, SymmetricEigen, UnitQuaternion, Vector2, Vector3,
@@ -833,6 +833,17 @@ pub fn solve_with_statistics_in(
     }
     Ok((kept.iter().map(|f| f.pose).collect(), statistics))
 }
+
+/// `dls`: direct least squares over the Cayley parameters, all critical points by a Macaulay/action-matrix solver (Hesch & Roumeliotis 2011).
+pub const DLS: Method = Method {
+    name: "dls",
+    display_name: NAME,
+    description: "direct least squares: all 27 critical points of the Cayley-parameterised cost by a Macaulay/action-matrix solver, in four charts (Hesch & Roumeliotis 2011)",
+    min_points: MIN_POINTS,
+    accepts_coplanar: true,
+    start: None,
+    solve,
+};
 
 /// DLS: every local minimum of the DLS cost that puts all points in front
 /// of the camera, lowest cost first.

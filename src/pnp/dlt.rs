@@ -16,7 +16,7 @@
 //! Requirements: n ≥ 6 noncoplanar points (11 degrees of freedom; a planar
 //! set makes the system rank-deficient).
 
-use super::{Candidates, PnpError};
+use super::{Candidates, Method, PnpError};
 use crate::linalg::{orthogonalise_columns_3x3, smallest_eigenpairs, EigenError};
 use crate::pose::{nearest_rotation, Pose};
 use nalgebra::{Matrix3, Matrix3x4, Matrix4, SMatrix, SVector, Vector2, Vector3};
@@ -24,6 +24,17 @@ use smallvec::smallvec;
 
 /// DLT needs six correspondences for its eleven unknowns.
 pub const MIN_POINTS: usize = 6;
+
+/// `dlt`: normalised DLT with orthonormalisation (Hartley & Zisserman).
+pub const DLT: Method = Method {
+    name: "dlt",
+    display_name: "DLT",
+    description: "normalised DLT with orthonormalisation (Hartley & Zisserman; paper refs [32,33])",
+    min_points: MIN_POINTS,
+    accepts_coplanar: false,
+    start: None,
+    solve,
+};
 
 /// Solves the DLT. One candidate.
 pub fn solve(object: &[Vector3<f64>], image: &[Vector2<f64>]) -> Result<Candidates, PnpError> {

@@ -7,7 +7,7 @@
 //! solution lies in the span of the eigenvectors of `MᵀM` for the smallest
 //! eigenvalues (eq. 9). The coefficients β are fixed by requiring the control
 //! points to keep their mutual distances, for null-space dimensions N = 1…4
-//! (Lepetit §3.3), optionally refined by Gauss–Newton (eq. 10, see
+//! (Lepetit §3.3); [`super::epnp_gn`] refines them by Gauss–Newton (eq. 10,
 //! [`super::gauss_newton`]). Absolute orientation then gives R, t.
 //!
 //! [`EpnpSystem`] is the reusable part: `parallel-weighted`, `iepnp` and
@@ -19,7 +19,7 @@
 //! and only its four smallest eigenpairs are computed
 //! ([`crate::linalg::smallest_eigenpairs`]).
 
-use super::{gauss_newton, Candidates, PnpError};
+use super::{Candidates, Method, PnpError};
 use crate::linalg::{smallest_eigenpairs, solve_positive_definite, EigenError};
 use crate::pose::{nearest_rotation, Pose};
 use crate::spread::Spread;
@@ -872,48 +872,36 @@ pub const LINEARISED_FIT_RATIO: f64 = 50.0;
 /// Ridge added to a rank-deficient normal matrix, relative to its mean diagonal.
 pub const RIDGE_FRACTION: f64 = 1e-12;
 
-/// EPnP (`refine = false`): one candidate per closed form, the four
-/// linearised ones and, where the null space is effectively 4-dimensional
+/// `epnp`: EPnP without refinement (Lepetit et al. 2009).
+pub const EPNP: Method = Method {
+    name: "epnp",
+    display_name: "EPnP",
+    description: "EPnP, no refinement, null-space cases N = 1..4 (Lepetit et al. 2009)",
+    min_points: 4,
+    accepts_coplanar: false,
+    start: None,
+    solve,
+};
+
+/// EPnP: one candidate per closed form, the four linearised ones and,
+/// where the null space is effectively 4-dimensional
 /// ([`EpnpSystem::needs_relinearisation`]) or none of those four fits the
-/// image ([`LINEARISED_FIT_RATIO`]), the relinearised N = 4; or
-/// EPnP+GN (`refine = true`):
-/// the four linearised closed forms refined by Gauss–Newton, as in the
-/// reference implementation, and the relinearised one too where N = 4 for
-/// every pose ([`RELINEARISED_START_MAX_POINTS`]). Either adds the depth-reversed mirror of any
-/// candidate whose reconstruction is a mirror image of the object
-/// ([`EpnpSystem::push_candidates`]).
-pub fn solve(
-    object: &[Vector3<f64>],
-    image: &[Vector2<f64>],
-    refine: bool,
-) -> Result<Candidates, PnpError> {
+/// image ([`LINEARISED_FIT_RATIO`]), the relinearised N = 4; plus the
+/// depth-reversed mirror of any candidate whose reconstruction is a mirror
+/// image of the object ([`EpnpSystem::push_candidates`]). EPnP+GN, which
+/// refines these, is [`super::epnp_gn`].
+pub fn solve(object: &[Vector3<f64>], image: &[Vector2<f64>]) -> Result<Candidates, PnpError> {
     let (system, fit) = EpnpSystem::with_fit_test(principal_control_points(object), object, image)?;
     let mut candidates = Candidates::new();
-    if refine {
-        let refine = |start: &Vector4<f64>| {
-            gauss_newton::refine_betas(&system, start, &gauss_newton::UNIT_WEIGHTS)
-        };
-        for betas in &system.closed_form_betas() {
-            system.push_candidates(betas, refine, &mut candidates);
-        }
-        // With four points M is 8×12, so its null space is 4-dimensional
-        // whatever the pose: only N = 4 is right, and the linearised N = 4
-        // start is far off often enough to matter (sweep, noise-free n = 4:
-        // 30 of 600 missed without this start, none with it).
-        if object.len() <= RELINEARISED_START_MAX_POINTS {
-            system.push_candidates(&system.relinearised_betas(), refine, &mut candidates);
-        }
-    } else {
-        for betas in &system.closed_form_betas() {
-            system.push_candidates(betas, |start| *start, &mut candidates);
-        }
-        if system.relinearises(&fit, object.len(), &candidates) {
-            system.push_candidates(
-                &system.relinearised_betas(),
-                |start| *start,
-                &mut candidates,
-            );
-        }
+    for betas in &system.closed_form_betas() {
+        system.push_candidates(betas, |start| *start, &mut candidates);
+    }
+    if system.relinearises(&fit, object.len(), &candidates) {
+        system.push_candidates(
+            &system.relinearised_betas(),
+            |start| *start,
+            &mut candidates,
+        );
     }
     Ok(candidates)
 }

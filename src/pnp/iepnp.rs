@@ -10,7 +10,7 @@
 //! points are Lepetit's (centroid and principal axes), as in `epnp`.
 
 use super::epnp::{principal_control_points, EpnpSystem};
-use super::{gauss_newton, Candidates, PnpError};
+use super::{gauss_newton, Candidates, Method, PnpError};
 use crate::pose::{nearest_rotation, Pose};
 use nalgebra::{Matrix3, Vector2, Vector3};
 
@@ -58,6 +58,17 @@ pub fn weak_perspective_pose(
         Vector3::new(image_centroid.x, image_centroid.y, 1.0) * tz - rotation * object_centroid;
     Ok(Pose::new(rotation, translation))
 }
+
+/// `iepnp`: weak-perspective initial betas + the EPnP Gauss–Newton (paper §2.1, Chen [26]).
+pub const IEPNP: Method = Method {
+    name: "iepnp",
+    display_name: "IEPnP",
+    description: "weak-perspective initial betas + the same Gauss-Newton (paper §2.1, Chen [26])",
+    min_points: 4,
+    accepts_coplanar: false,
+    start: None,
+    solve,
+};
 
 /// IEPnP: weak-perspective β0, then Gauss–Newton. One candidate, and its
 /// depth-reversed mirror when the reconstruction is a mirror image.

@@ -43,7 +43,7 @@
 //! the authors' reference code (`objpose.m`), read for understanding, and
 //! the paper's description of the method.
 
-use super::{Candidates, PnpError};
+use super::{Candidates, Method, PnpError};
 use crate::pose::nearest_rotation;
 use crate::pose::Pose;
 use nalgebra::{Matrix3, Rotation3, SMatrix, Vector2, Vector3};
@@ -147,6 +147,17 @@ impl OrthogonalIteration {
         (error, covariance)
     }
 }
+
+/// `lhm`: orthogonal iteration on the object-space error (Lu, Hager & Mjolsness 2000), from a weak-perspective start.
+pub const LHM: Method = Method {
+    name: "lhm",
+    display_name: "LHM",
+    description: "orthogonal iteration on the object-space error from a weak-perspective start (Lu, Hager & Mjolsness 2000)",
+    min_points: 4,
+    accepts_coplanar: false,
+    start: None,
+    solve,
+};
 
 /// LHM: orthogonal iteration from the weak-perspective start. One candidate.
 pub fn solve(object: &[Vector3<f64>], image: &[Vector2<f64>]) -> Result<Candidates, PnpError> {

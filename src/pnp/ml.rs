@@ -21,7 +21,7 @@
 //! diagonal scaling. The 6×6 normal equations are accumulated per point in
 //! fixed-size types; nothing is allocated.
 
-use super::{best_candidate, sqpnp, Candidates, PnpError, Solver};
+use super::{best_candidate, sqpnp, Candidates, Method, PnpError, Solver};
 use crate::pose::{perturb, Pose};
 use nalgebra::{Matrix2x3, SMatrix, Vector2, Vector3};
 use smallvec::smallvec;
@@ -176,6 +176,17 @@ pub(crate) fn levenberg_marquardt(
 
 /// The solver whose best candidate starts LM.
 pub const START: Solver = Solver::Sqpnp;
+
+/// `ml`: levenberg–Marquardt on reprojection error from the best SQPnP candidate: the maximum-likelihood estimate under isotropic Gaussian noise.
+pub const ML: Method = Method {
+    name: "ml",
+    display_name: "ML (Levenberg-Marquardt)",
+    description: "Levenberg-Marquardt on reprojection error from the best SQPnP candidate (maximum likelihood); coplanar points allowed",
+    min_points: 4,
+    accepts_coplanar: true,
+    start: Some(START),
+    solve,
+};
 
 /// ML: the best SQPnP candidate, refined by LM. One candidate.
 pub fn solve(object: &[Vector3<f64>], image: &[Vector2<f64>]) -> Result<Candidates, PnpError> {

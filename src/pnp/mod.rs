@@ -45,6 +45,7 @@ use smallvec::SmallVec;
 pub mod dls;
 pub mod dlt;
 pub mod epnp;
+pub mod epnp_gn;
 pub mod gauss_newton;
 pub mod iepnp;
 pub mod lhm;
@@ -164,45 +165,6 @@ pub enum PnpError {
         /// Number given.
         got: usize,
     },
-    /// Unlabelled pose: more image blobs than object points.
-    #[error("{image} image points but only {object} object points: every blob must be one of the object points")]
-    TooManyBlobs {
-        /// Number of object points.
-        object: usize,
-        /// Number of image points.
-        image: usize,
-    },
-    /// Unlabelled pose: more object points without a blob than allowed.
-    #[error("{image} image points for {object} object points: {} missing, at most {max_missing} allowed", object - image)]
-    TooManyMissing {
-        /// Number of object points.
-        object: usize,
-        /// Number of image points.
-        image: usize,
-        /// Most object points allowed to have no blob.
-        max_missing: usize,
-    },
-    /// Unlabelled pose: two blobs at the same place.
-    #[error("image points {first} and {second} coincide")]
-    DuplicateBlobs {
-        /// Index of the first blob.
-        first: usize,
-        /// Index of the second blob.
-        second: usize,
-    },
-    /// Unlabelled pose: the reprojection gate must be a positive distance.
-    #[error("the reprojection gate must be a positive finite distance, got {gate}")]
-    BadGate {
-        /// The gate given (normalised units).
-        gate: f64,
-    },
-    /// Unlabelled pose: no labelling puts every blob within the gate of its
-    /// reprojection.
-    #[error("no labelling of the image points is geometrically consistent with the object points ({hypotheses} P3P hypotheses tried); the blobs may not come from this marker, or the gate is too tight for the noise")]
-    NoConsistentLabelling {
-        /// P3P hypotheses tried.
-        hypotheses: usize,
-    },
     /// The method's numerics broke down on this input.
     #[error("{solver} failed: {reason}")]
     Degenerate {
@@ -213,122 +175,96 @@ pub enum PnpError {
     },
 }
 
-/// Every solver, by stable CLI name (docs/formats.md, "Solver names").
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
-#[non_exhaustive]
-pub enum Solver {
-    /// Normalised DLT with orthonormalisation (Hartley & Zisserman).
-    Dlt,
-    /// EPnP without refinement (Lepetit et al. 2009).
-    Epnp,
-    /// EPnP + Gauss–Newton on the betas (paper eq. 10).
-    EpnpGn,
-    /// Weak-perspective initial betas + the same GN (paper §2.1, Chen [26]).
-    Iepnp,
-    /// Paraperspective pose (paper eqs. 17–21), iterated to full perspective
-    /// as Horaud et al. 1997 do; no GN.
-    Parallel,
-    /// Ablation: paraperspective betas + *unweighted* GN (eq. 10), to measure
-    /// what the weights of eq. 30 contribute.
-    ParallelGn,
-    /// The paper's method: paraperspective → betas (eqs. 14–16) → weighted
-    /// GN (eqs. 30–31) → absolute orientation.
-    ParallelWeighted,
-    /// Direct least squares over the Cayley parameters, all critical points
-    /// by a Macaulay/action-matrix solver (Hesch & Roumeliotis 2011).
-    Dls,
-    /// Orthogonal iteration on the object-space error (Lu, Hager &
-    /// Mjolsness 2000), from a weak-perspective start.
-    Lhm,
-    /// RPnP (Li, Xu & Xie 2012): all local minima of the degree-7 cost
-    /// derivative about the widest edge.
-    Rpnp,
-    /// SQPnP (Terzakis & Lourakis 2020): sequential quadratic programming
-    /// over the nine rotation entries from the null-space starts; handles
-    /// coplanar points.
-    Sqpnp,
-    /// OPnP: every local minimum of the algebraic cost in a non-unit
-    /// quaternion, by a Gröbner-basis solver (Zheng et al., ICCV 2013).
-    Opnp,
-    /// Levenberg–Marquardt on reprojection error from the best SQPnP
-    /// candidate: the maximum-likelihood estimate under isotropic Gaussian
-    /// noise.
-    Ml,
+/// What one solver is and how it runs: its stable CLI name, the names
+/// reports show, the fewest points it takes, whether it takes coplanar
+/// points, the solver it refines (if any), and the function that runs it.
+/// Every solver file declares its own (`epnp::EPNP`,
+/// `parallel::PARALLEL_WEIGHTED`, …); [`Solver`] lists them.
+#[derive(Debug)]
+pub struct Method {
+    /// The stable CLI name (docs/formats.md, "Solver names").
+    pub name: &'static str,
+    /// The name used in messages and reports.
+    pub display_name: &'static str,
+    /// One line on the method and where it comes from (`solve --list`).
+    pub description: &'static str,
+    /// The fewest correspondences the method accepts.
+    pub min_points: usize,
+    /// Whether the method runs on coplanar object points.
+    pub accepts_coplanar: bool,
+    /// The solver whose best pose the method refines; `None` for methods
+    /// that start from their own closed forms.
+    pub start: Option<Solver>,
+    /// Runs the method on object points and normalised image points that
+    /// [`validate_input`] has accepted, and returns every candidate pose.
+    pub solve: SolveFn,
+}
+
+/// The one signature every solver has: object points (marker frame) and
+/// normalised image points in, every candidate pose out.
+pub type SolveFn = fn(&[Vector3<f64>], &[Vector2<f64>]) -> Result<Candidates, PnpError>;
+
+/// Declares [`Solver`], one variant per solver, each bound to the
+/// [`Method`] its file declares, in the order reports list them. Adding a
+/// solver is one line in the list below (and its `pub mod`).
+macro_rules! solvers {
+    ($($variant:ident => $module:ident :: $method:ident,)*) => {
+        /// Every solver, by stable CLI name (docs/formats.md, "Solver
+        /// names"). Each variant's [`Method`] (names, description, minimum
+        /// points, coplanarity, start, solve function) lives in its file.
+        #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+        #[non_exhaustive]
+        pub enum Solver {
+            $(
+                #[doc = concat!("[`", stringify!($module), "::", stringify!($method), "`].")]
+                $variant,
+            )*
+        }
+
+        impl Solver {
+            /// Every solver, in the order reports list them.
+            pub const ALL: &'static [Solver] = &[$(Solver::$variant),*];
+
+            /// What the solver is and how it runs, from its file.
+            pub fn method(self) -> &'static Method {
+                match self {
+                    $(Solver::$variant => &$module::$method,)*
+                }
+            }
+        }
+    };
+}
+
+solvers! {
+    Dlt => dlt::DLT,
+    Epnp => epnp::EPNP,
+    EpnpGn => epnp_gn::EPNP_GN,
+    Iepnp => iepnp::IEPNP,
+    Parallel => parallel::PARALLEL,
+    ParallelGn => parallel::PARALLEL_GN,
+    ParallelWeighted => parallel::PARALLEL_WEIGHTED,
+    Dls => dls::DLS,
+    Lhm => lhm::LHM,
+    Rpnp => rpnp::RPNP,
+    Sqpnp => sqpnp::SQPNP,
+    Opnp => opnp::OPNP,
+    Ml => ml::ML,
 }
 
 impl Solver {
-    /// Every solver, in the order reports list them.
-    pub const ALL: &'static [Solver] = &[
-        Solver::Dlt,
-        Solver::Epnp,
-        Solver::EpnpGn,
-        Solver::Iepnp,
-        Solver::Parallel,
-        Solver::ParallelGn,
-        Solver::ParallelWeighted,
-        Solver::Dls,
-        Solver::Lhm,
-        Solver::Rpnp,
-        Solver::Sqpnp,
-        Solver::Opnp,
-        Solver::Ml,
-    ];
-
     /// The stable CLI name.
     pub fn name(self) -> &'static str {
-        match self {
-            Solver::Dlt => "dlt",
-            Solver::Epnp => "epnp",
-            Solver::EpnpGn => "epnp-gn",
-            Solver::Iepnp => "iepnp",
-            Solver::Parallel => "parallel",
-            Solver::ParallelGn => "parallel-gn",
-            Solver::ParallelWeighted => "parallel-weighted",
-            Solver::Dls => "dls",
-            Solver::Lhm => "lhm",
-            Solver::Rpnp => "rpnp",
-            Solver::Sqpnp => "sqpnp",
-            Solver::Opnp => "opnp",
-            Solver::Ml => "ml",
-        }
+        self.method().name
     }
 
     /// The name used in messages and reports.
     pub fn display_name(self) -> &'static str {
-        match self {
-            Solver::Dlt => "DLT",
-            Solver::Epnp => "EPnP",
-            Solver::EpnpGn => "EPnP+GN",
-            Solver::Iepnp => "IEPnP",
-            Solver::Parallel => "Paraperspective",
-            Solver::ParallelGn => "Paraperspective+GN (unweighted)",
-            Solver::ParallelWeighted => "Parallel-weighted",
-            Solver::Dls => "DLS",
-            Solver::Lhm => "LHM",
-            Solver::Rpnp => "RPnP",
-            Solver::Sqpnp => "SQPnP",
-            Solver::Opnp => opnp::NAME,
-            Solver::Ml => "ML (Levenberg-Marquardt)",
-        }
+        self.method().display_name
     }
 
     /// One line on the method and where it comes from.
     pub fn description(self) -> &'static str {
-        match self {
-            Solver::Dlt => "normalised DLT with orthonormalisation (Hartley & Zisserman; paper refs [32,33])",
-            Solver::Epnp => "EPnP, no refinement, null-space cases N = 1..4 (Lepetit et al. 2009)",
-            Solver::EpnpGn => "EPnP + Gauss-Newton on the betas, paper eq. 10 (Lepetit et al. 2009)",
-            Solver::Iepnp => "weak-perspective initial betas + the same Gauss-Newton (paper §2.1, Chen [26])",
-            Solver::Parallel => "paraperspective pose, eqs. 17-21, iterated to full perspective (Horaud et al. 1997)",
-            Solver::ParallelGn => "ablation: paraperspective betas + unweighted Gauss-Newton (eq. 10)",
-            Solver::ParallelWeighted => "the paper's method: paraperspective -> betas (eqs. 14-16) -> weighted GN (eqs. 30-31) -> absolute orientation",
-            Solver::Dls => "direct least squares: all 27 critical points of the Cayley-parameterised cost by a Macaulay/action-matrix solver, in four charts (Hesch & Roumeliotis 2011)",
-            Solver::Lhm => "orthogonal iteration on the object-space error from a weak-perspective start (Lu, Hager & Mjolsness 2000)",
-            Solver::Rpnp => "RPnP: every local minimum of the degree-7 cost about the widest edge, then 3D alignment (Li, Xu & Xie 2012)",
-            Solver::Sqpnp => "SQPnP: SQP over the rotation entries from the null-space starts, all local minima; coplanar points allowed (Terzakis & Lourakis 2020)",
-            Solver::Opnp => "OPnP: all minima of the algebraic cost in a non-unit quaternion, Gröbner-basis solver (Zheng et al. 2013)",
-            Solver::Ml => "Levenberg-Marquardt on reprojection error from the best SQPnP candidate (maximum likelihood); coplanar points allowed",
-        }
+        self.method().description
     }
 
     /// The solver whose pose a refining method starts from, where the
@@ -337,10 +273,7 @@ impl Solver {
     /// closed forms. Reports and `solve`'s output name it, so no start is
     /// hidden.
     pub fn start(self) -> Option<Solver> {
-        match self {
-            Solver::Ml => Some(ml::START),
-            _ => None,
-        }
+        self.method().start
     }
 
     /// Looks a solver up by its stable CLI name.
@@ -350,29 +283,12 @@ impl Solver {
 
     /// The fewest correspondences the method accepts.
     pub fn min_points(self) -> usize {
-        match self {
-            Solver::Dlt => dlt::MIN_POINTS,
-            Solver::Dls => dls::MIN_POINTS,
-            Solver::Opnp => opnp::MIN_POINTS,
-            _ => 4,
-        }
+        self.method().min_points
     }
 
     /// Whether the method needs noncoplanar object points.
     pub fn needs_noncoplanar(self) -> bool {
-        // Exhaustive, so every new method has to decide.
-        match self {
-            Solver::Dls | Solver::Sqpnp | Solver::Opnp | Solver::Ml => false,
-            Solver::Dlt
-            | Solver::Epnp
-            | Solver::EpnpGn
-            | Solver::Iepnp
-            | Solver::Parallel
-            | Solver::ParallelGn
-            | Solver::ParallelWeighted
-            | Solver::Lhm
-            | Solver::Rpnp => true,
-        }
+        !self.method().accepts_coplanar
     }
 
     /// Runs the method and returns every candidate pose it produces.
@@ -382,22 +298,7 @@ impl Solver {
         image: &[Vector2<f64>],
     ) -> Result<Candidates, PnpError> {
         validate_input(self, object, image)?;
-        let candidates = match self {
-            Solver::Dlt => dlt::solve(object, image)?,
-            Solver::Epnp => epnp::solve(object, image, false)?,
-            Solver::EpnpGn => epnp::solve(object, image, true)?,
-            Solver::Iepnp => iepnp::solve(object, image)?,
-            Solver::Parallel => parallel::solve_iterative(object, image)?,
-            Solver::ParallelGn => parallel::solve_with_gauss_newton(object, image, false)?,
-            Solver::ParallelWeighted => parallel::solve_with_gauss_newton(object, image, true)?,
-            Solver::Dls => dls::solve(object, image)?,
-            Solver::Lhm => lhm::solve(object, image)?,
-            Solver::Rpnp => rpnp::solve(object, image)?,
-            Solver::Sqpnp => sqpnp::solve(object, image)?,
-            Solver::Opnp => opnp::solve(object, image)?,
-            Solver::Ml => ml::solve(object, image)?,
-        };
-        Ok(candidates)
+        (self.method().solve)(object, image)
     }
 
     /// Runs the method and returns its best candidate: the lowest

@@ -82,7 +82,7 @@
 pub mod action;
 pub mod monomials;
 
-use super::{Candidates, PnpError};
+use super::{Candidates, Method, PnpError};
 use crate::pose::Pose;
 use monomials::{Exponent, CUBIC, CUBIC_COUNT, QUADRATIC};
 use nalgebra::{
@@ -379,6 +379,17 @@ pub struct Report {
     /// Distinct local minima after polishing: the candidates returned.
     pub minima: usize,
 }
+
+/// `opnp`: OPnP: every local minimum of the algebraic cost in a non-unit quaternion, by a Gröbner-basis solver (Zheng et al., ICCV 2013).
+pub const OPNP: Method = Method {
+    name: "opnp",
+    display_name: NAME,
+    description: "OPnP: all minima of the algebraic cost in a non-unit quaternion, Gröbner-basis solver (Zheng et al. 2013)",
+    min_points: MIN_POINTS,
+    accepts_coplanar: true,
+    start: None,
+    solve,
+};
 
 /// OPnP: every local minimum of the algebraic cost, as a pose.
 pub fn solve(object: &[Vector3<f64>], image: &[Vector2<f64>]) -> Result<Candidates, PnpError> {

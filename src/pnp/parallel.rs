@@ -52,8 +52,7 @@
 //! `cargo run --release --example conformance`).
 
 use super::epnp::{EpnpSystem, PAIRS};
-use super::{gauss_newton, reprojection_error_sq_in_front, Candidates, PnpError};
-use crate::error_model::transfer::eq30_weight;
+use super::{gauss_newton, reprojection_error_sq_in_front, Candidates, Method, PnpError};
 use crate::pose::{nearest_rotation, Pose};
 use nalgebra::{Matrix3, Rotation3, Vector2, Vector3, Vector4};
 use smallvec::smallvec;
@@ -264,6 +263,15 @@ fn paper_control_points(problem: &Paraperspective) -> [Vector3<f64>; 4] {
     ]
 }
 
+/// The paper's eq. 30 weight `w = d² / (tz² · m_o · m)` of a segment of
+/// length d (mm) at depth tz (mm), with reference image distance `m_o` and
+/// projected length m (normalised units). Only relative weights matter;
+/// [`eq30_weights`] floors `m_o` and `m` (see the module documentation).
+#[inline]
+pub fn eq30_weight(length_mm: f64, depth_mm: f64, m_o: f64, m: f64) -> f64 {
+    length_mm * length_mm / (depth_mm * depth_mm * m_o * m)
+}
+
 /// The weights of eq. 30 for the six control-point pairs, from the initial
 /// pose (see the module documentation for the choices made).
 pub fn eq30_weights(control_world: &[Vector3<f64>; 4], pose: &Pose) -> [f64; 6] {
@@ -293,16 +301,68 @@ pub fn eq30_weights(control_world: &[Vector3<f64>; 4], pose: &Pose) -> [f64; 6] 
     })
 }
 
-/// `parallel-weighted` (`weighted = true`, the paper's method) or the
-/// `parallel-gn` ablation (`weighted = false`): single-step paraperspective
+/// `parallel`: paraperspective pose (paper eqs. 17–21), iterated to full perspective as Horaud et al. 1997 do; no GN.
+pub const PARALLEL: Method = Method {
+    name: "parallel",
+    display_name: "Paraperspective",
+    description:
+        "paraperspective pose, eqs. 17-21, iterated to full perspective (Horaud et al. 1997)",
+    min_points: 4,
+    accepts_coplanar: false,
+    start: None,
+    solve: solve_iterative,
+};
+
+/// `parallel-gn`: ablation: paraperspective betas + *unweighted* GN (eq. 10), to measure what the weights of eq. 30 contribute.
+pub const PARALLEL_GN: Method = Method {
+    name: "parallel-gn",
+    display_name: "Paraperspective+GN (unweighted)",
+    description: "ablation: paraperspective betas + unweighted Gauss-Newton (eq. 10)",
+    min_points: 4,
+    accepts_coplanar: false,
+    start: None,
+    solve: solve_unweighted,
+};
+
+/// `parallel-weighted`: the paper's method: paraperspective → betas (eqs. 14–16) → weighted GN (eqs. 30–31) → absolute orientation.
+pub const PARALLEL_WEIGHTED: Method = Method {
+    name: "parallel-weighted",
+    display_name: "Parallel-weighted",
+    description: "the paper's method: paraperspective -> betas (eqs. 14-16) -> weighted GN (eqs. 30-31) -> absolute orientation",
+    min_points: 4,
+    accepts_coplanar: false,
+    start: None,
+    solve: solve_weighted,
+};
+
+/// `parallel-weighted`, the paper's method: single-step paraperspective
 /// (eqs. 17–21) → control points (eq. 14) → β0 (eq. 16) → Gauss–Newton
-/// (eq. 31 or eq. 10) → pose. Returns one candidate, and its depth-reversed
-/// mirror when the reconstruction is a mirror image of the object
-/// ([`EpnpSystem::push_candidates`]).
-pub fn solve_with_gauss_newton(
+/// weighted by eq. 30 (eq. 31) → pose. Returns one candidate, and its
+/// depth-reversed mirror when the reconstruction is a mirror image of the
+/// object ([`EpnpSystem::push_candidates`]).
+pub fn solve_weighted(
     object: &[Vector3<f64>],
     image: &[Vector2<f64>],
-    weighted: bool,
+) -> Result<Candidates, PnpError> {
+    solve_with_gauss_newton(object, image, eq30_weights)
+}
+
+/// The `parallel-gn` ablation: as [`solve_weighted`], with unit weights
+/// (eq. 10) in place of eq. 30's.
+pub fn solve_unweighted(
+    object: &[Vector3<f64>],
+    image: &[Vector2<f64>],
+) -> Result<Candidates, PnpError> {
+    solve_with_gauss_newton(object, image, |_, _| gauss_newton::UNIT_WEIGHTS)
+}
+
+/// Paraperspective → β0 → Gauss–Newton with the pair weights that
+/// `weights` gives for the control points (in the frame shifted to the
+/// reference point) and the initial pose.
+fn solve_with_gauss_newton(
+    object: &[Vector3<f64>],
+    image: &[Vector2<f64>],
+    weights: impl Fn(&[Vector3<f64>; 4], &Pose) -> [f64; 6],
 ) -> Result<Candidates, PnpError> {
     let problem = Paraperspective::new(object, image)?;
     // The initial pose and the control points are in the frame shifted to
@@ -312,11 +372,7 @@ pub fn solve_with_gauss_newton(
     // Eq. 14: control points in the camera frame under the initial pose.
     let control_camera: [Vector3<f64>; 4] =
         std::array::from_fn(|j| initial.transform(&control_shifted[j]));
-    let weights = if weighted {
-        eq30_weights(&control_shifted, &initial)
-    } else {
-        gauss_newton::UNIT_WEIGHTS
-    };
+    let weights = weights(&control_shifted, &initial);
     // The EPnP system takes the same control points in the caller's frame:
     // barycentric coordinates do not change under the shift, and the pose
     // it returns needs no shifting back.
@@ -331,4 +387,18 @@ pub fn solve_with_gauss_newton(
         &mut candidates,
     );
     Ok(candidates)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use approx::assert_relative_eq;
+
+    #[test]
+    fn eq30_weight_formula() {
+        assert_relative_eq!(
+            eq30_weight(50.0, 500.0, 0.1, 0.05),
+            2500.0 / (250000.0 * 0.005)
+        );
+    }
 }

@@ -59,7 +59,7 @@
 //! ([`crate::linalg::smallest_eigenpairs`]).
 
 use super::polynomial::{multiply_into, Polynomial};
-use super::{Candidates, PnpError};
+use super::{Candidates, Method, PnpError};
 use crate::linalg::smallest_eigenpairs;
 use crate::pose::{absolute_orientation, Pose};
 use nalgebra::{Matrix3, SMatrix, Vector2, Vector3};
@@ -148,6 +148,17 @@ fn triplet_quartic(cos12: f64, sin12_sq: f64, cos1i: f64, cos2i: f64, a: f64, b:
     }
     quartic
 }
+
+/// `rpnp`: RPnP (Li, Xu & Xie 2012): all local minima of the degree-7 cost derivative about the widest edge.
+pub const RPNP: Method = Method {
+    name: "rpnp",
+    display_name: "RPnP",
+    description: "RPnP: every local minimum of the degree-7 cost about the widest edge, then 3D alignment (Li, Xu & Xie 2012)",
+    min_points: 4,
+    accepts_coplanar: false,
+    start: None,
+    solve,
+};
 
 /// RPnP: one candidate per local minimum of the cost `F(τ)`.
 pub fn solve(object: &[Vector3<f64>], image: &[Vector2<f64>]) -> Result<Candidates, PnpError> {

@@ -74,7 +74,7 @@
 //! Equation numbers are not cited: this follows the reference code, read
 //! for understanding, and the paper's description of it.
 
-use super::{Candidates, PnpError};
+use super::{Candidates, Method, PnpError};
 use crate::linalg::{smallest_eigenpairs, solve_positive_definite, SmallestEigenpairs};
 use crate::pose::nearest_rotation;
 use crate::pose::Pose;
@@ -415,6 +415,17 @@ pub enum OrthogonalStart {
     /// it is what makes the exact-recovery tests pass in the far field.
     Polish,
 }
+
+/// `sqpnp`: SQPnP (Terzakis & Lourakis 2020): sequential quadratic programming over the nine rotation entries from the null-space starts; handles coplanar points.
+pub const SQPNP: Method = Method {
+    name: "sqpnp",
+    display_name: "SQPnP",
+    description: "SQPnP: SQP over the rotation entries from the null-space starts, all local minima; coplanar points allowed (Terzakis & Lourakis 2020)",
+    min_points: 4,
+    accepts_coplanar: true,
+    start: None,
+    solve,
+};
 
 /// SQPnP: every distinct local minimum reached from the null-space starts,
 /// lowest cost first. Orthogonal starts are polished

@@ -63,7 +63,7 @@
 //! let image: Vec<Vector2<f64>> = biprism.iter().map(|p| truth.project_normalised(p)).collect();
 //! let found = identify(&biprism, &image, &UnlabelledOptions::default())?;
 //! assert!((found.ambiguity().unwrap() - 1.0).abs() < 1e-6);
-//! # Ok::<(), layout_opt::pnp::PnpError>(())
+//! # Ok::<(), layout_opt::pnp::unlabelled::LabellingError>(())
 //! ```
 
 // `!(x > 0.0)` is deliberate throughout: it is true for NaN as well, so
@@ -182,6 +182,55 @@ impl Identification {
     }
 }
 
+/// Why the blobs could not be labelled: input that no PnP method could
+/// use ([`PnpError`]), or a problem that only unlabelled blobs have.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum LabellingError {
+    /// The object or image points are not usable input for PnP (too few,
+    /// non-finite, coincident, collinear, badly scaled).
+    #[error(transparent)]
+    Pnp(#[from] PnpError),
+    /// More image blobs than object points.
+    #[error("{image} image points but only {object} object points: every blob must be one of the object points")]
+    TooManyBlobs {
+        /// Number of object points.
+        object: usize,
+        /// Number of image points.
+        image: usize,
+    },
+    /// More object points without a blob than allowed.
+    #[error("{image} image points for {object} object points: {} missing, at most {max_missing} allowed", object - image)]
+    TooManyMissing {
+        /// Number of object points.
+        object: usize,
+        /// Number of image points.
+        image: usize,
+        /// Most object points allowed to have no blob.
+        max_missing: usize,
+    },
+    /// Two blobs at the same place.
+    #[error("image points {first} and {second} coincide")]
+    DuplicateBlobs {
+        /// Index of the first blob.
+        first: usize,
+        /// Index of the second blob.
+        second: usize,
+    },
+    /// The reprojection gate must be a positive distance.
+    #[error("the reprojection gate must be a positive finite distance, got {gate}")]
+    BadGate {
+        /// The gate given (normalised units).
+        gate: f64,
+    },
+    /// No labelling puts every blob within the gate of its reprojection.
+    #[error("no labelling of the image points is geometrically consistent with the object points ({hypotheses} P3P hypotheses tried); the blobs may not come from this marker, or the gate is too tight for the noise")]
+    NoConsistentLabelling {
+        /// P3P hypotheses tried.
+        hypotheses: usize,
+    },
+}
+
 /// Finds the labelling of `image` (unordered blobs, normalised coordinates)
 /// against `object` and its pose; see the module docs.
 ///
@@ -194,7 +243,7 @@ pub fn identify(
     object: &[Vector3<f64>],
     image: &[Vector2<f64>],
     options: &UnlabelledOptions,
-) -> Result<Identification, PnpError> {
+) -> Result<Identification, LabellingError> {
     validate(object, image, options)?;
     let mut search = Search::new(object, image, options);
     for triple in image_triples(image) {
@@ -214,7 +263,7 @@ pub fn identify(
             runner_up: search.runner_up,
             hypotheses,
         }),
-        None => Err(PnpError::NoConsistentLabelling { hypotheses }),
+        None => Err(LabellingError::NoConsistentLabelling { hypotheses }),
     }
 }
 
@@ -222,43 +271,43 @@ fn validate(
     object: &[Vector3<f64>],
     image: &[Vector2<f64>],
     options: &UnlabelledOptions,
-) -> Result<(), PnpError> {
+) -> Result<(), LabellingError> {
     if !(options.gate > 0.0 && options.gate.is_finite()) {
-        return Err(PnpError::BadGate { gate: options.gate });
+        return Err(LabellingError::BadGate { gate: options.gate });
     }
     if object.len() < MIN_POINTS {
-        return Err(PnpError::TooFewPoints {
+        return Err(LabellingError::Pnp(PnpError::TooFewPoints {
             solver: NAME,
             needed: MIN_POINTS,
             got: object.len(),
-        });
+        }));
     }
     if object.len() > MAX_POINTS {
-        return Err(PnpError::TooManyPoints {
+        return Err(LabellingError::Pnp(PnpError::TooManyPoints {
             solver: NAME,
             max: MAX_POINTS,
             got: object.len(),
-        });
+        }));
     }
     if image.len() > object.len() {
-        return Err(PnpError::TooManyBlobs {
+        return Err(LabellingError::TooManyBlobs {
             object: object.len(),
             image: image.len(),
         });
     }
     if object.len() - image.len() > options.max_missing {
-        return Err(PnpError::TooManyMissing {
+        return Err(LabellingError::TooManyMissing {
             object: object.len(),
             image: image.len(),
             max_missing: options.max_missing,
         });
     }
     if image.len() < MIN_POINTS {
-        return Err(PnpError::TooFewPoints {
+        return Err(LabellingError::Pnp(PnpError::TooFewPoints {
             solver: NAME,
             needed: MIN_POINTS,
             got: image.len(),
-        });
+        }));
     }
     check_finite(object, image)?;
     let centroid = object.iter().sum::<Vector3<f64>>() / object.len() as f64;
@@ -267,10 +316,10 @@ fn validate(
         .map(|p| (p - centroid).amax())
         .fold(0.0, f64::max);
     if magnitude == 0.0 {
-        return Err(PnpError::DuplicatePoints {
+        return Err(LabellingError::Pnp(PnpError::DuplicatePoints {
             first: 0,
             second: 1,
-        });
+        }));
     }
     check_scale("object", magnitude)?;
     let spread = Spread::of(object);
@@ -278,28 +327,28 @@ fn validate(
     for (i, a) in object.iter().enumerate() {
         for (j, b) in object.iter().enumerate().skip(i + 1) {
             if (a - b).norm_squared() <= duplicate_sq {
-                return Err(PnpError::DuplicatePoints {
+                return Err(LabellingError::Pnp(PnpError::DuplicatePoints {
                     first: i,
                     second: j,
-                });
+                }));
             }
         }
     }
     if spread.extents[1] <= PLANARITY_TOLERANCE * spread.extents[0] {
-        return Err(PnpError::Collinear);
+        return Err(LabellingError::Pnp(PnpError::Collinear));
     }
     let image_magnitude = image.iter().map(|m| m.amax()).fold(0.0, f64::max);
     if image_magnitude > super::MAX_COORDINATE_SCALE {
-        return Err(PnpError::BadScale {
+        return Err(LabellingError::Pnp(PnpError::BadScale {
             kind: "image",
             magnitude: image_magnitude,
-        });
+        }));
     }
     check_image_spread(image)?;
     for (i, a) in image.iter().enumerate() {
         for (j, b) in image.iter().enumerate().skip(i + 1) {
             if a == b {
-                return Err(PnpError::DuplicateBlobs {
+                return Err(LabellingError::DuplicateBlobs {
                     first: i,
                     second: j,
                 });
@@ -617,8 +666,15 @@ mod tests {
         let err = |o: &[Vector3<f64>], i: &[Vector2<f64>], opt: &UnlabelledOptions| {
             identify(o, i, opt).unwrap_err()
         };
+        // The input errors that every PnP method shares.
+        let pnp_err = |o: &[Vector3<f64>], i: &[Vector2<f64>], opt: &UnlabelledOptions| match err(
+            o, i, opt,
+        ) {
+            LabellingError::Pnp(e) => e,
+            other => panic!("expected a PnP input error, got {other:?}"),
+        };
         assert!(matches!(
-            err(&object[..3], &image[..3], &options),
+            pnp_err(&object[..3], &image[..3], &options),
             PnpError::TooFewPoints {
                 needed: 4,
                 got: 3,
@@ -627,14 +683,14 @@ mod tests {
         ));
         assert_eq!(
             err(&object[..5], &image, &options),
-            PnpError::TooManyBlobs {
+            LabellingError::TooManyBlobs {
                 object: 5,
                 image: 6
             }
         );
         assert_eq!(
             err(&object, &image[..4], &options),
-            PnpError::TooManyMissing {
+            LabellingError::TooManyMissing {
                 object: 6,
                 image: 4,
                 max_missing: 1
@@ -646,22 +702,22 @@ mod tests {
         };
         assert!(matches!(
             err(&object, &image[..5], &strict),
-            PnpError::TooManyMissing { .. }
+            LabellingError::TooManyMissing { .. }
         ));
         assert!(matches!(
-            err(&object[..4], &image[..3], &options),
+            pnp_err(&object[..4], &image[..3], &options),
             PnpError::TooFewPoints { got: 3, .. }
         ));
         for gate in [0.0, -1.0, f64::NAN, f64::INFINITY] {
             assert!(matches!(
                 err(&object, &image, &UnlabelledOptions { gate, ..options }),
-                PnpError::BadGate { .. }
+                LabellingError::BadGate { .. }
             ));
         }
         let mut nan = image.clone();
         nan[2].x = f64::NAN;
         assert_eq!(
-            err(&object, &nan, &options),
+            pnp_err(&object, &nan, &options),
             PnpError::NonFinite {
                 kind: "image",
                 index: 2
@@ -670,7 +726,7 @@ mod tests {
         let mut dup = object.clone();
         dup[4] = dup[1];
         assert_eq!(
-            err(&dup, &image, &options),
+            pnp_err(&dup, &image, &options),
             PnpError::DuplicatePoints {
                 first: 1,
                 second: 4
@@ -680,7 +736,7 @@ mod tests {
         blobs[5] = blobs[0];
         assert_eq!(
             err(&object, &blobs, &options),
-            PnpError::DuplicateBlobs {
+            LabellingError::DuplicateBlobs {
                 first: 0,
                 second: 5
             }
@@ -688,12 +744,12 @@ mod tests {
         let line: Vec<_> = (0..6)
             .map(|i| Vector3::new(i as f64, 2.0 * i as f64, 1.0))
             .collect();
-        assert_eq!(err(&line, &image, &options), PnpError::Collinear);
+        assert_eq!(pnp_err(&line, &image, &options), PnpError::Collinear);
         let on_line: Vec<_> = (0..6)
             .map(|i| Vector2::new(0.01 * i as f64, 0.02 * i as f64))
             .collect();
         assert_eq!(
-            err(&object, &on_line, &options),
+            pnp_err(&object, &on_line, &options),
             PnpError::CollinearImagePoints
         );
         // Blobs that no pose of this object explains.
@@ -705,7 +761,7 @@ mod tests {
             ..options
         };
         assert!(
-            matches!(err(&object, &scattered, &tight), PnpError::NoConsistentLabelling { hypotheses } if hypotheses > 0)
+            matches!(err(&object, &scattered, &tight), LabellingError::NoConsistentLabelling { hypotheses } if hypotheses > 0)
         );
     }
 }

@@ -22,11 +22,12 @@ use super::engine::{
     from_camera_points, random_rotation, run_random, unit_noise, Context, Instance,
 };
 use super::panel::{two_worst, Cell, Metric, Panel};
-use super::stats::{knee_fit, median, spearman};
+use super::stats::{knee_fit, spearman};
 use super::{find, group, paper_sigma_px, stream, Experiment, ExperimentResult, PAPER_SOLVERS};
 use crate::layout::PAPER_ARM_MM;
 use crate::pnp::Solver;
 use crate::pose::Pose;
+use crate::statistics::median;
 use crate::synthetic::biprism_points;
 use nalgebra::Vector3;
 use rand::Rng;
@@ -276,10 +277,11 @@ fn claims(context: &Context, panels: &[Panel]) -> Vec<Claim> {
     match pw {
         Some(pw) if !refs.is_empty() => {
             let panel = &panels[0];
-            let reference: Vec<f64> = refs.iter().filter_map(|&s| pooled_mean(panel, s)).collect();
+            let mut reference: Vec<f64> =
+                refs.iter().filter_map(|&s| pooled_mean(panel, s)).collect();
             let (holds, ratio) = claims::comparable(
                 pooled_mean(panel, pw).unwrap_or(f64::NAN),
-                median(&reference).unwrap_or(f64::NAN),
+                median(&mut reference).unwrap_or(f64::NAN),
             );
             let min_of = |metric: Metric| {
                 panel

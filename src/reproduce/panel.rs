@@ -474,7 +474,7 @@ pub fn two_worst<'a>(
             ranked
                 .iter()
                 .take(4)
-                .map(|(s, m)| format!("{} {}°", s.name(), super::claims::num(*m)))
+                .map(|(s, m)| format!("{} {}°", s.name(), significant(Some(*m), 3)))
                 .collect::<Vec<_>>()
                 .join(" > ")
         ));

@@ -234,12 +234,12 @@ fn claims(context: &Context, panel: &Panel) -> Vec<Claim> {
             let top: Vec<Solver> = ranked.iter().take(2).map(|r| r.0).collect();
             let ratio_at = |s: Solver, i: usize| -> Option<f64> {
                 let own = panel.cell(i, s)?.rotation_deg.mean()?;
-                let others: Vec<f64> = paper
+                let mut others: Vec<f64> = paper
                     .iter()
                     .filter(|&&o| o != dlt && o != epnp)
                     .filter_map(|&o| panel.cell(i, o)?.rotation_deg.mean())
                     .collect();
-                Some(own / super::stats::median(&others)?)
+                Some(own / crate::statistics::median(&mut others)?)
             };
             let i_min = x_of(panel, common_min).unwrap_or(0);
             let mut few_worse = true;

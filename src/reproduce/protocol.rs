@@ -22,12 +22,12 @@
 use super::claims::{self, describe, num, Claim};
 use super::engine::{run_scenarios, scenario_cells, Context};
 use super::panel::{Cell, FirstOrderLine, Metric, Panel};
-use super::stats::median;
 use super::{find, group, paper_sigma_px, stream, Experiment, ExperimentResult, PAPER_SOLVERS};
 use crate::layout::Layout;
 use crate::pnp::Solver;
 use crate::report::{significant, Table};
 use crate::scenario::{Range, Scenario, ScenarioGrid};
+use crate::statistics::median;
 use std::fmt::Write as _;
 
 /// Depths, mm.
@@ -373,12 +373,12 @@ fn claims(context: &Context, blocks: &[Block]) -> Vec<Claim> {
     if named.is_empty() {
         out.push(claim.solvers_missing(named_missing));
     } else {
-        let others: Vec<f64> = paper
+        let mut others: Vec<f64> = paper
             .iter()
             .filter(|s| !named.contains(s))
             .filter_map(|&s| growth(s, Metric::Rotation))
             .collect();
-        let reference = median(&others).unwrap_or(f64::NAN);
+        let reference = median(&mut others).unwrap_or(f64::NAN);
         let mut holds = true;
         let mut parts = Vec::new();
         for &s in &named {
@@ -414,10 +414,10 @@ fn claims(context: &Context, blocks: &[Block]) -> Vec<Claim> {
     let (refs, refs_missing) = group(context, &["opnp", "lhm", "rpnp", "dls"]);
     match pw {
         Some(pw) if !refs.is_empty() => {
-            let reference: Vec<f64> = refs.iter().filter_map(|&s| pooled(s)).collect();
+            let mut reference: Vec<f64> = refs.iter().filter_map(|&s| pooled(s)).collect();
             let (holds, ratio) = claims::comparable(
                 pooled(pw).unwrap_or(f64::NAN),
-                median(&reference).unwrap_or(f64::NAN),
+                median(&mut reference).unwrap_or(f64::NAN),
             );
             out.push(
                 claim

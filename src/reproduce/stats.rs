@@ -255,11 +255,6 @@ pub fn mean(values: &[f64]) -> Option<f64> {
     (!values.is_empty()).then(|| values.iter().sum::<f64>() / values.len() as f64)
 }
 
-/// Median of a slice (`None` when empty).
-pub fn median(values: &[f64]) -> Option<f64> {
-    crate::montecarlo::median(&mut values.to_vec())
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -326,7 +321,10 @@ mod tests {
         let knee = knee_fit(&x, &bent).unwrap();
         assert_eq!(knee.knee, 4.0);
         assert!(knee.two_segment_sum_sq < 1e-20 && knee.one_line_sum_sq > 1.0);
-        assert_eq!(median(&[3.0, 1.0, 2.0, 10.0]), Some(2.5));
+        assert_eq!(
+            crate::statistics::median(&mut [3.0, 1.0, 2.0, 10.0]),
+            Some(2.5)
+        );
         assert_eq!(mean(&[]), None);
     }
 }

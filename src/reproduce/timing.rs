@@ -15,11 +15,12 @@
 
 use super::claims::{self, num, Claim};
 use super::engine::{random_rotation, unit_noise, Context};
-use super::stats::{line_fit, median};
+use super::stats::line_fit;
 use super::{find, group, paper_sigma_px, stream, Experiment, ExperimentResult};
 use crate::pnp::{validate_input, Solver};
 use crate::pose::Pose;
 use crate::report::{plots, write_text, ReportError, Table};
+use crate::statistics::median;
 use crate::synthetic::stream_rng;
 use nalgebra::{Vector2, Vector3};
 use rand::Rng;
@@ -252,15 +253,16 @@ pub(crate) fn run(context: &Context, repetitions: usize) -> ExperimentResult {
                 checks.push(check_us);
                 methods.push(total_us - check_us);
             }
+            let mean_us = super::stats::mean(&times);
             rows.push(TimingRow {
                 n,
                 solver: solver.name().to_string(),
                 repetitions,
                 errors,
-                median_us: median(&times),
-                mean_us: super::stats::mean(&times),
-                median_validation_us: median(&checks),
-                median_method_us: median(&methods),
+                median_us: median(&mut times),
+                mean_us,
+                median_validation_us: median(&mut checks),
+                median_method_us: median(&mut methods),
             });
             context.progress.advance(repetitions);
         }
@@ -293,13 +295,13 @@ pub(crate) fn run(context: &Context, repetitions: usize) -> ExperimentResult {
     let checks: Vec<String> = [MIN_COUNT, MAX_COUNT]
         .iter()
         .filter_map(|&n| {
-            let values: Vec<f64> = timing
+            let mut values: Vec<f64> = timing
                 .rows
                 .iter()
                 .filter(|r| r.n == n)
                 .filter_map(|r| r.median_validation_us)
                 .collect();
-            median(&values).map(|v| format!("{} µs at n = {n}", num(v)))
+            median(&mut values).map(|v| format!("{} µs at n = {n}", num(v)))
         })
         .collect();
     let _ = writeln!(
@@ -332,20 +334,20 @@ fn claims(context: &Context, timing: &TimingResult) -> Vec<Claim> {
     };
     // Median over n of t_a(n) / f(n).
     let ratio_over_n = |a: Solver, reference: &dyn Fn(usize) -> Option<f64>| -> Option<f64> {
-        let ratios: Vec<f64> = timing
+        let mut ratios: Vec<f64> = timing
             .counts
             .iter()
             .filter_map(|&n| Some(timing.median_of(a, n)? / reference(n)?))
             .collect();
-        median(&ratios)
+        median(&mut ratios)
     };
     let median_of_group = |group: Vec<Solver>| {
         move |n: usize| -> Option<f64> {
-            let values: Vec<f64> = group
+            let mut values: Vec<f64> = group
                 .iter()
                 .filter_map(|&s| timing.median_of(s, n))
                 .collect();
-            median(&values)
+            median(&mut values)
         }
     };
     let mut out = Vec::new();

@@ -10,6 +10,7 @@
 mod common;
 mod export_common;
 
+mod architecture;
 mod bad_input;
 mod conformance_generator;
 mod export;

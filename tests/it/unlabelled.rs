@@ -5,8 +5,8 @@
 
 use layout_opt::camera::Camera;
 use layout_opt::layout::Layout;
-use layout_opt::pnp::unlabelled::{identify, UnlabelledOptions};
-use layout_opt::pnp::{PnpError, Solver};
+use layout_opt::pnp::unlabelled::{identify, LabellingError, UnlabelledOptions};
+use layout_opt::pnp::Solver;
 use layout_opt::pose::{rotation_error_deg, Pose};
 use layout_opt::scenario::ScenarioGrid;
 use layout_opt::synthetic::{random_pose, standard_normal, stream_rng};
@@ -67,7 +67,7 @@ fn default_grid_noise_free() {
             let found = match identify(&object, &image, &options) {
                 // Two spheres exactly behind one another: one blob, not a view
                 // any detector delivers as two.
-                Err(PnpError::DuplicateBlobs { .. }) => continue,
+                Err(LabellingError::DuplicateBlobs { .. }) => continue,
                 other => other.unwrap(),
             };
             seen += 1;
@@ -204,7 +204,7 @@ fn bad_blob_sets_are_typed_errors() {
     more.push(Vector2::new(0.3, 0.3));
     assert_eq!(
         identify(&object, &more, &options).unwrap_err(),
-        PnpError::TooManyBlobs {
+        LabellingError::TooManyBlobs {
             object: 7,
             image: 8
         }
