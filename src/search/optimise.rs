@@ -154,20 +154,20 @@ pub struct SearchSettings {
 
 impl SearchSettings {
     /// Checks the settings (before anything is written or run).
-    pub fn check(&self) -> Result<(), SearchError> {
+    pub fn check(&self) -> Result<(), OptimiseError> {
         if self.starts == 0 || self.iterations == 0 {
-            return Err(SearchError::Settings(
+            return Err(OptimiseError::Settings(
                 "starts and iterations must be at least 1".into(),
             ));
         }
         if !(0.0..=1.0).contains(&self.start_jitter) {
-            return Err(SearchError::Settings(format!(
+            return Err(OptimiseError::Settings(format!(
                 "the start jitter must be a fraction of each parameter's range in [0, 1], got {}",
                 self.start_jitter
             )));
         }
         if self.optimiser == Optimiser::ParticleSwarm && self.particles < 2 {
-            return Err(SearchError::Settings(
+            return Err(OptimiseError::Settings(
                 "particle swarm needs at least 2 particles".into(),
             ));
         }
@@ -213,7 +213,7 @@ pub trait SearchObserver: Sync {
 
 /// The result of a search.
 #[derive(Debug, Clone, Serialize)]
-pub struct SearchOutcome {
+pub struct OptimiseOutcome {
     /// The winner.
     pub best: Candidate,
     /// Each start's best, in start order.
@@ -231,7 +231,7 @@ pub struct SearchOutcome {
 /// Why a search failed.
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
-pub enum SearchError {
+pub enum OptimiseError {
     /// Bad settings.
     #[error("invalid search settings: {0}")]
     Settings(String),
@@ -637,7 +637,7 @@ pub fn repair(
     family: &Family,
     evaluator: &Evaluator,
     params: &[f64],
-) -> Result<Vec<f64>, SearchError> {
+) -> Result<Vec<f64>, OptimiseError> {
     struct Silent;
     impl SearchObserver for Silent {
         fn improved(&self, _: &Candidate) {}
@@ -671,7 +671,7 @@ pub fn repair(
     };
     repair_start(problem, family.clamp(params), 0)
         .map(|(_, repaired)| repaired)
-        .map_err(|error| SearchError::Optimiser {
+        .map_err(|error| OptimiseError::Optimiser {
             start: 0,
             message: error.to_string(),
         })
@@ -840,7 +840,7 @@ pub fn run(
     stop: &AtomicBool,
     observer: Arc<dyn SearchObserver + Send>,
     checkpoints: Option<&Checkpoints>,
-) -> Result<SearchOutcome, SearchError> {
+) -> Result<OptimiseOutcome, OptimiseError> {
     run_with_starts(
         family,
         evaluator,
@@ -863,7 +863,7 @@ pub fn run_with_starts(
     stop: &AtomicBool,
     observer: Arc<dyn SearchObserver + Send>,
     checkpoints: Option<&Checkpoints>,
-) -> Result<SearchOutcome, SearchError> {
+) -> Result<OptimiseOutcome, OptimiseError> {
     // Warm starts alone (no own starts) are a valid run.
     SearchSettings {
         starts: settings.starts.max(usize::from(!extra.is_empty())),
@@ -953,7 +953,7 @@ pub fn run_with_starts(
     } else {
         best_of(&starts)
     }
-    .ok_or(SearchError::InterruptedEmpty)?;
+    .ok_or(OptimiseError::InterruptedEmpty)?;
     let evaluations = shared
         .start_states
         .into_inner()
@@ -966,7 +966,7 @@ pub fn run_with_starts(
                 .evaluations
         })
         .sum::<u64>() as usize;
-    Ok(SearchOutcome {
+    Ok(OptimiseOutcome {
         best,
         starts,
         evaluations,
@@ -990,7 +990,7 @@ fn collect_starts(
     results: Vec<Result<Option<Candidate>, argmin::core::Error>>,
     interrupted: bool,
     offset: usize,
-) -> Result<Vec<Candidate>, SearchError> {
+) -> Result<Vec<Candidate>, OptimiseError> {
     let mut starts = Vec::with_capacity(results.len());
     for (start, result) in results.into_iter().enumerate() {
         match result {
@@ -999,7 +999,7 @@ fn collect_starts(
             // A start ended by a stop keeps no result of its own.
             Err(error) if interrupted && error.is::<Halted>() => {}
             Err(error) => {
-                return Err(SearchError::Optimiser {
+                return Err(OptimiseError::Optimiser {
                     start: offset + start,
                     message: error.to_string(),
                 })
@@ -1217,7 +1217,7 @@ mod tests {
         let (_, evaluator) = setup();
         assert!(matches!(
             run(&family, &evaluator, &settings, &stop, Arc::new(Quiet), None),
-            Err(SearchError::Settings(_))
+            Err(OptimiseError::Settings(_))
         ));
     }
 
@@ -1230,7 +1230,7 @@ mod tests {
             let started = std::time::Instant::now();
             let result = run(&family, &evaluator, &settings, &stop, Arc::new(Quiet), None);
             assert!(
-                matches!(result, Err(SearchError::InterruptedEmpty)),
+                matches!(result, Err(OptimiseError::InterruptedEmpty)),
                 "{optimiser:?}"
             );
             // Not a timing assertion on speed, a liveness one: 10⁵ iterations
