@@ -25,7 +25,7 @@
 //! ```
 
 use super::checkpoint::Checkpoints;
-use super::compare::{compare, hand_designs, CompareProgress, DesignRow};
+use super::compare::{compare, hand_designs, CompareProgress, Comparison, DesignRow};
 use super::config::{held_out_grid, SearchConfig};
 use super::error::SearchError;
 use super::feasibility::unsatisfiable;
@@ -557,13 +557,15 @@ impl Run<'_, '_> {
             Some(&self.stop),
             || {
                 compare(
-                    &config.camera,
-                    &evaluator,
-                    &designs,
-                    config.compare_solver,
-                    config.compare_trials,
-                    &seeds,
-                    config.objective.noise,
+                    &Comparison {
+                        camera: &config.camera,
+                        evaluator: &evaluator,
+                        designs: &designs,
+                        solver: config.compare_solver,
+                        trials: config.compare_trials,
+                        seeds: &seeds,
+                        noise: config.objective.noise,
+                    },
                     &CompareProgress {
                         on_scenario_done: &|| {
                             compared.fetch_add(1, Ordering::Relaxed);

@@ -1,6 +1,21 @@
 //! Layout search: the objective that scores a marker over a scenario grid,
 //! and the argmin optimisers that minimise it ([`optimise`]).
 //!
+//! # The command's shape
+//! * [`config`]: every input and output path of one search
+//!   ([`SearchConfig`]), checked once ([`SearchConfig::check`]) with a
+//!   [`crate::config::ConfigError`] that names the bad field;
+//! * [`analysis`]: the pure search, config in, [`SearchSummary`] out, no
+//!   file and no printing, progress through an observer; its phases
+//!   (optimisation, identifiability repair, comparison, held-out check,
+//!   front, validation) are small methods over one run context;
+//! * [`report`]: renders the summary (Markdown, CSV, SVG, JSON and the
+//!   terminal's lines), one writer for one search's report directory;
+//! * [`workflow`]: locks, checkpoints, the best-so-far file, atomic writes,
+//!   `run.json` and the mesh export, as a list of phases over one run
+//!   context ([`workflow::PHASES`]); [`estimate`] tells a slow search's time
+//!   beforehand.
+//!
 //! # Objective
 //! Per scenario, a term gives an RMS rotation error (degrees) and an RMS
 //! translation error (mm):

@@ -677,17 +677,31 @@ pub fn repair(
         })
 }
 
-#[allow(clippy::too_many_arguments)]
-fn run_start<'a>(
+/// What every start of one run shares: the family, the objective, the
+/// shared best and stop, the points' σ and the parameter bounds.
+struct StartContext<'a> {
     family: &'a Family,
     evaluator: &'a Evaluator,
-    settings: &SearchSettings,
     shared: &'a Shared<'a>,
     point_sigma: &'a [Option<f64>],
     bounds: &'a (Vec<f64>, Vec<f64>),
+}
+
+/// Runs start `start` (its point from `extra` when it is one of the warm
+/// starts) under `settings`, resuming from and writing `checkpoints`.
+fn run_start<'a>(
+    context: &StartContext<'a>,
+    settings: &SearchSettings,
     (start, extra): (usize, &[Vec<f64>]),
     checkpoints: Option<&Checkpoints>,
 ) -> Result<Option<Candidate>, argmin::core::Error> {
+    let StartContext {
+        family,
+        evaluator,
+        shared,
+        point_sigma,
+        bounds,
+    } = *context;
     let (lower, upper) = (&bounds.0, &bounds.1);
     let initial = start_point(family, settings, bounds, start, extra);
     let start_state = Arc::new(Mutex::new(StartState {
@@ -880,6 +894,13 @@ pub fn run_with_starts(
         halted: Arc::new(AtomicBool::new(false)),
         start_states: Mutex::new(Vec::new()),
     };
+    let context = StartContext {
+        family,
+        evaluator,
+        shared: &shared,
+        point_sigma: &point_sigma,
+        bounds: &bounds,
+    };
     let results: Vec<Result<Option<Candidate>, argmin::core::Error>> = (0..settings.starts
         + extra.len())
         .into_par_iter()
@@ -888,16 +909,7 @@ pub fn run_with_starts(
             if stop.load(Ordering::Relaxed) {
                 return Err(Halted.into());
             }
-            let result = run_start(
-                family,
-                evaluator,
-                settings,
-                &shared,
-                &point_sigma,
-                &bounds,
-                (start, extra),
-                checkpoints,
-            );
+            let result = run_start(&context, settings, (start, extra), checkpoints);
             if result.is_ok() {
                 shared.observer.finished(start);
             }
@@ -923,18 +935,7 @@ pub fn run_with_starts(
             let offset = settings.starts + extra.len();
             let results: Vec<_> = (0..points.len())
                 .into_par_iter()
-                .map(|k| {
-                    run_start(
-                        family,
-                        evaluator,
-                        &polish,
-                        &shared,
-                        &point_sigma,
-                        &bounds,
-                        (k, &points),
-                        None,
-                    )
-                })
+                .map(|k| run_start(&context, &polish, (k, &points), None))
                 .collect();
             interrupted = stop.load(Ordering::Relaxed);
             starts.extend(collect_starts(results, interrupted, offset)?);
