@@ -1,5 +1,5 @@
 //! layout-opt as a library: one PnP solve, the first-order pose covariance of
-//! a layout, and a small search through the same pipeline as
+//! a layout, and a small search through the same workflow as
 //! `layout-opt search`, written into a fresh temporary directory.
 //!
 //! Run: `cargo run --release --example library`
@@ -10,7 +10,7 @@ use layout_opt::layout::Layout;
 use layout_opt::observer::Observer;
 use layout_opt::pnp::Solver;
 use layout_opt::pose::{rotation_error_deg, translation_error_percent, Pose};
-use layout_opt::search::pipeline::{self, SearchConfig};
+use layout_opt::search::{workflow, SearchConfig};
 use layout_opt::synthetic::{project_with_noise, stream_rng};
 use nalgebra::{Rotation3, Vector3};
 
@@ -80,7 +80,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     config.validate_solvers = vec![Solver::ParallelWeighted, Solver::Ml];
     config.command = "cargo run --example library".into();
     println!("search into {}:", dir.display());
-    let outcome = pipeline::run(&config, &mut Phases::default())?;
+    let outcome = workflow::run(&config, &mut Phases::default())?;
     let summary = outcome.summary.as_ref().ok_or("interrupted")?;
     println!(
         "winner {}: objective {:.4} ({} evaluations, {:.1} s); RMS rotation vs the paper's biprism: {:+.1}%",

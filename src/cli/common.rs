@@ -3,6 +3,7 @@
 
 use clap::Args;
 use layout_opt::camera::Camera;
+use layout_opt::pnp::Solver;
 use layout_opt::scenario::{Range, ScenarioGrid};
 use std::path::{Path, PathBuf};
 
@@ -130,4 +131,20 @@ pub fn duration_text(seconds: f64) -> String {
     } else {
         format!("{:.1} h", seconds / 3600.0)
     }
+}
+
+/// Parses `all` or a comma list of solver names.
+pub fn parse_solvers(text: &str) -> anyhow::Result<Vec<Solver>> {
+    if text.trim() == "all" {
+        return Ok(Solver::ALL.to_vec());
+    }
+    let mut solvers = Vec::new();
+    for name in text.split(',').map(str::trim).filter(|s| !s.is_empty()) {
+        let solver: Solver = name.parse().map_err(|e: String| anyhow::anyhow!(e))?;
+        if !solvers.contains(&solver) {
+            solvers.push(solver);
+        }
+    }
+    anyhow::ensure!(!solvers.is_empty(), "--solvers names no solver");
+    Ok(solvers)
 }

@@ -167,7 +167,7 @@ pub fn run(args: ExportArgs, global: &GlobalOptions) -> anyhow::Result<()> {
     bars.finish();
     if let Err(ExportError::Interrupted) = result {
         eprintln!("interrupted: none of the export's files were written");
-        std::process::exit(super::search::EXIT_INTERRUPTED);
+        std::process::exit(progress::EXIT_INTERRUPTED);
     }
     let report = result.with_context(|| format!("cannot export {source}"))?;
 

@@ -23,7 +23,7 @@ pub fn bar(total: u64, message: &str, quiet: bool) -> ProgressBar {
 
 /// What one step of a pipeline phase is, for its bar.
 fn unit(phase: &str) -> &'static str {
-    use layout_opt::search::pipeline::{PHASE_COMPARE, PHASE_SEARCH, PHASE_VALIDATE};
+    use layout_opt::search::{PHASE_COMPARE, PHASE_SEARCH, PHASE_VALIDATE};
     match phase {
         PHASE_SEARCH => "iterations",
         PHASE_COMPARE | PHASE_VALIDATE => "scenarios",
@@ -49,6 +49,9 @@ fn phase_bar(phase: &str, total: u64, quiet: bool) -> ProgressBar {
         .with_message(unit(phase))
 }
 
+/// Exit status of a run stopped by Ctrl-C (128 + SIGINT, as shells report).
+pub const EXIT_INTERRUPTED: i32 = 130;
+
 /// Set by Ctrl-C once [`catch_ctrl_c`] ran.
 static STOP: AtomicBool = AtomicBool::new(false);
 
@@ -59,7 +62,7 @@ pub fn catch_ctrl_c() {
     // matters to tests that call run twice, and they never press Ctrl-C.
     let _ = ctrlc::set_handler(|| {
         if STOP.swap(true, Ordering::SeqCst) {
-            std::process::exit(super::search::EXIT_INTERRUPTED);
+            std::process::exit(EXIT_INTERRUPTED);
         }
     });
 }

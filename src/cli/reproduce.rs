@@ -64,7 +64,7 @@ pub fn run(args: ReproduceArgs, global: &GlobalOptions) -> anyhow::Result<()> {
             "interrupted: no report written ({} untouched)",
             config.out_dir.display()
         );
-        std::process::exit(super::search::EXIT_INTERRUPTED);
+        std::process::exit(progress::EXIT_INTERRUPTED);
     }
     let ReproduceOutcome {
         reproduction,

@@ -1,7 +1,7 @@
 //! `layout-opt validate`: a layout's sensitivity report.
 
 use super::common::{
-    command_line, duration_text, naming_file, CameraArgs, GridArgs, SLOW_RUN_SECONDS,
+    command_line, duration_text, naming_file, parse_solvers, CameraArgs, GridArgs, SLOW_RUN_SECONDS,
 };
 use super::{progress, GlobalOptions};
 use anyhow::Context;
@@ -70,22 +70,6 @@ pub struct ValidateArgs {
     /// with the fabrication term. 0 (the default) runs nothing more.
     #[arg(long, value_name = "MM", default_value_t = 0.0)]
     fabrication_sigma: f64,
-}
-
-/// Parses `all` or a comma list of solver names.
-pub fn parse_solvers(text: &str) -> anyhow::Result<Vec<Solver>> {
-    if text.trim() == "all" {
-        return Ok(Solver::ALL.to_vec());
-    }
-    let mut solvers = Vec::new();
-    for name in text.split(',').map(str::trim).filter(|s| !s.is_empty()) {
-        let solver: Solver = name.parse().map_err(|e: String| anyhow::anyhow!(e))?;
-        if !solvers.contains(&solver) {
-            solvers.push(solver);
-        }
-    }
-    anyhow::ensure!(!solvers.is_empty(), "--solvers names no solver");
-    Ok(solvers)
 }
 
 /// A probability strictly between 0 and 1, as `0.999` or `99.9%`.
@@ -195,7 +179,7 @@ pub fn run(args: ValidateArgs, global: &GlobalOptions) -> anyhow::Result<()> {
     bars.finish();
     if let Err(SensitivityError::MonteCarlo(MonteCarloError::Interrupted)) = result {
         eprintln!("interrupted: no report written");
-        std::process::exit(super::search::EXIT_INTERRUPTED);
+        std::process::exit(progress::EXIT_INTERRUPTED);
     }
     let SensitivityOutcome {
         validation,
@@ -321,7 +305,7 @@ fn fabrication_check(
     );
     if let Err(FabricationError::Interrupted) = result {
         eprintln!("interrupted during the fabrication check");
-        std::process::exit(super::search::EXIT_INTERRUPTED);
+        std::process::exit(progress::EXIT_INTERRUPTED);
     }
     let run = result?;
     let show = |v: Option<f64>| v.map_or("not measurable".into(), |v| format!("{v:.4}°"));

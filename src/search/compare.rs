@@ -260,21 +260,44 @@ fn figures(seed: u64, mine: &[ScenarioOutcome], winner: &[ScenarioOutcome]) -> M
     }
 }
 
+/// What [`compare`] compares, and how.
+#[derive(Debug, Clone, Copy)]
+pub struct Comparison<'a> {
+    /// The simulated camera.
+    pub camera: &'a Camera,
+    /// Scores each design by the search objective (its scenarios are the
+    /// Monte-Carlo's).
+    pub evaluator: &'a Evaluator,
+    /// The designs by name; the first is the winner the others are paired
+    /// with.
+    pub designs: &'a [(String, Layout)],
+    /// Solver of the Monte-Carlo runs.
+    pub solver: Solver,
+    /// Trials per scenario.
+    pub trials: usize,
+    /// One Monte-Carlo run per seed.
+    pub seeds: &'a [u64],
+    /// Pixel noise model.
+    pub noise: NoiseModel,
+}
+
 /// Scores every design by the objective and by Monte-Carlo on each seed.
 /// `designs[0]` is the winner the others are paired with. It runs
 /// `designs.len() × seeds.len() × scenarios` Monte-Carlo scenarios, each
 /// reported to `progress`, and stops early once `progress.stop` is set.
-#[allow(clippy::too_many_arguments)]
 pub fn compare(
-    camera: &Camera,
-    evaluator: &Evaluator,
-    designs: &[(String, Layout)],
-    solver: Solver,
-    trials: usize,
-    seeds: &[u64],
-    noise: NoiseModel,
+    comparison: &Comparison<'_>,
     progress: &CompareProgress<'_>,
 ) -> Result<Vec<DesignRow>, MonteCarloError> {
+    let Comparison {
+        camera,
+        evaluator,
+        designs,
+        solver,
+        trials,
+        seeds,
+        noise,
+    } = *comparison;
     let outcomes: Vec<Vec<Vec<ScenarioOutcome>>> = designs
         .iter()
         .map(|(_, layout)| {

@@ -22,11 +22,10 @@
 //!   the front also lists the first-order RMS rotation and translation on
 //!   the search grid.
 
-use super::optimise::{self, Candidate, SearchError, SearchObserver, SearchSettings};
+use super::optimise::{self, Candidate, OptimiseError, SearchObserver, SearchSettings};
 use super::{Evaluation, Evaluator};
 use crate::family::Family;
 use crate::layout::Layout;
-use crate::report::{plots, significant, write_text, ReportError, Table};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -129,7 +128,7 @@ pub fn sweep(
     offered: &[Candidate],
     stop: &AtomicBool,
     levels_done: &AtomicU64,
-) -> Result<(Vec<FrontPoint>, usize), SearchError> {
+) -> Result<(Vec<FrontPoint>, usize), OptimiseError> {
     let settings = SearchSettings {
         starts: 2.min(base.starts.max(1)),
         start_jitter: 0.0,
@@ -180,7 +179,9 @@ pub fn sweep(
         })
     };
     let first = match run_level(None, 0.0, &pool) {
-        Err(SearchError::InterruptedEmpty) => return Ok((non_dominated(pool), evaluations.get())),
+        Err(OptimiseError::InterruptedEmpty) => {
+            return Ok((non_dominated(pool), evaluations.get()))
+        }
         other => other?,
     };
     let lowest = first.evaluation.availability;
@@ -197,7 +198,7 @@ pub fn sweep(
         }
         let floor = lowest + k as f64 * (1.0 - lowest) / front.levels as f64;
         let best = match run_level(Some(floor), 0.0, &pool) {
-            Err(SearchError::InterruptedEmpty) => break,
+            Err(OptimiseError::InterruptedEmpty) => break,
             other => other?,
         };
         let reached = best.evaluation.admissible();
@@ -217,7 +218,7 @@ pub fn sweep(
             break;
         }
         let best = match run_level(None, *weight, &pool) {
-            Err(SearchError::InterruptedEmpty) => break,
+            Err(OptimiseError::InterruptedEmpty) => break,
             other => other?,
         };
         if best.evaluation.violations.feasible() {
@@ -308,7 +309,7 @@ fn first_order(evaluation: &Evaluation) -> (Option<f64>, Option<f64>) {
 }
 
 /// The front's report with its members' layouts, built by [`build`]
-/// without touching a file and written by [`write`], so that a run can write
+/// without touching a file and written by the search report, so that a run can write
 /// them together with the rest of its report once every phase has finished.
 #[derive(Debug, Clone)]
 pub struct FrontFiles {
@@ -319,23 +320,48 @@ pub struct FrontFiles {
     pub layouts: Vec<Layout>,
 }
 
+/// What [`build`] needs: where the members' layouts go, how to name and
+/// score them, and the sweep's books.
+pub struct FrontInputs<'a> {
+    /// Directory of the members' layout files (`<name>-front-<k>.json`).
+    pub layout_dir: &'a Path,
+    /// Name of the search; members are `<name>-front-<k>`.
+    pub name: &'a str,
+    /// The family the members' parameters belong to.
+    pub family: &'a Family,
+    /// The front's points, by availability.
+    pub points: &'a [FrontPoint],
+    /// Scores layouts by the first-order model on the search grid.
+    pub first_order_evaluator: &'a Evaluator,
+    /// The hand designs' names, layouts and evaluations by the search
+    /// objective.
+    pub hand: &'a [(String, Layout, Evaluation)],
+    /// Provenance every member's layout carries.
+    pub provenance: &'a serde_json::Value,
+    /// Objective evaluations of the sweep.
+    pub evaluations: usize,
+    /// Seconds of the sweep.
+    pub seconds: f64,
+    /// The sweep's settings.
+    pub settings: &'a FrontSettings,
+}
+
 /// Builds the front's report: a layout per member, to be written to
-/// `layout_dir` (`<name>-front-<k>.json`), and the report of `front.json`.
-/// `first_order` scores layouts by the first-order model on the search grid;
-/// `hand` are the hand designs' names, layouts and evaluations by the
-/// search objective. Writes nothing ([`write`] does).
-#[allow(clippy::too_many_arguments)]
-pub fn build(
-    layout_dir: &Path,
-    name: &str,
-    family: &Family,
-    points: &[FrontPoint],
-    first_order_evaluator: &Evaluator,
-    hand: &[(String, Layout, Evaluation)],
-    provenance: &serde_json::Value,
-    (evaluations, seconds): (usize, f64),
-    settings: &FrontSettings,
-) -> FrontFiles {
+/// `inputs.layout_dir`, and the report of `front.json`. Writes nothing (the
+/// search report does).
+pub fn build(inputs: &FrontInputs<'_>) -> FrontFiles {
+    let FrontInputs {
+        layout_dir,
+        name,
+        family,
+        points,
+        first_order_evaluator,
+        hand,
+        provenance,
+        evaluations,
+        seconds,
+        settings,
+    } = *inputs;
     let mut members = Vec::with_capacity(points.len());
     let mut layouts = Vec::with_capacity(points.len());
     for (k, point) in points.iter().enumerate() {
@@ -404,99 +430,6 @@ pub fn build(
         hand_designs,
     };
     FrontFiles { report, layouts }
-}
-
-/// Writes what [`build`] built: each member's layout file (at its entry's
-/// `layout` path, atomically), then `front.json`, `front.csv` and
-/// `front.svg` in `report_dir`.
-pub fn write(report_dir: &Path, files: &FrontFiles) -> Result<(), ReportError> {
-    let report = &files.report;
-    for (entry, layout) in report.members.iter().zip(&files.layouts) {
-        if let Some(dir) = entry.layout.parent() {
-            std::fs::create_dir_all(dir).map_err(|e| ReportError::write(dir, e))?;
-        }
-        layout
-            .save_atomic(&entry.layout)
-            .map_err(|e| ReportError::write(&entry.layout, e))?;
-    }
-    std::fs::create_dir_all(report_dir).map_err(|e| ReportError::write(report_dir, e))?;
-    let json_path = report_dir.join("front.json");
-    let json =
-        serde_json::to_string_pretty(&report).map_err(|e| ReportError::write(&json_path, e))?;
-    write_text(&json_path, &(json + "\n"))?;
-    let csv_path = report_dir.join("front.csv");
-    let table = table(report);
-    write_text(
-        &csv_path,
-        &table.csv().map_err(|e| ReportError::write(&csv_path, e))?,
-    )?;
-    let mut series = vec![plots::Series {
-        name: "Pareto front (search)".into(),
-        points: report
-            .members
-            .iter()
-            .filter_map(|m| m.rotation_rms_deg.map(|r| (100.0 * m.availability, r)))
-            .collect(),
-        dashed: false,
-    }];
-    for h in &report.hand_designs {
-        if let Some(r) = h.rotation_rms_deg {
-            series.push(plots::Series {
-                name: h.name.clone(),
-                points: vec![(100.0 * h.availability, r)],
-                dashed: false,
-            });
-        }
-    }
-    plots::line_plot(
-        &report_dir.join("front.svg"),
-        "Accuracy against availability: the front and the hand designs",
-        "availability (% of the grid's scenarios)",
-        "first-order RMS rotation (°), search grid",
-        &series,
-    )?;
-    Ok(())
-}
-
-/// The front and the hand designs as one table (`front.csv`, and the
-/// report's markdown).
-pub fn table(report: &FrontReport) -> Table {
-    let mut table = Table::new([
-        "design",
-        "availability floor",
-        "availability %",
-        "accuracy (1 = reference)",
-        "first-order RMS rot (°)",
-        "first-order RMS trans (mm)",
-        "dominated by",
-        "layout",
-    ]);
-    for m in &report.members {
-        table.row([
-            m.name.clone(),
-            m.floor
-                .map_or("none".into(), |f| format!("{:.1}%", 100.0 * f)),
-            format!("{:.1}", 100.0 * m.availability),
-            significant(Some(m.accuracy), 4),
-            significant(m.rotation_rms_deg, 4),
-            significant(m.translation_rms_mm, 4),
-            "front member".into(),
-            m.layout.display().to_string(),
-        ]);
-    }
-    for h in &report.hand_designs {
-        table.row([
-            h.name.clone(),
-            String::new(),
-            format!("{:.1}", 100.0 * h.availability),
-            significant(Some(h.accuracy), 4),
-            significant(h.rotation_rms_deg, 4),
-            significant(h.translation_rms_mm, 4),
-            h.dominated_by.clone().unwrap_or_else(|| "**none**".into()),
-            String::new(),
-        ]);
-    }
-    table
 }
 
 #[cfg(test)]

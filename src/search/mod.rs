@@ -1,6 +1,21 @@
 //! Layout search: the objective that scores a marker over a scenario grid,
 //! and the argmin optimisers that minimise it ([`optimise`]).
 //!
+//! # The command's shape
+//! * [`config`]: every input and output path of one search
+//!   ([`SearchConfig`]), checked once ([`SearchConfig::check`]) with a
+//!   [`crate::config::ConfigError`] that names the bad field;
+//! * [`analysis`]: the pure search, config in, [`SearchSummary`] out, no
+//!   file and no printing, progress through an observer; its phases
+//!   (optimisation, identifiability repair, comparison, held-out check,
+//!   front, validation) are small methods over one run context;
+//! * [`report`]: renders the summary (Markdown, CSV, SVG, JSON and the
+//!   terminal's lines), one writer for one search's report directory;
+//! * [`workflow`]: locks, checkpoints, the best-so-far file, atomic writes,
+//!   `run.json` and the mesh export, as a list of phases over one run
+//!   context ([`workflow::PHASES`]); [`estimate`] tells a slow search's time
+//!   beforehand.
+//!
 //! # Objective
 //! Per scenario, a term gives an RMS rotation error (degrees) and an RMS
 //! translation error (mm):
@@ -50,8 +65,7 @@
 //!
 //! ```
 //! use layout_opt::layout::Layout;
-//! use layout_opt::search::pipeline::SearchConfig;
-//! use layout_opt::search::Evaluator;
+//! use layout_opt::search::{Evaluator, SearchConfig};
 //!
 //! // The default search's settings; nothing is written until a run.
 //! let config = SearchConfig::new("doc", &std::env::temp_dir());
@@ -71,22 +85,36 @@
 //! assert!(evaluator.evaluate(&half, &paper.point_sigmas()).accuracy > 1.5);
 //! ```
 
+pub mod analysis;
 pub(crate) mod checkpoint;
 pub(crate) mod compare;
+pub mod config;
+mod error;
+pub mod estimate;
+pub(crate) mod feasibility;
 pub(crate) mod front;
+pub(crate) mod identify;
 pub(crate) mod optimise;
-pub mod pipeline;
-pub(crate) mod report;
+pub mod report;
+pub mod summary;
+pub mod workflow;
 
+pub use analysis::{
+    PHASE_COMPARE, PHASE_FRONT, PHASE_IDENTIFY, PHASE_SEARCH, PHASE_VALIDATE, STATUS_FINISHED,
+};
 pub use checkpoint::CheckpointError;
 pub use compare::{hand_designs, DesignRow, MonteCarloFigures, PooledFigures};
+pub use config::{FrontOutput, MeshExport, SearchConfig, WINNER_IDENTIFY_TRIALS};
+pub use error::SearchError;
 pub use front::{FrontEntry, FrontReport, FrontSettings, HandEntry};
-pub use optimise::{
-    Candidate, Optimiser, SearchError, SearchOutcome as OptimiseOutcome, SearchSettings,
-    FINAL_POLISH_STARTS,
+pub use identify::{
+    IDENTIFY_MAX_NEW, IDENTIFY_ROUNDS, IDENTIFY_ROUND_ITERATIONS, IDENTIFY_THINNING,
 };
-pub use pipeline::IdentifyBooks;
-pub use report::{HeldOutCheck, SearchHeader, SearchSummary, Verdicts};
+pub use optimise::{
+    Candidate, OptimiseError, OptimiseOutcome, Optimiser, SearchSettings, FINAL_POLISH_STARTS,
+};
+pub use summary::{HeldOutCheck, IdentifyBooks, SearchHeader, SearchSummary, Verdicts};
+pub use workflow::{SearchOutcome, PHASE_EXPORT};
 
 use crate::camera::Camera;
 use crate::error_model::first_order::{pose_covariance, pose_covariance_and_bias};
@@ -152,7 +180,7 @@ impl IdentifiabilityFloor {
 
 /// Which scenarios an evaluation checks for identifiability (each check
 /// runs the unlabelled solver, 0.1–1 ms, so the search checks a chosen
-/// few; see [`pipeline`]).
+/// few: the identifiability repair).
 #[derive(Debug, Clone, Default, PartialEq)]
 pub enum IdentifyScope {
     /// None.

@@ -154,20 +154,20 @@ pub struct SearchSettings {
 
 impl SearchSettings {
     /// Checks the settings (before anything is written or run).
-    pub fn check(&self) -> Result<(), SearchError> {
+    pub fn check(&self) -> Result<(), OptimiseError> {
         if self.starts == 0 || self.iterations == 0 {
-            return Err(SearchError::Settings(
+            return Err(OptimiseError::Settings(
                 "starts and iterations must be at least 1".into(),
             ));
         }
         if !(0.0..=1.0).contains(&self.start_jitter) {
-            return Err(SearchError::Settings(format!(
+            return Err(OptimiseError::Settings(format!(
                 "the start jitter must be a fraction of each parameter's range in [0, 1], got {}",
                 self.start_jitter
             )));
         }
         if self.optimiser == Optimiser::ParticleSwarm && self.particles < 2 {
-            return Err(SearchError::Settings(
+            return Err(OptimiseError::Settings(
                 "particle swarm needs at least 2 particles".into(),
             ));
         }
@@ -213,7 +213,7 @@ pub trait SearchObserver: Sync {
 
 /// The result of a search.
 #[derive(Debug, Clone, Serialize)]
-pub struct SearchOutcome {
+pub struct OptimiseOutcome {
     /// The winner.
     pub best: Candidate,
     /// Each start's best, in start order.
@@ -231,7 +231,7 @@ pub struct SearchOutcome {
 /// Why a search failed.
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
-pub enum SearchError {
+pub enum OptimiseError {
     /// Bad settings.
     #[error("invalid search settings: {0}")]
     Settings(String),
@@ -637,7 +637,7 @@ pub fn repair(
     family: &Family,
     evaluator: &Evaluator,
     params: &[f64],
-) -> Result<Vec<f64>, SearchError> {
+) -> Result<Vec<f64>, OptimiseError> {
     struct Silent;
     impl SearchObserver for Silent {
         fn improved(&self, _: &Candidate) {}
@@ -671,23 +671,37 @@ pub fn repair(
     };
     repair_start(problem, family.clamp(params), 0)
         .map(|(_, repaired)| repaired)
-        .map_err(|error| SearchError::Optimiser {
+        .map_err(|error| OptimiseError::Optimiser {
             start: 0,
             message: error.to_string(),
         })
 }
 
-#[allow(clippy::too_many_arguments)]
-fn run_start<'a>(
+/// What every start of one run shares: the family, the objective, the
+/// shared best and stop, the points' σ and the parameter bounds.
+struct StartContext<'a> {
     family: &'a Family,
     evaluator: &'a Evaluator,
-    settings: &SearchSettings,
     shared: &'a Shared<'a>,
     point_sigma: &'a [Option<f64>],
     bounds: &'a (Vec<f64>, Vec<f64>),
+}
+
+/// Runs start `start` (its point from `extra` when it is one of the warm
+/// starts) under `settings`, resuming from and writing `checkpoints`.
+fn run_start<'a>(
+    context: &StartContext<'a>,
+    settings: &SearchSettings,
     (start, extra): (usize, &[Vec<f64>]),
     checkpoints: Option<&Checkpoints>,
 ) -> Result<Option<Candidate>, argmin::core::Error> {
+    let StartContext {
+        family,
+        evaluator,
+        shared,
+        point_sigma,
+        bounds,
+    } = *context;
     let (lower, upper) = (&bounds.0, &bounds.1);
     let initial = start_point(family, settings, bounds, start, extra);
     let start_state = Arc::new(Mutex::new(StartState {
@@ -840,7 +854,7 @@ pub fn run(
     stop: &AtomicBool,
     observer: Arc<dyn SearchObserver + Send>,
     checkpoints: Option<&Checkpoints>,
-) -> Result<SearchOutcome, SearchError> {
+) -> Result<OptimiseOutcome, OptimiseError> {
     run_with_starts(
         family,
         evaluator,
@@ -863,7 +877,7 @@ pub fn run_with_starts(
     stop: &AtomicBool,
     observer: Arc<dyn SearchObserver + Send>,
     checkpoints: Option<&Checkpoints>,
-) -> Result<SearchOutcome, SearchError> {
+) -> Result<OptimiseOutcome, OptimiseError> {
     // Warm starts alone (no own starts) are a valid run.
     SearchSettings {
         starts: settings.starts.max(usize::from(!extra.is_empty())),
@@ -880,6 +894,13 @@ pub fn run_with_starts(
         halted: Arc::new(AtomicBool::new(false)),
         start_states: Mutex::new(Vec::new()),
     };
+    let context = StartContext {
+        family,
+        evaluator,
+        shared: &shared,
+        point_sigma: &point_sigma,
+        bounds: &bounds,
+    };
     let results: Vec<Result<Option<Candidate>, argmin::core::Error>> = (0..settings.starts
         + extra.len())
         .into_par_iter()
@@ -888,16 +909,7 @@ pub fn run_with_starts(
             if stop.load(Ordering::Relaxed) {
                 return Err(Halted.into());
             }
-            let result = run_start(
-                family,
-                evaluator,
-                settings,
-                &shared,
-                &point_sigma,
-                &bounds,
-                (start, extra),
-                checkpoints,
-            );
+            let result = run_start(&context, settings, (start, extra), checkpoints);
             if result.is_ok() {
                 shared.observer.finished(start);
             }
@@ -923,18 +935,7 @@ pub fn run_with_starts(
             let offset = settings.starts + extra.len();
             let results: Vec<_> = (0..points.len())
                 .into_par_iter()
-                .map(|k| {
-                    run_start(
-                        family,
-                        evaluator,
-                        &polish,
-                        &shared,
-                        &point_sigma,
-                        &bounds,
-                        (k, &points),
-                        None,
-                    )
-                })
+                .map(|k| run_start(&context, &polish, (k, &points), None))
                 .collect();
             interrupted = stop.load(Ordering::Relaxed);
             starts.extend(collect_starts(results, interrupted, offset)?);
@@ -953,7 +954,7 @@ pub fn run_with_starts(
     } else {
         best_of(&starts)
     }
-    .ok_or(SearchError::InterruptedEmpty)?;
+    .ok_or(OptimiseError::InterruptedEmpty)?;
     let evaluations = shared
         .start_states
         .into_inner()
@@ -966,7 +967,7 @@ pub fn run_with_starts(
                 .evaluations
         })
         .sum::<u64>() as usize;
-    Ok(SearchOutcome {
+    Ok(OptimiseOutcome {
         best,
         starts,
         evaluations,
@@ -990,7 +991,7 @@ fn collect_starts(
     results: Vec<Result<Option<Candidate>, argmin::core::Error>>,
     interrupted: bool,
     offset: usize,
-) -> Result<Vec<Candidate>, SearchError> {
+) -> Result<Vec<Candidate>, OptimiseError> {
     let mut starts = Vec::with_capacity(results.len());
     for (start, result) in results.into_iter().enumerate() {
         match result {
@@ -999,7 +1000,7 @@ fn collect_starts(
             // A start ended by a stop keeps no result of its own.
             Err(error) if interrupted && error.is::<Halted>() => {}
             Err(error) => {
-                return Err(SearchError::Optimiser {
+                return Err(OptimiseError::Optimiser {
                     start: offset + start,
                     message: error.to_string(),
                 })
@@ -1217,7 +1218,7 @@ mod tests {
         let (_, evaluator) = setup();
         assert!(matches!(
             run(&family, &evaluator, &settings, &stop, Arc::new(Quiet), None),
-            Err(SearchError::Settings(_))
+            Err(OptimiseError::Settings(_))
         ));
     }
 
@@ -1230,7 +1231,7 @@ mod tests {
             let started = std::time::Instant::now();
             let result = run(&family, &evaluator, &settings, &stop, Arc::new(Quiet), None);
             assert!(
-                matches!(result, Err(SearchError::InterruptedEmpty)),
+                matches!(result, Err(OptimiseError::InterruptedEmpty)),
                 "{optimiser:?}"
             );
             // Not a timing assertion on speed, a liveness one: 10⁵ iterations

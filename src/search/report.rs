@@ -1,217 +1,37 @@
-//! The search report: `reports/<name>/report.md`, `summary.json`,
-//! `designs.csv` and a three-view SVG per design. The winner is compared with
-//! its start, the paper's biprism in the same envelope and the hand designs,
-//! on the same scenarios and noise draws, on the search seed and on an
-//! independent validation seed.
+//! The search report: renders what the analysis found and writes one
+//! search's report directory in one call ([`write`]): `report.md`,
+//! `summary.json`, `designs.csv`, a three-view SVG per design, the winner's
+//! sensitivity report in `winner-validation/` and, when a front was swept,
+//! `front.json`, `front.csv`, `front.svg` with the members' layouts. The
+//! winner is compared with its start, the paper's biprism in the same
+//! envelope and the hand designs, on the same scenarios and noise draws, on
+//! the search seed and on an independent validation seed. It computes
+//! nothing new; [`console`] renders the same summary for a terminal.
 
-use super::compare::DesignRow;
-use super::front::{self, FrontReport};
-use super::optimise::{SearchOutcome, SearchSettings};
-use super::{AvailabilityFloor, Evaluation, ObjectiveSettings, AVAILABILITY_PENALTY};
-use crate::camera::Camera;
-use crate::family::Constraints;
+use super::analysis::Finished;
+use super::error::SearchError;
+use super::front::{self, FrontFiles, FrontReport};
+use super::summary::{grid_text, SearchSummary};
+use super::{AvailabilityFloor, IdentifiabilityFigures, AVAILABILITY_PENALTY};
 use crate::report::{percent_lower, plots, significant, write_text, ReportError, Table};
-use crate::scenario::ScenarioGrid;
-use serde::Serialize;
+use crate::sensitivity;
 use std::fmt::Write as _;
 use std::path::Path;
 
-/// Provenance of a search.
-#[derive(Debug, Clone, Serialize)]
-pub struct SearchHeader {
-    /// The command line.
-    pub command: String,
-    /// layout-opt version.
-    pub version: String,
-    /// The family, with its options.
-    pub family: String,
-    /// The constraints.
-    pub constraints: Constraints,
-    /// The objective.
-    pub objective: ObjectiveSettings,
-    /// The optimiser.
-    pub search: SearchSettings,
-    /// The scenario grid.
-    pub grid: ScenarioGrid,
-    /// The camera.
-    pub camera: Camera,
-    /// Solver of the Monte-Carlo comparison.
-    pub comparison_solver: String,
-    /// Trials per scenario of the comparison.
-    pub comparison_trials: usize,
-    /// Seeds of the comparison: the search's, then the validation seed.
-    pub comparison_seeds: Vec<u64>,
-}
-
-/// The claims the acceptance criteria ask about, computed from the rows.
-#[derive(Debug, Clone, Serialize)]
-pub struct Verdicts {
-    /// Per comparison seed: 1 − winner RMS rotation / paper biprism RMS
-    /// rotation, %, over the scenarios visible to both.
-    pub rotation_reduction_vs_paper_percent: Vec<f64>,
-    /// Per seed: winner RMS translation ≤ paper biprism's, on the scenarios
-    /// visible to both.
-    pub translation_no_worse: Vec<bool>,
-    /// Winner availability − paper biprism availability, percentage points.
-    pub availability_difference_pp: f64,
-    /// Winner occluded scenarios ≤ paper biprism's.
-    pub occlusion_no_more_frequent: bool,
-    /// Winner's objective (accuracy + availability, without constraint
-    /// penalties) below every hand design's.
-    pub beats_hand_designs_on_objective: bool,
-    /// Per seed: winner's Monte-Carlo RMS rotation below every hand design's,
-    /// each pair on the scenarios visible to both.
-    pub beats_hand_designs_on_monte_carlo: Vec<bool>,
-    /// Winner's objective below that of every *admissible* hand design: each
-    /// hand design as drawn when it meets the constraints, otherwise its
-    /// nearest admissible version (the search's own repair). A design the
-    /// user's constraints rule out (spheres that cannot be identified: by
-    /// the stereo distance rule or, over every visible scenario, the
-    /// identifiability floor) is not an alternative the user has.
-    pub beats_admissible_hand_designs_on_objective: bool,
-    /// The admissible hand designs' names.
-    pub admissible_hand_designs: Vec<String>,
-    /// Whether the winner meets every constraint.
-    pub winner_feasible: bool,
-    /// The availability floor in force (None: no floor).
-    pub availability_floor: Option<f64>,
-    /// Whether the winner reaches it.
-    pub winner_meets_availability_floor: bool,
-    /// Whether the winner meets the identifiability floor on every visible
-    /// scenario (None: no floor).
-    pub winner_meets_identifiability_floor: Option<bool>,
-}
-
-/// First-order figures of the winner and the paper's biprism on a held-out
-/// grid: scenarios the search never saw.
-#[derive(Debug, Clone, Serialize)]
-pub struct HeldOutCheck {
-    /// The held-out grid, in words.
-    pub grid: String,
-    /// Its scenarios.
-    pub scenarios: usize,
-    /// Winner's first-order RMS rotation, degrees (every in-front scenario).
-    pub winner_rotation_rms_deg: Option<f64>,
-    /// Paper biprism's first-order RMS rotation, degrees.
-    pub paper_rotation_rms_deg: Option<f64>,
-    /// 1 − winner / paper, %.
-    pub rotation_reduction_percent: Option<f64>,
-    /// Winner's first-order RMS translation, mm.
-    pub winner_translation_rms_mm: Option<f64>,
-    /// Paper biprism's first-order RMS translation, mm.
-    pub paper_translation_rms_mm: Option<f64>,
-    /// Winner's availability.
-    pub winner_availability: f64,
-    /// Paper biprism's availability.
-    pub paper_availability: f64,
-    /// Winner's occluded scenarios.
-    pub winner_occluded: usize,
-    /// Paper biprism's occluded scenarios.
-    pub paper_occluded: usize,
-}
-
-impl HeldOutCheck {
-    /// The check from first-order evaluations of the winner and the paper's
-    /// biprism on `grid`.
-    pub fn new(grid: &ScenarioGrid, winner: &Evaluation, paper: &Evaluation) -> Self {
-        let rotation = |e: &Evaluation| e.terms.first().and_then(|t| t.rotation_deg);
-        let translation = |e: &Evaluation| e.terms.first().and_then(|t| t.translation_mm);
-        Self {
-            grid: grid_text(grid),
-            scenarios: grid.len(),
-            winner_rotation_rms_deg: rotation(winner),
-            paper_rotation_rms_deg: rotation(paper),
-            rotation_reduction_percent: rotation(winner)
-                .zip(rotation(paper))
-                .map(|(w, p)| 100.0 * (1.0 - w / p)),
-            winner_translation_rms_mm: translation(winner),
-            paper_translation_rms_mm: translation(paper),
-            winner_availability: winner.availability,
-            paper_availability: paper.availability,
-            winner_occluded: winner.occluded,
-            paper_occluded: paper.occluded,
-        }
+/// Writes the report of a finished search into `dir`: the search's own
+/// files, the winner's validation in `dir/winner-validation/` and the front
+/// (its members' layouts at their entries' paths).
+pub fn write(dir: &Path, finished: &Finished) -> Result<(), SearchError> {
+    write_summary(dir, &finished.summary)?;
+    sensitivity::write_report(
+        &dir.join("winner-validation"),
+        &finished.winner,
+        &finished.validation,
+    )?;
+    if let Some(files) = &finished.front {
+        write_front(dir, files)?;
     }
-}
-
-/// Everything in the report.
-#[derive(Debug, Clone, Serialize)]
-pub struct SearchSummary {
-    /// Provenance.
-    pub header: SearchHeader,
-    /// The optimiser's result.
-    pub outcome: SearchOutcome,
-    /// One row per design: winner, start, paper biprism, hand designs.
-    pub designs: Vec<DesignRow>,
-    /// The acceptance claims.
-    pub verdicts: Verdicts,
-    /// The winner and the paper's biprism on a held-out grid.
-    pub held_out: HeldOutCheck,
-    /// The Pareto front, when asked for.
-    pub front: Option<FrontReport>,
-    /// How the identifiability floor was enforced (None: no floor).
-    pub identifiability: Option<super::pipeline::IdentifyBooks>,
-}
-
-/// Computes the verdicts: rows are winner, start, then the hand designs with
-/// the paper's biprism first (`hand`), then the admissible versions of those
-/// that break a constraint (`admissible`).
-pub fn verdicts(
-    rows: &[DesignRow],
-    paper_index: usize,
-    hand: std::ops::Range<usize>,
-    admissible: std::ops::Range<usize>,
-) -> Verdicts {
-    let winner = &rows[0];
-    let admissible_rows: Vec<&DesignRow> = rows[hand.clone()]
-        .iter()
-        .chain(&rows[admissible])
-        .filter(|r| {
-            r.evaluation.violations.feasible() && r.evaluation.meets_identifiability_floor()
-        })
-        .collect();
-    let paper = &rows[paper_index];
-    let seeds = winner.monte_carlo.len();
-    Verdicts {
-        rotation_reduction_vs_paper_percent: (0..seeds)
-            .map(|k| {
-                let mc = &paper.monte_carlo[k];
-                100.0 * (1.0 - mc.winner_common.rms_rotation_deg / mc.common.rms_rotation_deg)
-            })
-            .collect(),
-        translation_no_worse: (0..seeds)
-            .map(|k| {
-                let mc = &paper.monte_carlo[k];
-                mc.winner_common.rms_translation_mm <= mc.common.rms_translation_mm
-            })
-            .collect(),
-        availability_difference_pp: 100.0
-            * (winner.evaluation.availability - paper.evaluation.availability),
-        occlusion_no_more_frequent: winner.evaluation.occluded <= paper.evaluation.occluded,
-        beats_hand_designs_on_objective: rows[hand.clone()]
-            .iter()
-            .all(|r| winner.evaluation.objective < r.evaluation.objective),
-        beats_hand_designs_on_monte_carlo: (0..seeds)
-            .map(|k| {
-                rows[hand.clone()].iter().all(|r| {
-                    let mc = &r.monte_carlo[k];
-                    mc.winner_common.rms_rotation_deg < mc.common.rms_rotation_deg
-                })
-            })
-            .collect(),
-        beats_admissible_hand_designs_on_objective: admissible_rows
-            .iter()
-            .all(|r| winner.evaluation.objective < r.evaluation.objective),
-        admissible_hand_designs: admissible_rows.iter().map(|r| r.name.clone()).collect(),
-        winner_feasible: winner.evaluation.violations.feasible(),
-        availability_floor: winner.evaluation.availability_floor,
-        winner_meets_availability_floor: winner.evaluation.meets_availability_floor(),
-        winner_meets_identifiability_floor: winner
-            .evaluation
-            .identifiability
-            .as_ref()
-            .map(|f| f.meets_floor()),
-    }
+    Ok(())
 }
 
 fn yes(flag: bool) -> &'static str {
@@ -222,8 +42,8 @@ fn yes(flag: bool) -> &'static str {
     }
 }
 
-/// Writes the report into `dir`.
-pub fn write(dir: &Path, summary: &SearchSummary) -> Result<(), ReportError> {
+/// Writes `summary.json`, `designs.csv`, the views and `report.md` into `dir`.
+fn write_summary(dir: &Path, summary: &SearchSummary) -> Result<(), ReportError> {
     std::fs::create_dir_all(dir).map_err(|e| ReportError::write(dir, e))?;
     let json = serde_json::to_string_pretty(summary)
         .map_err(|e| ReportError::write(&dir.join("summary.json"), e))?;
@@ -330,7 +150,7 @@ fn identifiability_markdown(summary: &SearchSummary) -> String {
         return out;
     };
     let _ = writeln!(out, "\n## Identifiability from one image\n");
-    let figures = |f: &Option<super::IdentifiabilityFigures>| {
+    let figures = |f: &Option<IdentifiabilityFigures>| {
         f.as_ref().map_or("—".to_string(), |f| {
             format!(
                 "{} of {} visible scenarios identifiable, smallest margin {} px",
@@ -549,7 +369,7 @@ fn markdown(summary: &SearchSummary, table: &Table) -> String {
             f.seconds,
             yes(f.dominates_every_hand_design)
         );
-        out.push_str(&front::table(f).markdown());
+        out.push_str(&front_table(f).markdown());
         let _ = writeln!(out, "\n![front](front.svg)");
     }
     let _ = writeln!(out, "\n## Winner\n");
@@ -570,30 +390,302 @@ fn markdown(summary: &SearchSummary, table: &Table) -> String {
     out
 }
 
-fn grid_text(grid: &ScenarioGrid) -> String {
-    grid.named_ranges()
-        .iter()
-        .filter(|(_, r)| r.values.len() > 1 || r.values[0] != 0.0)
-        .map(|(name, r)| {
-            let values = &r.values;
-            if values.len() > 3 {
-                format!(
-                    "{name} {}…{} ({} values)",
-                    values[0],
-                    values[values.len() - 1],
-                    values.len()
-                )
-            } else {
-                format!(
-                    "{name} {}",
-                    values
-                        .iter()
-                        .map(|v| v.to_string())
-                        .collect::<Vec<_>>()
-                        .join(",")
-                )
-            }
+/// Writes what [`front::build`] built: each member's layout file (at its entry's
+/// `layout` path, atomically), then `front.json`, `front.csv` and
+/// `front.svg` in `report_dir`.
+fn write_front(report_dir: &Path, files: &FrontFiles) -> Result<(), ReportError> {
+    let report = &files.report;
+    for (entry, layout) in report.members.iter().zip(&files.layouts) {
+        if let Some(dir) = entry.layout.parent() {
+            std::fs::create_dir_all(dir).map_err(|e| ReportError::write(dir, e))?;
+        }
+        layout
+            .save_atomic(&entry.layout)
+            .map_err(|e| ReportError::write(&entry.layout, e))?;
+    }
+    std::fs::create_dir_all(report_dir).map_err(|e| ReportError::write(report_dir, e))?;
+    let json_path = report_dir.join("front.json");
+    let json =
+        serde_json::to_string_pretty(&report).map_err(|e| ReportError::write(&json_path, e))?;
+    write_text(&json_path, &(json + "\n"))?;
+    let csv_path = report_dir.join("front.csv");
+    let table = front_table(report);
+    write_text(
+        &csv_path,
+        &table.csv().map_err(|e| ReportError::write(&csv_path, e))?,
+    )?;
+    let mut series = vec![plots::Series {
+        name: "Pareto front (search)".into(),
+        points: report
+            .members
+            .iter()
+            .filter_map(|m| m.rotation_rms_deg.map(|r| (100.0 * m.availability, r)))
+            .collect(),
+        dashed: false,
+    }];
+    for h in &report.hand_designs {
+        if let Some(r) = h.rotation_rms_deg {
+            series.push(plots::Series {
+                name: h.name.clone(),
+                points: vec![(100.0 * h.availability, r)],
+                dashed: false,
+            });
+        }
+    }
+    plots::line_plot(
+        &report_dir.join("front.svg"),
+        "Accuracy against availability: the front and the hand designs",
+        "availability (% of the grid's scenarios)",
+        "first-order RMS rotation (°), search grid",
+        &series,
+    )?;
+    Ok(())
+}
+
+/// The front and the hand designs as one table (`front.csv`, and the
+/// report's markdown).
+fn front_table(report: &FrontReport) -> Table {
+    let mut table = Table::new([
+        "design",
+        "availability floor",
+        "availability %",
+        "accuracy (1 = reference)",
+        "first-order RMS rot (°)",
+        "first-order RMS trans (mm)",
+        "dominated by",
+        "layout",
+    ]);
+    for m in &report.members {
+        table.row([
+            m.name.clone(),
+            m.floor
+                .map_or("none".into(), |f| format!("{:.1}%", 100.0 * f)),
+            format!("{:.1}", 100.0 * m.availability),
+            significant(Some(m.accuracy), 4),
+            significant(m.rotation_rms_deg, 4),
+            significant(m.translation_rms_mm, 4),
+            "front member".into(),
+            m.layout.display().to_string(),
+        ]);
+    }
+    for h in &report.hand_designs {
+        table.row([
+            h.name.clone(),
+            String::new(),
+            format!("{:.1}", 100.0 * h.availability),
+            significant(Some(h.accuracy), 4),
+            significant(h.rotation_rms_deg, 4),
+            significant(h.translation_rms_mm, 4),
+            h.dominated_by.clone().unwrap_or_else(|| "**none**".into()),
+            String::new(),
+        ]);
+    }
+    table
+}
+
+/// The summary for a terminal: the designs' table, the winner against the
+/// paper's biprism, the held-out check, the floors, the identifiability
+/// books, the verdict on the hand designs and the front, one line each.
+pub fn console(summary: &SearchSummary) -> String {
+    let mut out = String::new();
+    let v = &summary.verdicts;
+    let mut table = Table::new([
+        "design",
+        "objective",
+        "avail %",
+        "RMS rot (°)",
+        "RMS trans (mm)",
+        "both visible: vs winner",
+    ]);
+    for row in &summary.designs {
+        let mc = &row.monte_carlo[1];
+        table.row([
+            row.name.clone(),
+            measurable(row.evaluation.objective, 4),
+            format!("{:.1}", 100.0 * row.evaluation.availability),
+            measurable(mc.all.rms_rotation_deg, 4),
+            measurable(mc.all.rms_translation_mm, 3),
+            format!(
+                "{} / {}",
+                measurable(mc.common.rms_rotation_deg, 4),
+                measurable(mc.winner_common.rms_rotation_deg, 4)
+            ),
+        ]);
+    }
+    out.push_str(&table.console());
+    if summary
+        .designs
+        .first()
+        .is_some_and(|winner| winner.evaluation.availability == 0.0)
+    {
+        let _ = writeln!(out, "no scenario of the grid shows every sphere of the winner, so its Monte-Carlo errors on visible scenarios are not measurable; check --sphere-diameter, --envelope and the grid");
+    }
+    let header = &summary.header;
+    let seeds = &header.comparison_seeds;
+    let _ = writeln!(
+        out,
+        "winner vs paper biprism ({} Monte-Carlo, {} trials, seeds {} and {}, scenarios both see): RMS rotation {} / {}; availability {:+.1} points",
+        header.comparison_solver,
+        header.comparison_trials,
+        seeds[0],
+        seeds[1],
+        percent_lower(v.rotation_reduction_vs_paper_percent[0]),
+        percent_lower(v.rotation_reduction_vs_paper_percent[1]),
+        v.availability_difference_pp
+    );
+    let held = &summary.held_out;
+    let _ = writeln!(
+        out,
+        "held-out grid ({} scenarios), first order: RMS rotation {:.4}° vs the paper biprism's {:.4}° ({:.1}% lower); availability {:.1}% vs {:.1}%; occluded {} vs {}",
+        held.scenarios,
+        held.winner_rotation_rms_deg.unwrap_or(f64::NAN),
+        held.paper_rotation_rms_deg.unwrap_or(f64::NAN),
+        held.rotation_reduction_percent.unwrap_or(f64::NAN),
+        100.0 * held.winner_availability,
+        100.0 * held.paper_availability,
+        held.winner_occluded,
+        held.paper_occluded
+    );
+    let best = &summary.outcome.best.evaluation;
+    let _ = writeln!(
+        out,
+        "objective {:.4} (accuracy {:.4}); availability floor {}: {}",
+        best.objective,
+        best.accuracy,
+        v.availability_floor
+            .map_or("none".to_string(), |f| format!("{:.1}%", 100.0 * f)),
+        met(v.winner_meets_availability_floor)
+    );
+    console_identifiability(&mut out, summary);
+    let yes_no = |b: bool| if b { "yes" } else { "no" };
+    if v.admissible_hand_designs.is_empty() {
+        let _ = writeln!(
+            out,
+            "winner's objective below every hand design's: {} as drawn (no hand design meets the constraints)",
+            yes_no(v.beats_hand_designs_on_objective),
+        );
+    } else {
+        let _ = writeln!(
+            out,
+            "winner's objective below every hand design's: {} as drawn, {} among the admissible ones ({})",
+            yes_no(v.beats_hand_designs_on_objective),
+            yes_no(v.beats_admissible_hand_designs_on_objective),
+            v.admissible_hand_designs.join(", ")
+        );
+    }
+    if let Some(front) = &summary.front {
+        let _ = writeln!(
+            out,
+            "Pareto front ({} members, {} evaluations in {:.1} s; every hand design dominated: {}):",
+            front.members.len(),
+            front.evaluations,
+            front.seconds,
+            yes_no(front.dominates_every_hand_design)
+        );
+        out.push_str(&console_front(front).console());
+    }
+    out
+}
+
+fn met(flag: bool) -> &'static str {
+    if flag {
+        "met"
+    } else {
+        "NOT met"
+    }
+}
+
+/// The identifiability floor's lines of [`console`].
+fn console_identifiability(out: &mut String, summary: &SearchSummary) {
+    let Some(books) = &summary.identifiability else {
+        return;
+    };
+    let figures = |f: &Option<IdentifiabilityFigures>| {
+        f.as_ref().map_or("—".to_string(), |f| {
+            format!(
+                "{} of {} visible scenarios, smallest margin {} px",
+                f.identifiable,
+                f.checked,
+                f.smallest_margin_px
+                    .map_or("above the gate".into(), |m| format!("{m:.2}"))
+            )
         })
-        .collect::<Vec<_>>()
-        .join("; ")
+    };
+    let floor = format!(
+        "identifiability floor {:.1}% (each scenario ≥ {:.1}% correct labels): {}",
+        100.0 * books.floor.min_share,
+        100.0 * books.floor.min_correct,
+        met(summary
+            .outcome
+            .best
+            .evaluation
+            .meets_identifiability_floor())
+    );
+    if books.rounds == 0 {
+        let _ = writeln!(
+            out,
+            "{floor}; the search's winner: {} (checked in {:.1} s, no repair needed)",
+            figures(&books.after),
+            books.seconds
+        );
+    } else {
+        let _ = writeln!(
+            out,
+            "{floor}; the search's winner: {}; after {} repair round(s) ({} evaluations, {:.1} s): {}",
+            figures(&books.before),
+            books.rounds,
+            books.evaluations,
+            books.seconds,
+            figures(&books.after)
+        );
+    }
+    for row in &summary.designs {
+        if let Some(text) = &row.not_identifiable {
+            let _ = writeln!(out, "  {}: {text}", row.name);
+        }
+    }
+}
+
+/// The front and the hand designs for a terminal.
+fn console_front(front: &FrontReport) -> Table {
+    let mut table = Table::new([
+        "design",
+        "avail %",
+        "accuracy",
+        "RMS rot (°)",
+        "RMS trans (mm)",
+        "dominated by",
+    ]);
+    let fmt = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.4}"));
+    for m in &front.members {
+        table.row([
+            m.name.clone(),
+            format!("{:.1}", 100.0 * m.availability),
+            format!("{:.4}", m.accuracy),
+            fmt(m.rotation_rms_deg),
+            fmt(m.translation_rms_mm),
+            String::new(),
+        ]);
+    }
+    for h in &front.hand_designs {
+        table.row([
+            h.name.clone(),
+            format!("{:.1}", 100.0 * h.availability),
+            format!("{:.4}", h.accuracy),
+            fmt(h.rotation_rms_deg),
+            fmt(h.translation_rms_mm),
+            h.dominated_by.clone().unwrap_or_else(|| "none".into()),
+        ]);
+    }
+    table
+}
+
+/// A number with `decimals` decimals, or "not measurable" when it is not
+/// finite (nothing visible to measure it on).
+fn measurable(value: f64, decimals: usize) -> String {
+    if value.is_finite() {
+        format!("{value:.decimals$}")
+    } else {
+        "not measurable".into()
+    }
 }

@@ -17,7 +17,7 @@ use layout_opt::pnp::Solver;
 use layout_opt::reproduce::pipeline::ReproduceConfig;
 use layout_opt::reproduce::{Config, Experiment};
 use layout_opt::scenario::{Range, ScenarioGrid};
-use layout_opt::search::pipeline::SearchConfig;
+use layout_opt::search::SearchConfig;
 use layout_opt::sensitivity::pipeline::SensitivityConfig;
 use std::path::{Path, PathBuf};
 
@@ -273,7 +273,7 @@ fn write_reports(dir: &Path) {
     search.compare_trials = 3;
     search.validate_solvers = vec![Solver::ParallelWeighted, Solver::Ml];
     search.command = "plots test".into();
-    layout_opt::search::pipeline::run(&search, &mut Silent).unwrap();
+    layout_opt::search::workflow::run(&search, &mut Silent).unwrap();
 }
 
 #[test]

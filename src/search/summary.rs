@@ -1,0 +1,263 @@
+//! What a search found, as the report shows it: its provenance
+//! ([`SearchHeader`]), one row per design compared, the verdicts the
+//! acceptance criteria ask about, the held-out check and the books of the
+//! identifiability repair. Built by the analysis, rendered by the report;
+//! every type serialises to `summary.json`.
+
+use super::compare::DesignRow;
+use super::front::FrontReport;
+use super::optimise::{OptimiseOutcome, SearchSettings};
+use super::{Evaluation, IdentifiabilityFigures, IdentifiabilityFloor, ObjectiveSettings};
+use crate::camera::Camera;
+use crate::family::Constraints;
+use crate::scenario::ScenarioGrid;
+use serde::Serialize;
+
+/// Provenance of a search.
+#[derive(Debug, Clone, Serialize)]
+pub struct SearchHeader {
+    /// The command line.
+    pub command: String,
+    /// layout-opt version.
+    pub version: String,
+    /// The family, with its options.
+    pub family: String,
+    /// The constraints.
+    pub constraints: Constraints,
+    /// The objective.
+    pub objective: ObjectiveSettings,
+    /// The optimiser.
+    pub search: SearchSettings,
+    /// The scenario grid.
+    pub grid: ScenarioGrid,
+    /// The camera.
+    pub camera: Camera,
+    /// Solver of the Monte-Carlo comparison.
+    pub comparison_solver: String,
+    /// Trials per scenario of the comparison.
+    pub comparison_trials: usize,
+    /// Seeds of the comparison: the search's, then the validation seed.
+    pub comparison_seeds: Vec<u64>,
+}
+
+/// The claims the acceptance criteria ask about, computed from the rows.
+#[derive(Debug, Clone, Serialize)]
+pub struct Verdicts {
+    /// Per comparison seed: 1 − winner RMS rotation / paper biprism RMS
+    /// rotation, %, over the scenarios visible to both.
+    pub rotation_reduction_vs_paper_percent: Vec<f64>,
+    /// Per seed: winner RMS translation ≤ paper biprism's, on the scenarios
+    /// visible to both.
+    pub translation_no_worse: Vec<bool>,
+    /// Winner availability − paper biprism availability, percentage points.
+    pub availability_difference_pp: f64,
+    /// Winner occluded scenarios ≤ paper biprism's.
+    pub occlusion_no_more_frequent: bool,
+    /// Winner's objective (accuracy + availability, without constraint
+    /// penalties) below every hand design's.
+    pub beats_hand_designs_on_objective: bool,
+    /// Per seed: winner's Monte-Carlo RMS rotation below every hand design's,
+    /// each pair on the scenarios visible to both.
+    pub beats_hand_designs_on_monte_carlo: Vec<bool>,
+    /// Winner's objective below that of every *admissible* hand design: each
+    /// hand design as drawn when it meets the constraints, otherwise its
+    /// nearest admissible version (the search's own repair). A design the
+    /// user's constraints rule out (spheres that cannot be identified: by
+    /// the stereo distance rule or, over every visible scenario, the
+    /// identifiability floor) is not an alternative the user has.
+    pub beats_admissible_hand_designs_on_objective: bool,
+    /// The admissible hand designs' names.
+    pub admissible_hand_designs: Vec<String>,
+    /// Whether the winner meets every constraint.
+    pub winner_feasible: bool,
+    /// The availability floor in force (None: no floor).
+    pub availability_floor: Option<f64>,
+    /// Whether the winner reaches it.
+    pub winner_meets_availability_floor: bool,
+    /// Whether the winner meets the identifiability floor on every visible
+    /// scenario (None: no floor).
+    pub winner_meets_identifiability_floor: Option<bool>,
+}
+
+/// First-order figures of the winner and the paper's biprism on a held-out
+/// grid: scenarios the search never saw.
+#[derive(Debug, Clone, Serialize)]
+pub struct HeldOutCheck {
+    /// The held-out grid, in words.
+    pub grid: String,
+    /// Its scenarios.
+    pub scenarios: usize,
+    /// Winner's first-order RMS rotation, degrees (every in-front scenario).
+    pub winner_rotation_rms_deg: Option<f64>,
+    /// Paper biprism's first-order RMS rotation, degrees.
+    pub paper_rotation_rms_deg: Option<f64>,
+    /// 1 − winner / paper, %.
+    pub rotation_reduction_percent: Option<f64>,
+    /// Winner's first-order RMS translation, mm.
+    pub winner_translation_rms_mm: Option<f64>,
+    /// Paper biprism's first-order RMS translation, mm.
+    pub paper_translation_rms_mm: Option<f64>,
+    /// Winner's availability.
+    pub winner_availability: f64,
+    /// Paper biprism's availability.
+    pub paper_availability: f64,
+    /// Winner's occluded scenarios.
+    pub winner_occluded: usize,
+    /// Paper biprism's occluded scenarios.
+    pub paper_occluded: usize,
+}
+
+impl HeldOutCheck {
+    /// The check from first-order evaluations of the winner and the paper's
+    /// biprism on `grid`.
+    pub fn new(grid: &ScenarioGrid, winner: &Evaluation, paper: &Evaluation) -> Self {
+        let rotation = |e: &Evaluation| e.terms.first().and_then(|t| t.rotation_deg);
+        let translation = |e: &Evaluation| e.terms.first().and_then(|t| t.translation_mm);
+        Self {
+            grid: grid_text(grid),
+            scenarios: grid.len(),
+            winner_rotation_rms_deg: rotation(winner),
+            paper_rotation_rms_deg: rotation(paper),
+            rotation_reduction_percent: rotation(winner)
+                .zip(rotation(paper))
+                .map(|(w, p)| 100.0 * (1.0 - w / p)),
+            winner_translation_rms_mm: translation(winner),
+            paper_translation_rms_mm: translation(paper),
+            winner_availability: winner.availability,
+            paper_availability: paper.availability,
+            winner_occluded: winner.occluded,
+            paper_occluded: paper.occluded,
+        }
+    }
+}
+
+/// Everything in the report.
+#[derive(Debug, Clone, Serialize)]
+pub struct SearchSummary {
+    /// Provenance.
+    pub header: SearchHeader,
+    /// The optimiser's result.
+    pub outcome: OptimiseOutcome,
+    /// One row per design: winner, start, paper biprism, hand designs.
+    pub designs: Vec<DesignRow>,
+    /// The acceptance claims.
+    pub verdicts: Verdicts,
+    /// The winner and the paper's biprism on a held-out grid.
+    pub held_out: HeldOutCheck,
+    /// The Pareto front, when asked for.
+    pub front: Option<FrontReport>,
+    /// How the identifiability floor was enforced (None: no floor).
+    pub identifiability: Option<IdentifyBooks>,
+}
+
+/// Computes the verdicts: rows are winner, start, then the hand designs with
+/// the paper's biprism first (`hand`), then the admissible versions of those
+/// that break a constraint (`admissible`).
+pub fn verdicts(
+    rows: &[DesignRow],
+    paper_index: usize,
+    hand: std::ops::Range<usize>,
+    admissible: std::ops::Range<usize>,
+) -> Verdicts {
+    let winner = &rows[0];
+    let admissible_rows: Vec<&DesignRow> = rows[hand.clone()]
+        .iter()
+        .chain(&rows[admissible])
+        .filter(|r| {
+            r.evaluation.violations.feasible() && r.evaluation.meets_identifiability_floor()
+        })
+        .collect();
+    let paper = &rows[paper_index];
+    let seeds = winner.monte_carlo.len();
+    Verdicts {
+        rotation_reduction_vs_paper_percent: (0..seeds)
+            .map(|k| {
+                let mc = &paper.monte_carlo[k];
+                100.0 * (1.0 - mc.winner_common.rms_rotation_deg / mc.common.rms_rotation_deg)
+            })
+            .collect(),
+        translation_no_worse: (0..seeds)
+            .map(|k| {
+                let mc = &paper.monte_carlo[k];
+                mc.winner_common.rms_translation_mm <= mc.common.rms_translation_mm
+            })
+            .collect(),
+        availability_difference_pp: 100.0
+            * (winner.evaluation.availability - paper.evaluation.availability),
+        occlusion_no_more_frequent: winner.evaluation.occluded <= paper.evaluation.occluded,
+        beats_hand_designs_on_objective: rows[hand.clone()]
+            .iter()
+            .all(|r| winner.evaluation.objective < r.evaluation.objective),
+        beats_hand_designs_on_monte_carlo: (0..seeds)
+            .map(|k| {
+                rows[hand.clone()].iter().all(|r| {
+                    let mc = &r.monte_carlo[k];
+                    mc.winner_common.rms_rotation_deg < mc.common.rms_rotation_deg
+                })
+            })
+            .collect(),
+        beats_admissible_hand_designs_on_objective: admissible_rows
+            .iter()
+            .all(|r| winner.evaluation.objective < r.evaluation.objective),
+        admissible_hand_designs: admissible_rows.iter().map(|r| r.name.clone()).collect(),
+        winner_feasible: winner.evaluation.violations.feasible(),
+        availability_floor: winner.evaluation.availability_floor,
+        winner_meets_availability_floor: winner.evaluation.meets_availability_floor(),
+        winner_meets_identifiability_floor: winner
+            .evaluation
+            .identifiability
+            .as_ref()
+            .map(|f| f.meets_floor()),
+    }
+}
+
+/// How the identifiability floor was enforced on the winner.
+#[derive(Debug, Clone, Serialize)]
+pub struct IdentifyBooks {
+    /// The floor.
+    pub floor: IdentifiabilityFloor,
+    /// How it is enforced, in words.
+    pub method: String,
+    /// Repair rounds run (0: the search's winner met the floor as found).
+    pub rounds: usize,
+    /// Scenarios checked in each round (failing ones and the thinned grid).
+    pub checked_per_round: Vec<usize>,
+    /// Objective evaluations of the repair rounds.
+    pub evaluations: usize,
+    /// The search's winner over every visible scenario, before any repair.
+    pub before: Option<IdentifiabilityFigures>,
+    /// The final winner over every visible scenario.
+    pub after: Option<IdentifiabilityFigures>,
+    /// The search winner's accuracy before the repair.
+    pub accuracy_before: f64,
+    /// Wall-clock seconds of the checks and repair.
+    pub seconds: f64,
+}
+
+pub(crate) fn grid_text(grid: &ScenarioGrid) -> String {
+    grid.named_ranges()
+        .iter()
+        .filter(|(_, r)| r.values.len() > 1 || r.values[0] != 0.0)
+        .map(|(name, r)| {
+            let values = &r.values;
+            if values.len() > 3 {
+                format!(
+                    "{name} {}…{} ({} values)",
+                    values[0],
+                    values[values.len() - 1],
+                    values.len()
+                )
+            } else {
+                format!(
+                    "{name} {}",
+                    values
+                        .iter()
+                        .map(|v| v.to_string())
+                        .collect::<Vec<_>>()
+                        .join(",")
+                )
+            }
+        })
+        .collect::<Vec<_>>()
+        .join("; ")
+}
