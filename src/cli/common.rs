@@ -3,6 +3,10 @@
 
 use clap::Args;
 use layout_opt::camera::Camera;
+use layout_opt::mesh::geometry::{
+    Bed, Structure, DEFAULT_MIN_FEATURE_MM, DEFAULT_STRUT_DIAMETER_MM, DEFAULT_VIEW_CONE_DEG,
+};
+use layout_opt::mesh::{Axis, MarkerOptions, MountHoles};
 use layout_opt::pnp::Solver;
 use layout_opt::scenario::{Range, ScenarioGrid};
 use std::path::{Path, PathBuf};
@@ -147,4 +151,78 @@ pub fn parse_solvers(text: &str) -> anyhow::Result<Vec<Solver>> {
     }
     anyhow::ensure!(!solvers.is_empty(), "--solvers names no solver");
     Ok(solvers)
+}
+
+impl GridArgs {
+    /// Whether any grid flag was given.
+    pub fn any_given(&self) -> bool {
+        [
+            &self.depth,
+            &self.offset_x,
+            &self.offset_y,
+            &self.tilt,
+            &self.pan,
+            &self.roll,
+            &self.noise,
+        ]
+        .iter()
+        .any(|r| r.is_some())
+    }
+}
+
+/// How `export` builds the part, for commands that need the same part
+/// (`render`).
+#[derive(Debug, Clone, Args)]
+pub struct StructureArgs {
+    /// How the spheres are held: pillars (a base plate behind the spheres,
+    /// a support rising to each) or routed (a strut tree with a stub).
+    #[arg(long, value_name = "KIND", default_value = "pillars")]
+    pub structure: Structure,
+    /// Strut diameter, mm.
+    #[arg(long, value_name = "MM", default_value_t = DEFAULT_STRUT_DIAMETER_MM)]
+    pub strut_diameter: f64,
+    /// Smallest printable feature (struts, gaps, clearances), mm.
+    #[arg(long, value_name = "MM", default_value_t = DEFAULT_MIN_FEATURE_MM)]
+    pub min_feature: f64,
+    /// Main viewing direction the supports are routed for.
+    #[arg(
+        long,
+        value_name = "AXIS",
+        default_value = "+z",
+        allow_hyphen_values = true
+    )]
+    pub view: Axis,
+    /// Mount axis: the stub and base plate go this way.
+    #[arg(
+        long,
+        value_name = "AXIS",
+        default_value = "-y",
+        allow_hyphen_values = true
+    )]
+    pub mount: Axis,
+    /// Clearance holes through the base plate, e.g. M3 or M3x4.
+    #[arg(long, value_name = "SCREW")]
+    pub mount_holes: Option<MountHoles>,
+    /// Half-angle of the cone of views the supports are routed for, degrees.
+    #[arg(long, value_name = "DEG", default_value_t = DEFAULT_VIEW_CONE_DEG)]
+    pub view_cone: f64,
+    /// The printer's build volume X,Y,Z, mm.
+    #[arg(long, value_name = "X,Y,Z", default_value = "250,210,210")]
+    pub bed: Bed,
+}
+
+impl StructureArgs {
+    /// The marker options these flags name.
+    pub fn marker_options(&self) -> MarkerOptions {
+        MarkerOptions {
+            strut_diameter_mm: self.strut_diameter,
+            min_feature_mm: self.min_feature,
+            view: self.view,
+            mount: self.mount,
+            mount_holes: self.mount_holes.clone(),
+            structure: self.structure,
+            view_cone_deg: self.view_cone,
+            bed: self.bed,
+        }
+    }
 }

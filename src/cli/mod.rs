@@ -4,6 +4,7 @@
 mod common;
 mod export;
 mod progress;
+mod render;
 mod reproduce;
 mod search;
 mod solve;
@@ -55,6 +56,9 @@ enum Command {
     /// Printable watertight marker mesh (STL, OBJ, glTF, GLB) and a
     /// fabrication sheet.
     Export(export::ExportArgs),
+    /// Grey PNG images of the part export builds, as the camera sees it,
+    /// with the ground truth of every frame.
+    Render(Box<render::RenderArgs>),
 }
 
 /// Parses the command line and runs the chosen subcommand.
@@ -79,6 +83,7 @@ pub fn run() -> anyhow::Result<()> {
         Command::Search(args) => search::run(*args, &cli.global),
         Command::Reproduce(args) => reproduce::run(args, &cli.global),
         Command::Export(args) => export::run(args, &cli.global),
+        Command::Render(args) => render::run(*args, &cli.global),
     }
 }
 

@@ -18,6 +18,7 @@ mod identifiability;
 mod noise_free;
 mod noisy;
 mod plots;
+mod render;
 mod sphere_image;
 mod sqpnp_crosscheck;
 mod unlabelled;

@@ -1,0 +1,243 @@
+//! `layout-opt render`: grey PNG images of the part `export` builds, with
+//! the ground truth of each frame beside it.
+
+use super::common::{naming_file, CameraArgs, GridArgs, StructureArgs};
+use super::{progress, GlobalOptions};
+use anyhow::Context;
+use clap::Args;
+use layout_opt::layout::Layout;
+use layout_opt::render::workflow::{self, FramePose, RenderJob};
+use layout_opt::render::{
+    poses_from_json, Appearance, Blur, Lighting, Noise, Optics, RenderConfig, RenderError, Sensor,
+};
+use layout_opt::scenario::{Range, ScenarioGrid};
+use std::path::PathBuf;
+
+/// Flags of `render`.
+#[derive(Debug, Args)]
+pub struct RenderArgs {
+    /// Layout file (JSON). Without it, the paper's biprism.
+    #[arg(value_name = "LAYOUT")]
+    layout: Option<PathBuf>,
+    /// Output directory (created if missing).
+    #[arg(long, value_name = "DIR", default_value = "render")]
+    out: PathBuf,
+    #[command(flatten)]
+    camera: CameraArgs,
+    /// Scenario flags as in validate; without them and without --poses:
+    /// depths 200, 600, 1000 mm, head on and tilted 40°.
+    #[command(flatten)]
+    grid: GridArgs,
+    /// Poses file: a JSON array of {"R": [[..],[..],[..]], "t": [x, y, z]}
+    /// (marker → camera, mm), instead of the scenario flags.
+    #[arg(long, value_name = "FILE")]
+    poses: Option<PathBuf>,
+    #[command(flatten)]
+    structure: StructureArgs,
+    /// Appearance preset: retroreflective (bright discs under a ring light
+    /// on dark supports) or diffuse (white Lambertian spheres, light beside
+    /// the camera).
+    #[arg(long, value_name = "PRESET", default_value = "retroreflective")]
+    preset: Lighting,
+    /// Sphere radiance, fraction of full scale (default: the preset's).
+    #[arg(long, value_name = "L")]
+    sphere_radiance: Option<f64>,
+    /// Support radiance (default: the preset's).
+    #[arg(long, value_name = "L")]
+    support_radiance: Option<f64>,
+    /// Background radiance (default: the preset's).
+    #[arg(long, value_name = "L")]
+    background_radiance: Option<f64>,
+    /// Exposure: multiplies every radiance.
+    #[arg(long, value_name = "X", default_value_t = 1.0)]
+    exposure: f64,
+    /// Sub-samples per pixel side at edges (4..16).
+    #[arg(long, value_name = "N", default_value_t = 4)]
+    supersampling: u32,
+    /// Gaussian blur of the lens, px (0: none).
+    #[arg(
+        long,
+        value_name = "PX",
+        default_value_t = 0.5,
+        conflicts_with = "aperture"
+    )]
+    blur: f64,
+    /// Thin-lens defocus instead of --blur: aperture diameter, mm.
+    #[arg(long, value_name = "MM", requires = "focus")]
+    aperture: Option<f64>,
+    /// Distance in focus, mm (with --aperture).
+    #[arg(long, value_name = "MM", requires = "aperture")]
+    focus: Option<f64>,
+    /// Bits per pixel: 8 or 16.
+    #[arg(long, value_name = "BITS", default_value_t = 8)]
+    bit_depth: u8,
+    /// Electrons at full scale (shot noise).
+    #[arg(long, value_name = "E", default_value_t = 10_000.0)]
+    full_well: f64,
+    /// Read noise, electrons RMS.
+    #[arg(long, value_name = "E", default_value_t = 10.0)]
+    read_noise: f64,
+    /// No sensor noise (quantisation only).
+    #[arg(long)]
+    no_noise: bool,
+    /// Noisy images per pose (all from one noise-free render).
+    #[arg(long, value_name = "N", default_value_t = 1)]
+    realisations: u32,
+}
+
+/// The flag a configuration field comes from.
+fn flag(field: &str) -> String {
+    match field {
+        "blur_sigma_px" => "--blur".into(),
+        "aperture_mm" => "--aperture".into(),
+        "focus_mm" => "--focus".into(),
+        "full_well_electrons" => "--full-well".into(),
+        "read_noise_electrons" => "--read-noise".into(),
+        other => format!("--{}", other.replace('_', "-")),
+    }
+}
+
+fn config(args: &RenderArgs, global: &GlobalOptions) -> anyhow::Result<RenderConfig> {
+    let preset = Appearance::preset(args.preset);
+    let appearance = Appearance {
+        sphere_radiance: args.sphere_radiance.unwrap_or(preset.sphere_radiance),
+        support_radiance: args.support_radiance.unwrap_or(preset.support_radiance),
+        background_radiance: args
+            .background_radiance
+            .unwrap_or(preset.background_radiance),
+        exposure: args.exposure,
+        ..preset
+    };
+    let blur = match (args.aperture, args.focus) {
+        (Some(aperture_mm), Some(focus_mm)) => Blur::Defocus {
+            aperture_mm,
+            focus_mm,
+        },
+        _ if args.blur == 0.0 => Blur::None,
+        _ => Blur::Gaussian {
+            sigma_px: args.blur,
+        },
+    };
+    let config = RenderConfig {
+        camera: args.camera.camera()?,
+        appearance,
+        optics: Optics {
+            supersampling: args.supersampling,
+            blur,
+        },
+        sensor: Sensor {
+            bit_depth: args.bit_depth,
+            noise: (!args.no_noise).then_some(Noise {
+                full_well_electrons: args.full_well,
+                read_noise_electrons: args.read_noise,
+            }),
+        },
+        realisations: args.realisations,
+        seed: global.seed,
+    };
+    config
+        .validate()
+        .map_err(|e| anyhow::anyhow!("{}: {}", flag(e.field), e.reason))?;
+    Ok(config)
+}
+
+fn poses(args: &RenderArgs) -> anyhow::Result<Vec<FramePose>> {
+    if let Some(path) = &args.poses {
+        anyhow::ensure!(
+            !args.grid.any_given(),
+            "--poses replaces the scenario flags (--depth, --tilt, …); give one or the other"
+        );
+        let text = naming_file(std::fs::read_to_string(path), "poses file", path)?;
+        let poses = naming_file(poses_from_json(&text), "poses file", path)?;
+        return Ok(poses
+            .into_iter()
+            .map(|pose| FramePose {
+                pose,
+                scenario: None,
+            })
+            .collect());
+    }
+    anyhow::ensure!(
+        args.grid.noise.is_none(),
+        "--noise is pixel noise for validate; render takes --full-well and --read-noise"
+    );
+    let zero = Range::single(0.0);
+    let defaults = ScenarioGrid::new(
+        Range::list(&[200.0, 600.0, 1000.0]),
+        zero.clone(),
+        zero.clone(),
+        Range::list(&[0.0, 40.0]),
+        zero.clone(),
+        zero.clone(),
+        zero,
+    )?;
+    Ok(args
+        .grid
+        .grid(&defaults)?
+        .scenarios()
+        .into_iter()
+        .map(|scenario| FramePose {
+            pose: scenario.pose(),
+            scenario: Some(scenario),
+        })
+        .collect())
+}
+
+pub fn run(args: RenderArgs, global: &GlobalOptions) -> anyhow::Result<()> {
+    let layout = match &args.layout {
+        Some(path) => naming_file(Layout::load(path), "layout", path)?,
+        None => Layout::paper_biprism(),
+    };
+    let job = RenderJob {
+        marker: args.structure.marker_options(),
+        poses: poses(&args)?,
+        config: config(&args, global)?,
+        out_dir: args.out.clone(),
+        layout,
+    };
+    progress::catch_ctrl_c();
+    let mut bars = progress::Bars::new(global.quiet);
+    let result = workflow::run(&job, &mut bars);
+    bars.finish();
+    if let Err(RenderError::Interrupted) = result {
+        eprintln!("interrupted: none of the render's files were written");
+        std::process::exit(super::search::EXIT_INTERRUPTED);
+    }
+    let report = result.with_context(|| format!("cannot render {}", job.layout.name))?;
+    for frame in &report.frames {
+        let names: Vec<String> = frame
+            .images
+            .iter()
+            .map(|p| p.display().to_string())
+            .collect();
+        let worst = frame
+            .truth
+            .spheres
+            .iter()
+            .map(|s| (s.hidden.by_support + s.hidden.by_sphere, &s.name))
+            .max_by(|a, b| a.0.total_cmp(&b.0));
+        let hidden = match worst {
+            Some((fraction, name)) if fraction > 0.0 => {
+                format!("most hidden: {name} {:.1} %", 100.0 * fraction)
+            }
+            _ => "no sphere hidden".to_string(),
+        };
+        let t = frame.truth.translation;
+        println!(
+            "frame {:3}: t = ({:.0}, {:.0}, {:.0}) mm, {hidden}; wrote {} and {}",
+            frame.frame,
+            t[0],
+            t[1],
+            t[2],
+            names.join(", "),
+            frame.record.display()
+        );
+    }
+    println!(
+        "{} frames of {} in {:.2} s",
+        report.frames.len(),
+        report.name,
+        report.seconds
+    );
+    Ok(())
+}

@@ -1,0 +1,371 @@
+//! The renderer: a pose and the part in, a noise-free radiance image out
+//! ([`render_radiance`]), then the sensor ([`super::sensor`]) and the ground
+//! truth ([`super::truth`]). No files.
+//!
+//! **Where rays go.** The background is uniform, so only tiles of
+//! [`TILE_PX`] × [`TILE_PX`] pixels that the projection of some primitive's
+//! bounding ball may touch are traced, each against the primitives that
+//! may touch it. In such a tile one ray goes through every pixel corner
+//! (with a one-pixel halo). A pixel whose 4 × 4 block of corners (its own
+//! and its neighbours') all meet the same surface — the same primitive and
+//! material, or the background — takes the mean of its four corners; any
+//! other pixel, i.e. every pixel an edge may cross, is supersampled on an
+//! n × n grid. Every sample is undistorted to its ray through the camera's
+//! Brown–Conrady model ([`Camera::pixel_to_normalised`]), exactly as the
+//! rest of the tool maps pixels to rays.
+//!
+//! **Pixels.** Pixel (u, v) is centred on integer coordinates and covers
+//! `[u − ½, u + ½] × [v − ½, v + ½]` (OpenCV's convention); its value is the
+//! mean radiance over that square (a box filter), then the lens's Gaussian
+//! blur.
+
+use super::config::{Appearance, Lighting, RenderConfig};
+use super::scene::{Hit, Ray, Scene};
+use super::RenderError;
+use crate::camera::Camera;
+use crate::pose::Pose;
+use nalgebra::{Vector2, Vector3};
+
+/// Side of a tile, px.
+pub const TILE_PX: usize = 16;
+/// Corners of the tile's pixels and their one-pixel halo, per side.
+const CORNERS: usize = TILE_PX + 3;
+/// Vertices of the polygon that bounds a ball's projected outline.
+const OUTLINE_VERTICES: usize = 16;
+/// Pixels added around a ball's projected outline (the polygon is
+/// inscribed in the outline, and the corner rays see a pixel beyond it).
+const OUTLINE_MARGIN_PX: f64 = 2.0;
+/// A surface id for "no surface".
+const BACKGROUND: u32 = u32::MAX;
+
+/// A grey image of radiances (fractions of full scale, exposure applied),
+/// row-major.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Radiance {
+    /// Width, px.
+    pub width: usize,
+    /// Height, px.
+    pub height: usize,
+    /// `height` rows of `width` values.
+    pub values: Vec<f32>,
+}
+
+/// Renders the part at `pose` without noise: radiance per pixel, box
+/// filtered over the pixel and blurred (module docs).
+pub fn render_radiance(
+    scene: &Scene,
+    pose: &Pose,
+    config: &RenderConfig,
+) -> Result<Radiance, RenderError> {
+    let camera = &config.camera;
+    let appearance = &config.appearance;
+    let (width, height) = (camera.width() as usize, camera.height() as usize);
+    let background = (appearance.background_radiance * appearance.exposure) as f32;
+    let mut image = Radiance {
+        width,
+        height,
+        values: vec![background; width * height],
+    };
+    let tiles = tile_candidates(scene, pose, camera);
+    let tiles_x = width.div_ceil(TILE_PX);
+    let inverse = pose.rotation.inverse();
+    let origin = -(inverse * pose.translation);
+    let light = inverse * appearance.light_direction_camera();
+    let shader = Shader {
+        scene,
+        camera,
+        appearance,
+        inverse_rotation: inverse.into_inner(),
+        origin,
+        light,
+    };
+    let mut active: Option<(usize, usize, usize, usize)> = None;
+    for (index, candidates) in tiles.iter().enumerate() {
+        if candidates.is_empty() {
+            continue;
+        }
+        let (x0, y0) = ((index % tiles_x) * TILE_PX, (index / tiles_x) * TILE_PX);
+        render_tile(
+            &shader,
+            candidates,
+            x0,
+            y0,
+            config.optics.supersampling as usize,
+            &mut image,
+        )?;
+        let (x1, y1) = ((x0 + TILE_PX).min(width), (y0 + TILE_PX).min(height));
+        active = Some(match active {
+            None => (x0, y0, x1, y1),
+            Some((a, b, c, d)) => (a.min(x0), b.min(y0), c.max(x1), d.max(y1)),
+        });
+    }
+    let sigma_px = config.optics.blur.sigma_px(camera.fx(), pose.translation.z);
+    if let Some(region) = active {
+        gaussian_blur(&mut image, sigma_px, region);
+    }
+    Ok(image)
+}
+
+/// For each tile, row-major, the primitives whose bounding balls' outlines
+/// reach it.
+fn tile_candidates(scene: &Scene, pose: &Pose, camera: &Camera) -> Vec<Vec<u32>> {
+    let (width, height) = (camera.width() as usize, camera.height() as usize);
+    let (tiles_x, tiles_y) = (width.div_ceil(TILE_PX), height.div_ceil(TILE_PX));
+    let mut tiles = vec![Vec::<u32>::new(); tiles_x * tiles_y];
+    for (shape, centre, radius) in scene.bounding_balls() {
+        let Some((lo, hi)) = outline_box(camera, &pose.transform(&centre), radius) else {
+            continue;
+        };
+        let clamp_tile = |value: f64, tiles: usize| -> Option<usize> {
+            if value < 0.0 {
+                Some(0)
+            } else {
+                let t = (value / TILE_PX as f64) as usize;
+                (t < tiles).then_some(t)
+            }
+        };
+        if hi.x < 0.0 || hi.y < 0.0 {
+            continue;
+        }
+        let (Some(tx0), Some(ty0)) = (clamp_tile(lo.x, tiles_x), clamp_tile(lo.y, tiles_y)) else {
+            continue;
+        };
+        let tx1 = clamp_tile(hi.x, tiles_x).unwrap_or(tiles_x - 1);
+        let ty1 = clamp_tile(hi.y, tiles_y).unwrap_or(tiles_y - 1);
+        for ty in ty0..=ty1 {
+            for tx in tx0..=tx1 {
+                let list = &mut tiles[ty * tiles_x + tx];
+                if list.last() != Some(&(shape as u32)) {
+                    list.push(shape as u32);
+                }
+            }
+        }
+    }
+    tiles
+}
+
+/// The pixel box holding the projected outline of a ball (camera frame),
+/// grown by a margin; the whole plane when the ball reaches the camera's
+/// plane.
+fn outline_box(
+    camera: &Camera,
+    centre: &Vector3<f64>,
+    radius: f64,
+) -> Option<(Vector2<f64>, Vector2<f64>)> {
+    let everywhere = Some((
+        Vector2::repeat(f64::NEG_INFINITY),
+        Vector2::repeat(f64::INFINITY),
+    ));
+    let distance = centre.norm();
+    if centre.z <= radius * 1.01 || distance <= radius {
+        return everywhere;
+    }
+    // The circle of tangency seen from the camera centre.
+    let axis = centre / distance;
+    let circle_centre = centre * (1.0 - radius * radius / (distance * distance));
+    let circle_radius = radius * (distance * distance - radius * radius).sqrt() / distance;
+    let helper = if axis.x.abs() < 0.9 {
+        Vector3::x()
+    } else {
+        Vector3::y()
+    };
+    let e1 = axis.cross(&helper).normalize();
+    let e2 = axis.cross(&e1);
+    let mut lo = Vector2::repeat(f64::INFINITY);
+    let mut hi = Vector2::repeat(f64::NEG_INFINITY);
+    for k in 0..OUTLINE_VERTICES {
+        let phi = std::f64::consts::TAU * k as f64 / OUTLINE_VERTICES as f64;
+        let point = circle_centre + (e1 * phi.cos() + e2 * phi.sin()) * circle_radius;
+        let pixel = camera.project(&point)?;
+        lo = lo.inf(&pixel);
+        hi = hi.sup(&pixel);
+    }
+    // The polygon is inscribed: its sides cut inside the outline by at most
+    // 1 − cos(π/n) of its size.
+    let sag = (1.0 - (std::f64::consts::PI / OUTLINE_VERTICES as f64).cos()) * (hi - lo).max();
+    let margin = Vector2::repeat(sag + OUTLINE_MARGIN_PX);
+    Some((lo - margin, hi + margin))
+}
+
+/// Everything a sample needs: the scene, the camera, the lighting and the
+/// pose's inverse.
+struct Shader<'a> {
+    scene: &'a Scene,
+    camera: &'a Camera,
+    appearance: &'a Appearance,
+    inverse_rotation: nalgebra::Matrix3<f64>,
+    origin: Vector3<f64>,
+    light: Vector3<f64>,
+}
+
+impl Shader<'_> {
+    /// The ray through pixel position `(u, v)`, marker frame.
+    fn ray(&self, u: f64, v: f64) -> Result<Ray, RenderError> {
+        let m = self
+            .camera
+            .pixel_to_normalised(&Vector2::new(u, v))
+            .map_err(RenderError::Camera)?;
+        let direction = self.inverse_rotation * Vector3::new(m.x, m.y, 1.0).normalize();
+        Ok(Ray {
+            origin: self.origin,
+            direction,
+        })
+    }
+
+    /// The surface id and radiance seen at pixel position `(u, v)`.
+    fn sample(&self, u: f64, v: f64, candidates: &[u32]) -> Result<(u32, f32), RenderError> {
+        let ray = self.ray(u, v)?;
+        Ok(match self.scene.first_hit(&ray, candidates) {
+            None => (
+                BACKGROUND,
+                (self.appearance.background_radiance * self.appearance.exposure) as f32,
+            ),
+            Some(hit) => (
+                2 * hit.shape as u32 + u32::from(hit.sphere.is_some()),
+                self.shade(&hit, &ray.direction) as f32,
+            ),
+        })
+    }
+
+    /// Radiance of a hit seen along `direction` (module docs of
+    /// [`Lighting`]).
+    fn shade(&self, hit: &Hit, direction: &Vector3<f64>) -> f64 {
+        let a = self.appearance;
+        let facing = (-hit.normal.dot(direction)).max(0.0);
+        let lit = |radiance: f64| {
+            radiance
+                * (super::config::DIFFUSE_AMBIENT
+                    + (1.0 - super::config::DIFFUSE_AMBIENT) * hit.normal.dot(&self.light).max(0.0))
+        };
+        let radiance = match (a.lighting, hit.sphere.is_some()) {
+            (Lighting::Retroreflective, true) => {
+                a.sphere_radiance * (1.0 - a.sphere_limb_falloff * (1.0 - facing))
+            }
+            (Lighting::Retroreflective, false) => a.support_radiance * facing,
+            (Lighting::Diffuse, true) => lit(a.sphere_radiance),
+            (Lighting::Diffuse, false) => lit(a.support_radiance),
+        };
+        radiance * a.exposure
+    }
+}
+
+/// Renders one tile into `image` (module docs).
+fn render_tile(
+    shader: &Shader,
+    candidates: &[u32],
+    x0: usize,
+    y0: usize,
+    supersampling: usize,
+    image: &mut Radiance,
+) -> Result<(), RenderError> {
+    let mut ids = [[0u32; CORNERS]; CORNERS];
+    let mut shades = [[0f32; CORNERS]; CORNERS];
+    for (j, (id_row, shade_row)) in ids.iter_mut().zip(shades.iter_mut()).enumerate() {
+        let v = y0 as f64 - 1.5 + j as f64;
+        for i in 0..CORNERS {
+            let u = x0 as f64 - 1.5 + i as f64;
+            (id_row[i], shade_row[i]) = shader.sample(u, v, candidates)?;
+        }
+    }
+    let step = 1.0 / supersampling as f64;
+    for j in 0..TILE_PX.min(image.height - y0) {
+        for i in 0..TILE_PX.min(image.width - x0) {
+            let id = ids[j][i];
+            let uniform = (j..j + 4).all(|b| (i..i + 4).all(|a| ids[b][a] == id));
+            let value = if uniform {
+                0.25 * (shades[j + 1][i + 1]
+                    + shades[j + 1][i + 2]
+                    + shades[j + 2][i + 1]
+                    + shades[j + 2][i + 2])
+            } else {
+                let (u0, v0) = ((x0 + i) as f64 - 0.5, (y0 + j) as f64 - 0.5);
+                let mut sum = 0.0f64;
+                for b in 0..supersampling {
+                    for a in 0..supersampling {
+                        let u = u0 + (a as f64 + 0.5) * step;
+                        let v = v0 + (b as f64 + 0.5) * step;
+                        sum += f64::from(shader.sample(u, v, candidates)?.1);
+                    }
+                }
+                (sum / (supersampling * supersampling) as f64) as f32
+            };
+            image.values[(y0 + j) * image.width + x0 + i] = value;
+        }
+    }
+    Ok(())
+}
+
+/// Blurs the pixels of `region` (x0, y0, x1, y1) grown by the kernel's
+/// reach with a separable Gaussian of `sigma_px`; the image's edge pixels
+/// repeat beyond it. Outside the grown region the image is uniform, so
+/// the blur leaves it as it is.
+pub fn gaussian_blur(image: &mut Radiance, sigma_px: f64, region: (usize, usize, usize, usize)) {
+    if sigma_px <= 0.0 {
+        return;
+    }
+    let reach = (3.0 * sigma_px).ceil() as usize;
+    let kernel: Vec<f64> = (0..=2 * reach)
+        .map(|k| {
+            let x = k as f64 - reach as f64;
+            (-0.5 * x * x / (sigma_px * sigma_px)).exp()
+        })
+        .collect();
+    let total: f64 = kernel.iter().sum();
+    let kernel: Vec<f32> = kernel.iter().map(|k| (k / total) as f32).collect();
+    let (width, height) = (image.width, image.height);
+    let x0 = region.0.saturating_sub(reach);
+    let y0 = region.1.saturating_sub(reach);
+    let x1 = (region.2 + reach).min(width);
+    let y1 = (region.3 + reach).min(height);
+    let clamp = |value: isize, size: usize| value.clamp(0, size as isize - 1) as usize;
+    let mut row = vec![0f32; x1 - x0];
+    for y in y0..y1 {
+        let line = &image.values[y * width..(y + 1) * width];
+        for (x, out) in (x0..x1).zip(row.iter_mut()) {
+            *out = kernel
+                .iter()
+                .enumerate()
+                .map(|(k, w)| w * line[clamp(x as isize + k as isize - reach as isize, width)])
+                .sum();
+        }
+        image.values[y * width + x0..y * width + x1].copy_from_slice(&row);
+    }
+    let mut column = vec![0f32; y1 - y0];
+    for x in x0..x1 {
+        for (y, out) in (y0..y1).zip(column.iter_mut()) {
+            *out = kernel
+                .iter()
+                .enumerate()
+                .map(|(k, w)| {
+                    w * image.values
+                        [clamp(y as isize + k as isize - reach as isize, height) * width + x]
+                })
+                .sum();
+        }
+        for (y, value) in (y0..y1).zip(&column) {
+            image.values[y * width + x] = *value;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_blur_keeps_the_total_and_leaves_a_uniform_image_alone() {
+        let mut image = Radiance {
+            width: 40,
+            height: 30,
+            values: vec![0.25; 1200],
+        };
+        gaussian_blur(&mut image, 1.3, (0, 0, 40, 30));
+        assert!(image.values.iter().all(|v| (v - 0.25).abs() < 1e-6));
+        image.values[15 * 40 + 20] = 1.25;
+        let before: f32 = image.values.iter().sum();
+        gaussian_blur(&mut image, 1.0, (20, 15, 21, 16));
+        let after: f32 = image.values.iter().sum();
+        assert!((before - after).abs() < 1e-3);
+        assert!(image.values[15 * 40 + 20] < 0.5 && image.values[15 * 40 + 21] > 0.26);
+    }
+}

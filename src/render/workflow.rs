@@ -1,0 +1,436 @@
+//! The run of `render`, as phases over one job: [`check`] every input and
+//! every pose before any file exists, stage the output directory, render
+//! and write the frames in parallel (progress and interruption through the
+//! [`Observer`]), then rename the whole set into place. A run that fails
+//! or is interrupted part-way leaves none of its files (and removes the
+//! output directory if it made it).
+
+use super::analysis::render_radiance;
+use super::config::RenderConfig;
+use super::scene::Scene;
+use super::sensor::{expose, Digital};
+use super::truth::{frame_truth, FrameTruth};
+use super::RenderError;
+use crate::camera::Camera;
+use crate::layout::Layout;
+use crate::mesh::{file_stem, Marker, MarkerOptions};
+use crate::observer::{watch, Observer};
+use crate::pose::Pose;
+use crate::scenario::Scenario;
+use rayon::prelude::*;
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::time::Instant;
+
+/// Progress phase: frames rendered and written.
+pub const PHASE_RENDER: &str = "render";
+/// The part must stay this far in front of the camera's plane, mm.
+pub const MIN_DEPTH_MM: f64 = 1.0;
+
+/// One frame to render: its pose and, when it came from a scenario grid,
+/// the scenario.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FramePose {
+    /// Marker → camera.
+    pub pose: Pose,
+    /// The grid scenario it came from, if any.
+    pub scenario: Option<Scenario>,
+}
+
+/// Everything a render run needs.
+#[derive(Debug, Clone)]
+pub struct RenderJob {
+    /// The layout whose part is rendered.
+    pub layout: Layout,
+    /// How `export` would build the part.
+    pub marker: MarkerOptions,
+    /// The frames.
+    pub poses: Vec<FramePose>,
+    /// Appearance, optics, sensor, seed.
+    pub config: RenderConfig,
+    /// Directory the images go into (created if missing).
+    pub out_dir: PathBuf,
+}
+
+/// The files of one frame.
+#[derive(Debug, Clone, Serialize)]
+pub struct FrameFiles {
+    /// Frame index.
+    pub frame: usize,
+    /// Its PNG images, one per noise realisation.
+    pub images: Vec<PathBuf>,
+    /// Its JSON record.
+    pub record: PathBuf,
+    /// Its ground truth.
+    pub truth: FrameTruth,
+    /// The Gaussian blur applied, px.
+    pub blur_sigma_px: f64,
+}
+
+/// What a run wrote.
+#[derive(Debug, Clone, Serialize)]
+pub struct RenderReport {
+    /// The layout's name.
+    pub name: String,
+    /// Every frame, in order.
+    pub frames: Vec<FrameFiles>,
+    /// Wall time of the run, seconds.
+    pub seconds: f64,
+}
+
+/// The per-frame JSON record (docs/formats.md, "Render frame record").
+#[derive(Serialize)]
+struct FrameRecord<'a> {
+    frame: usize,
+    layout: &'a str,
+    images: Vec<String>,
+    width: u32,
+    height: u32,
+    bit_depth: u8,
+    #[serde(flatten)]
+    truth: &'a FrameTruth,
+    scenario: Option<&'a Scenario>,
+    blur_sigma_px: f64,
+    seed: u64,
+    camera: &'a Camera,
+    appearance: &'a super::config::Appearance,
+    optics: &'a super::config::Optics,
+    sensor: &'a super::config::Sensor,
+}
+
+/// A job checked: the scene and every frame's truth.
+pub struct Checked {
+    /// The part.
+    pub scene: Scene,
+    /// Each frame's ground truth.
+    pub truths: Vec<FrameTruth>,
+}
+
+/// Checks the configuration, builds the part and the truth of every
+/// frame: a pose behind the camera or a part outside the image is an
+/// error here, before any file is written.
+pub fn check(job: &RenderJob) -> Result<Checked, RenderError> {
+    job.config.validate()?;
+    if job.poses.is_empty() {
+        return Err(RenderError::NoPoses);
+    }
+    let scene = Scene::from_marker(Marker::design(&job.layout, &job.marker)?);
+    let names: Vec<String> = job.layout.points.iter().map(|p| p.name.clone()).collect();
+    let camera = &job.config.camera;
+    let truths = job
+        .poses
+        .par_iter()
+        .enumerate()
+        .map(|(frame, frame_pose)| {
+            let pose = &frame_pose.pose;
+            let nearest = scene
+                .bounding_corners()
+                .iter()
+                .map(|p| pose.transform(p).z)
+                .fold(f64::INFINITY, f64::min);
+            if nearest.is_nan() || nearest <= MIN_DEPTH_MM {
+                return Err(RenderError::PartBehindCamera {
+                    frame,
+                    depth_mm: nearest,
+                });
+            }
+            let truth = frame_truth(&scene, &names, pose, camera).map_err(|e| e.in_frame(frame))?;
+            if truth.spheres.iter().all(|s| s.hidden.outside_image >= 1.0) {
+                let t = pose.translation;
+                return Err(RenderError::OutsideImage {
+                    frame,
+                    x: t.x,
+                    y: t.y,
+                    z: t.z,
+                });
+            }
+            Ok(truth)
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    Ok(Checked { scene, truths })
+}
+
+/// Runs the job (module docs). An observer that asks to stop gets
+/// [`RenderError::Interrupted`], and no file of the run is left.
+pub fn run(job: &RenderJob, observer: &mut impl Observer) -> Result<RenderReport, RenderError> {
+    let start = Instant::now();
+    if observer.interrupted() {
+        return Err(RenderError::Interrupted);
+    }
+    let checked = check(job)?;
+    let staging = Staging::new(&job.out_dir)?;
+    let stem = file_stem(&job.layout.name);
+    let stop = AtomicBool::new(false);
+    let done = AtomicU64::new(0);
+    let total = job.poses.len() as u64;
+    let frames = watch(
+        observer,
+        PHASE_RENDER,
+        total,
+        || done.load(Ordering::Relaxed),
+        Some(&stop),
+        || {
+            (0..job.poses.len())
+                .into_par_iter()
+                .map(|frame| {
+                    if stop.load(Ordering::SeqCst) {
+                        return Err(RenderError::Interrupted);
+                    }
+                    let files = write_frame(job, &checked, &staging.dir, &stem, frame)?;
+                    done.fetch_add(1, Ordering::Relaxed);
+                    Ok(files)
+                })
+                .collect::<Result<Vec<_>, _>>()
+        },
+    )?;
+    if stop.load(Ordering::SeqCst) || observer.interrupted() {
+        return Err(RenderError::Interrupted);
+    }
+    staging.commit()?;
+    let frames = frames
+        .into_iter()
+        .map(|mut f| {
+            f.images = f.images.iter().map(|p| moved(&job.out_dir, p)).collect();
+            f.record = moved(&job.out_dir, &f.record);
+            f
+        })
+        .collect();
+    Ok(RenderReport {
+        name: job.layout.name.clone(),
+        frames,
+        seconds: start.elapsed().as_secs_f64(),
+    })
+}
+
+/// Where a staged file lands.
+fn moved(out_dir: &Path, staged: &Path) -> PathBuf {
+    out_dir.join(staged.file_name().unwrap_or_default())
+}
+
+/// Renders frame `frame` once, exposes every realisation, and writes its
+/// PNGs and record into `dir`.
+fn write_frame(
+    job: &RenderJob,
+    checked: &Checked,
+    dir: &Path,
+    stem: &str,
+    frame: usize,
+) -> Result<FrameFiles, RenderError> {
+    let config = &job.config;
+    let pose = &job.poses[frame].pose;
+    let radiance = render_radiance(&checked.scene, pose, config)?;
+    let mut images = Vec::new();
+    for realisation in 0..config.realisations {
+        let name = if config.realisations == 1 {
+            format!("{stem}-{frame:03}.png")
+        } else {
+            format!("{stem}-{frame:03}-{realisation:02}.png")
+        };
+        let digital = expose(
+            &radiance,
+            &config.sensor,
+            config.seed,
+            frame as u64,
+            u64::from(realisation),
+        );
+        let path = dir.join(name);
+        write_png(&path, &digital)?;
+        images.push(path);
+    }
+    let truth = &checked.truths[frame];
+    let blur_sigma_px = config
+        .optics
+        .blur
+        .sigma_px(config.camera.fx(), pose.translation.z);
+    let record = FrameRecord {
+        frame,
+        layout: &job.layout.name,
+        images: images
+            .iter()
+            .map(|p| {
+                p.file_name()
+                    .unwrap_or_default()
+                    .to_string_lossy()
+                    .into_owned()
+            })
+            .collect(),
+        width: config.camera.width(),
+        height: config.camera.height(),
+        bit_depth: config.sensor.bit_depth,
+        truth,
+        scenario: job.poses[frame].scenario.as_ref(),
+        blur_sigma_px,
+        seed: config.seed,
+        camera: &config.camera,
+        appearance: &config.appearance,
+        optics: &config.optics,
+        sensor: &config.sensor,
+    };
+    let record_path = dir.join(format!("{stem}-{frame:03}.json"));
+    let text = serde_json::to_string_pretty(&record).expect("a record serialises") + "\n";
+    std::fs::write(&record_path, text).map_err(|source| RenderError::Io {
+        path: record_path.clone(),
+        source,
+    })?;
+    Ok(FrameFiles {
+        frame,
+        images,
+        record: record_path,
+        truth: truth.clone(),
+        blur_sigma_px,
+    })
+}
+
+/// Encodes a grey PNG of the image's bit depth.
+pub fn encode_png(path: &Path, image: &Digital) -> Result<Vec<u8>, RenderError> {
+    let (w, h) = (image.width as u32, image.height as u32);
+    let png = |source| RenderError::Png {
+        path: path.to_path_buf(),
+        source,
+    };
+    let mut bytes = std::io::Cursor::new(Vec::new());
+    if image.bit_depth == 8 {
+        let raw: Vec<u8> = image.values.iter().map(|&v| v.min(255) as u8).collect();
+        image::GrayImage::from_raw(w, h, raw)
+            .expect("the buffer matches the size")
+            .write_to(&mut bytes, image::ImageFormat::Png)
+            .map_err(png)?;
+    } else {
+        image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::from_raw(w, h, image.values.clone())
+            .expect("the buffer matches the size")
+            .write_to(&mut bytes, image::ImageFormat::Png)
+            .map_err(png)?;
+    }
+    Ok(bytes.into_inner())
+}
+
+fn write_png(path: &Path, image: &Digital) -> Result<(), RenderError> {
+    let bytes = encode_png(path, image)?;
+    std::fs::write(path, bytes).map_err(|source| RenderError::Io {
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
+/// A staging directory inside the output directory: files are written
+/// there and renamed into place together by [`Staging::commit`]; dropped
+/// uncommitted, it removes them (and the output directory if it made it).
+struct Staging {
+    out_dir: PathBuf,
+    dir: PathBuf,
+    made_out_dir: bool,
+    moved: Vec<PathBuf>,
+    committed: bool,
+}
+
+impl Staging {
+    fn new(out_dir: &Path) -> Result<Staging, RenderError> {
+        static NEXT: AtomicU64 = AtomicU64::new(0);
+        let io = |path: &Path| {
+            let path = path.to_path_buf();
+            move |source| RenderError::Io { path, source }
+        };
+        let made_out_dir = !out_dir.exists();
+        crate::files::check_writable_dir(out_dir).map_err(io(out_dir))?;
+        let dir = out_dir.join(format!(
+            ".render.{}.{}.tmp",
+            std::process::id(),
+            NEXT.fetch_add(1, Ordering::Relaxed)
+        ));
+        let staging = Staging {
+            out_dir: out_dir.to_path_buf(),
+            dir,
+            made_out_dir,
+            moved: Vec::new(),
+            committed: false,
+        };
+        std::fs::create_dir(&staging.dir).map_err(io(&staging.dir))?;
+        Ok(staging)
+    }
+
+    fn commit(mut self) -> Result<(), RenderError> {
+        let io = |path: &Path| {
+            let path = path.to_path_buf();
+            move |source| RenderError::Io { path, source }
+        };
+        let mut staged: Vec<PathBuf> = std::fs::read_dir(&self.dir)
+            .map_err(io(&self.dir))?
+            .map(|entry| entry.map(|e| e.path()))
+            .collect::<Result<_, _>>()
+            .map_err(io(&self.dir))?;
+        staged.sort();
+        for from in staged {
+            let to = moved(&self.out_dir, &from);
+            std::fs::rename(&from, &to).map_err(io(&to))?;
+            self.moved.push(to);
+        }
+        self.committed = true;
+        let _ = std::fs::remove_dir(&self.dir);
+        Ok(())
+    }
+}
+
+impl Drop for Staging {
+    fn drop(&mut self) {
+        if !self.committed {
+            for path in &self.moved {
+                let _ = std::fs::remove_file(path);
+            }
+            let _ = std::fs::remove_dir_all(&self.dir);
+            if self.made_out_dir {
+                let _ = std::fs::remove_dir(&self.out_dir);
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::observer::Silent;
+
+    struct Stop;
+    impl Observer for Stop {
+        fn interrupted(&self) -> bool {
+            true
+        }
+    }
+
+    fn job(out_dir: PathBuf, depth_mm: f64) -> RenderJob {
+        RenderJob {
+            layout: Layout::paper_biprism(),
+            marker: MarkerOptions::default(),
+            poses: vec![FramePose {
+                pose: Pose::new(
+                    nalgebra::Rotation3::identity(),
+                    nalgebra::Vector3::new(0.0, 0.0, depth_mm),
+                ),
+                scenario: None,
+            }],
+            config: RenderConfig::new(Camera::paper()),
+            out_dir,
+        }
+    }
+
+    #[test]
+    fn an_interrupted_or_failing_run_leaves_nothing() {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("frames");
+        assert!(matches!(
+            run(&job(out.clone(), 600.0), &mut Stop),
+            Err(RenderError::Interrupted)
+        ));
+        assert!(!out.exists());
+        let behind = run(&job(out.clone(), -600.0), &mut Silent).unwrap_err();
+        assert!(behind.to_string().contains("behind the camera"), "{behind}");
+        assert!(!out.exists());
+        let report = run(&job(out.clone(), 600.0), &mut Silent).unwrap();
+        assert_eq!(report.frames.len(), 1);
+        let names: Vec<_> = std::fs::read_dir(&out)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().into_string().unwrap())
+            .collect();
+        assert_eq!(names.len(), 2, "{names:?}");
+    }
+}
