@@ -20,6 +20,7 @@ mod plots;
 mod sphere_image;
 mod sqpnp_crosscheck;
 mod unlabelled;
+mod visibility;
 
 #[cfg(feature = "cli")]
 mod cli_consistency;
