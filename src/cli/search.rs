@@ -585,6 +585,16 @@ pub fn run(args: SearchArgs, global: &GlobalOptions) -> anyhow::Result<()> {
         held.winner_occluded,
         held.paper_occluded
     );
+    // [supports] The held-out figures with the printed supports counted.
+    if let Some(supported) = &summary.held_out_with_supports {
+        println!(
+            "held-out grid with the printed supports counted: availability {:.1}% vs the paper biprism's {:.1}%; RMS rotation {:.4}° vs {:.4}°",
+            100.0 * supported.winner_availability,
+            100.0 * supported.paper_availability,
+            supported.winner_rotation_rms_deg.unwrap_or(f64::NAN),
+            supported.paper_rotation_rms_deg.unwrap_or(f64::NAN),
+        );
+    }
     println!(
         "objective {:.4} (accuracy {:.4}); availability floor {}: {}",
         summary.outcome.best.evaluation.objective,

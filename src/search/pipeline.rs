@@ -1268,6 +1268,11 @@ pub fn run(
         )
     };
 
+    // [supports] The same with the parts `export` would print counted.
+    let held_out_with_supports =
+        super::held_out_with_supports(&evaluator, &held_out_grid(&config.grid), &winner, paper)
+            .ok();
+
     let front = match &config.front {
         None => None,
         Some(output) => {
@@ -1337,6 +1342,7 @@ pub fn run(
         outcome,
         designs: rows,
         held_out,
+        held_out_with_supports,
         front: front.as_ref().map(|f| f.report.clone()),
         identifiability: identify_books,
     };

@@ -147,6 +147,9 @@ pub struct SearchSummary {
     pub verdicts: Verdicts,
     /// The winner and the paper's biprism on a held-out grid.
     pub held_out: HeldOutCheck,
+    /// The same with the supports `export` builds for each counted as
+    /// occluders (`None`: a part could not be built).
+    pub held_out_with_supports: Option<HeldOutCheck>,
     /// The Pareto front, when asked for.
     pub front: Option<FrontReport>,
     /// How the identifiability floor was enforced (None: no floor).
@@ -530,6 +533,21 @@ fn markdown(summary: &SearchSummary, table: &Table) -> String {
                 && held.winner_occluded <= held.paper_occluded)
         ),
     ]);
+    if let Some(supported) = &summary.held_out_with_supports {
+        verdicts.row([
+            "held-out grid with the printed supports counted (winner vs paper's biprism)"
+                .to_string(),
+            format!(
+                "availability {:.1}% vs {:.1}% (without supports {:.1}% vs {:.1}%); RMS rotation {} ° vs {} °",
+                100.0 * supported.winner_availability,
+                100.0 * supported.paper_availability,
+                100.0 * held.winner_availability,
+                100.0 * held.paper_availability,
+                significant(supported.winner_rotation_rms_deg, 4),
+                significant(supported.paper_rotation_rms_deg, 4),
+            ),
+        ]);
+    }
     verdicts.row([
         "occlusions no more frequent than the paper's biprism".to_string(),
         yes(v.occlusion_no_more_frequent).to_string(),
