@@ -35,8 +35,10 @@ use std::str::FromStr;
 pub const SILHOUETTE_RAYS: usize = 400;
 /// Default [`MaxHidden`]: 1 % of the silhouette.
 pub const DEFAULT_MAX_HIDDEN: f64 = 0.01;
-/// A support hit within this of a sphere's surface (mm) is the sphere's.
-const SURFACE_TOLERANCE_MM: f64 = 1e-3;
+/// A support hit within this of a sphere's surface (mm) is the sphere's:
+/// the cone under a sphere meets it tangentially, and within a printer's
+/// and a mesh's tolerance the two are one outline.
+pub const SURFACE_TOLERANCE_MM: f64 = 0.2;
 /// The golden angle, radians: the sunflower pattern's turn per ray.
 const GOLDEN_ANGLE: f64 = 2.399_963_229_728_653;
 
