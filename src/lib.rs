@@ -38,3 +38,4 @@ pub mod sphere_image;
 pub mod spread;
 pub mod statistics;
 pub mod synthetic;
+pub mod visibility;

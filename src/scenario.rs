@@ -389,12 +389,19 @@ pub struct Visibility {
     /// `(hidden, by)`: the disc of `hidden` overlaps the disc of the nearer
     /// sphere `by`, so its centre cannot be measured cleanly.
     pub occluded: Vec<(usize, usize)>,
+    /// Features whose silhouette the part's own supports hide beyond the
+    /// allowed fraction (see [`crate::visibility`]); always empty when the
+    /// supports are not counted.
+    pub hidden_by_support: Vec<usize>,
 }
 
 impl Visibility {
     /// Every feature is in front, inside the image and unoccluded.
     pub fn is_visible(&self) -> bool {
-        self.behind.is_empty() && self.outside.is_empty() && self.occluded.is_empty()
+        self.behind.is_empty()
+            && self.outside.is_empty()
+            && self.occluded.is_empty()
+            && self.hidden_by_support.is_empty()
     }
 
     /// Every feature is in front of the camera (so it has an image at all).

@@ -1704,6 +1704,7 @@ mod tests {
                 behind,
                 outside,
                 occluded,
+                hidden_by_support: Vec::new(),
             })
         };
         assert_eq!(with(vec![], vec![], vec![]), VisibilityClass::Visible);

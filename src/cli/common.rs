@@ -223,6 +223,7 @@ impl StructureArgs {
             structure: self.structure,
             view_cone_deg: self.view_cone,
             bed: self.bed,
+            working_views: Vec::new(),
         }
     }
 }

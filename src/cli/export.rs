@@ -13,7 +13,8 @@ use layout_opt::mesh::pipeline::{self, ExportConfig};
 use layout_opt::mesh::summary::summary;
 use layout_opt::mesh::view_cone::view_cone_deg;
 use layout_opt::mesh::{Axis, ExportError, ExportOptions, Format, MarkerOptions, MountHoles};
-use layout_opt::scenario::Range;
+use layout_opt::scenario::{Range, ScenarioGrid};
+use layout_opt::visibility::{MaxHidden, WorkingRange};
 use std::path::PathBuf;
 
 /// Flags of `export`.
@@ -89,10 +90,33 @@ pub struct ExportArgs {
     /// Write the files even when a strut covers a sphere from the view cone.
     #[arg(long)]
     allow_occlusion: bool,
+    #[command(flatten)]
+    range: Box<WorkingRangeArgs>,
     /// The printer's build volume X,Y,Z, mm; a part that does not fit is an
     /// error.
     #[arg(long, value_name = "X,Y,Z", default_value = "250,210,210")]
     bed: Bed,
+}
+
+/// The working range's flags (boxed, so that `export`'s flags stay small).
+#[derive(Debug, Args)]
+struct WorkingRangeArgs {
+    /// Depths of the working range, mm (as in validate): when given, the
+    /// supports are routed to hide no sphere from the range's views
+    /// (--depth × --offset-x × --offset-y × --tilt × --pan, paper camera),
+    /// and the views they still lose are reported.
+    #[arg(long, value_name = "RANGE", allow_hyphen_values = true, value_parser = boxed_range)]
+    depth: Option<Box<Range>>,
+    /// X offsets of the working range, mm (with --depth; default 0).
+    #[arg(long, value_name = "RANGE", allow_hyphen_values = true, value_parser = boxed_range)]
+    offset_x: Option<Box<Range>>,
+    /// Y offsets of the working range, mm (with --depth; default 0).
+    #[arg(long, value_name = "RANGE", allow_hyphen_values = true, value_parser = boxed_range)]
+    offset_y: Option<Box<Range>>,
+    /// Largest fraction of a sphere's silhouette the supports may hide in
+    /// a view of the working range before the view counts as lost (0 to 1).
+    #[arg(long, value_name = "FRACTION", default_value = "0.01")]
+    max_hidden: MaxHidden,
 }
 
 /// A range, boxed so that `export`'s flags stay small.
@@ -134,6 +158,35 @@ fn load_layout(args: &ExportArgs) -> anyhow::Result<(Layout, String)> {
     Ok((layout, path.display().to_string()))
 }
 
+/// The working range of `--depth` and the other grid flags, if given.
+fn working_range(args: &ExportArgs) -> anyhow::Result<Option<WorkingRange>> {
+    let (tilt, pan) = (args.tilt.clone(), args.pan.clone());
+    let args = &args.range;
+    let Some(depth) = args.depth.as_deref() else {
+        anyhow::ensure!(
+            args.offset_x.is_none() && args.offset_y.is_none(),
+            "--offset-x and --offset-y set the working range: give --depth too"
+        );
+        return Ok(None);
+    };
+    let zero = Range::single(0.0);
+    let range = |r: &Option<Box<Range>>| r.as_deref().unwrap_or(&zero).clone();
+    let grid = ScenarioGrid::new(
+        depth.clone(),
+        range(&args.offset_x),
+        range(&args.offset_y),
+        range(&tilt),
+        range(&pan),
+        Range::single(0.0),
+        Range::single(0.5),
+    )?;
+    Ok(Some(WorkingRange {
+        camera: layout_opt::camera::Camera::paper(),
+        scenarios: grid.scenarios(),
+        max_hidden: args.max_hidden,
+    }))
+}
+
 pub fn run(args: ExportArgs, global: &GlobalOptions) -> anyhow::Result<()> {
     let (layout, source) = load_layout(&args)?;
     let view_cone = view_cone_deg(args.view_cone, args.tilt.as_deref(), args.pan.as_deref());
@@ -141,6 +194,7 @@ pub fn run(args: ExportArgs, global: &GlobalOptions) -> anyhow::Result<()> {
         args.view_cone.is_some() || view_cone < 80.0,
         "--tilt and --pan reach {view_cone:.1}° from the main view; the view cone must stay below 80°: narrow the ranges or give --view-cone"
     );
+    let working_range = working_range(&args)?;
     let options = ExportOptions {
         formats: args.format.clone(),
         marker: MarkerOptions {
@@ -152,9 +206,11 @@ pub fn run(args: ExportArgs, global: &GlobalOptions) -> anyhow::Result<()> {
             structure: args.structure,
             view_cone_deg: view_cone,
             bed: args.bed,
+            working_views: Vec::new(),
         },
         resolution_mm: args.resolution,
         allow_occlusion: args.allow_occlusion,
+        working_range,
     };
     let config = ExportConfig {
         layout,

@@ -65,6 +65,7 @@ pub use sheet::{datum_positions, Datum, DatumPosition, Tolerances, CSV_HEADER};
 pub use trimesh::{Topology, TriangleMesh};
 
 use crate::layout::Layout;
+use crate::visibility::{LostView, Supports, WorkingRange};
 use nalgebra::Vector3;
 use serde::Serialize;
 use std::fmt;
@@ -228,6 +229,11 @@ pub struct ExportOptions {
     /// Write the files even when a strut covers a sphere from the view
     /// cone (else that is [`ExportError::Occluded`]).
     pub allow_occlusion: bool,
+    /// The working range the supports are routed for
+    /// ([`MarkerOptions::working_views`]); its views that the supports
+    /// still lose are reported ([`ExportReport::lost_views`]) instead of
+    /// checking the view cone.
+    pub working_range: Option<WorkingRange>,
 }
 
 impl Default for ExportOptions {
@@ -237,6 +243,7 @@ impl Default for ExportOptions {
             marker: MarkerOptions::default(),
             resolution_mm: None,
             allow_occlusion: false,
+            working_range: None,
         }
     }
 }
@@ -328,10 +335,31 @@ pub fn resolution_for(marker: &Marker, asked_mm: Option<f64>) -> Result<f64, Exp
     }
 }
 
+/// The supports `export` would build for `layout` with `options`, routed
+/// to clear the views of `range`, as occluders for the visibility model
+/// (no mesh is made).
+pub fn supports_for_range(
+    layout: &Layout,
+    options: &MarkerOptions,
+    range: &WorkingRange,
+) -> Result<Supports, GeometryError> {
+    let mut options = options.clone();
+    options.working_views = range.clear_views(&layout.positions(), layout.sphere_diameter_mm);
+    Ok(Supports::new(Marker::design(layout, &options)?.occluders()))
+}
+
 /// Designs and meshes the marker for `layout`, and checks the mesh.
 pub fn build(layout: &Layout, options: &ExportOptions) -> Result<Solid, ExportError> {
     let start = Instant::now();
-    let marker = Marker::design(layout, &options.marker)?;
+    let marker = match &options.working_range {
+        Some(range) => {
+            let mut marker_options = options.marker.clone();
+            marker_options.working_views =
+                range.clear_views(&layout.positions(), layout.sphere_diameter_mm);
+            Marker::design(layout, &marker_options)?
+        }
+        None => Marker::design(layout, &options.marker)?,
+    };
     let resolution_mm = resolution_for(&marker, options.resolution_mm)?;
     let mesh = extract::extract(&marker, resolution_mm);
     let topology = mesh.topology();
@@ -419,6 +447,12 @@ pub struct ExportReport {
     pub view_cone_deg: f64,
     /// Whether a strut covering a sphere was allowed (`--allow-occlusion`).
     pub occlusion_allowed: bool,
+    /// Scenarios of the working range, if one was given.
+    pub working_range_scenarios: Option<usize>,
+    /// The views of the working range that the spheres alone leave
+    /// visible but in which the supports hide more than the allowed
+    /// fraction of a sphere (empty when no routing had to give one up).
+    pub lost_views: Vec<LostView>,
     /// Overhangs as printed.
     pub overhang: quality::Overhang,
     /// How the spheres are held.
@@ -473,9 +507,19 @@ fn export_observed(
     }
     let solid = build(layout, options)?;
     let coverage = quality::view_coverage(&solid.marker, options.marker.view_cone_deg);
-    if !options.allow_occlusion {
-        check_occlusion(&solid.marker, &coverage)?;
-    }
+    let lost_views = match &options.working_range {
+        Some(range) => range.lost_views(
+            &layout.positions(),
+            layout.sphere_diameter_mm,
+            &Supports::new(solid.marker.occluders()),
+        ),
+        None => {
+            if !options.allow_occlusion {
+                check_occlusion(&solid.marker, &coverage)?;
+            }
+            Vec::new()
+        }
+    };
     let (rotation, shift) = solid.print_transform();
     let overhang = quality::overhang(
         &solid.marker,
@@ -544,6 +588,8 @@ fn export_observed(
         main_view_coverage: coverage,
         view_cone_deg: options.marker.view_cone_deg,
         occlusion_allowed: options.allow_occlusion,
+        working_range_scenarios: options.working_range.as_ref().map(|r| r.scenarios.len()),
+        lost_views,
         overhang,
         structure: solid.marker.structure,
         print_size_mm: {

@@ -6,6 +6,9 @@
 use super::ExportReport;
 use std::fmt::Write as _;
 
+/// Lost views printed on the summary line (all are in the export JSON).
+const LOST_VIEWS_SHOWN: usize = 8;
+
 /// The export's summary, one line per fact, each ending in a newline.
 pub fn summary(report: &ExportReport) -> String {
     let mut out = String::new();
@@ -67,6 +70,13 @@ pub fn summary(report: &ExportReport) -> String {
         },
         report.identification_margin_mm
     );
+    if let Some(scenarios) = report.working_range_scenarios {
+        let _ = writeln!(
+            out,
+            "working range ({scenarios} scenarios): {}",
+            lost_views(report)
+        );
+    }
     let _ = match &report.tolerances.centre {
         Some(c) => writeln!(
         out,
@@ -94,6 +104,53 @@ pub fn summary(report: &ExportReport) -> String {
         o.bed_contact_mm2,
     );
     out
+}
+
+/// What the supports still hide in the working range, in words.
+fn lost_views(report: &ExportReport) -> String {
+    let mut lost: Vec<usize> = report.lost_views.iter().map(|l| l.scenario.index).collect();
+    lost.dedup();
+    if lost.is_empty() {
+        return "the supports hide no sphere in any view the spheres leave visible".to_string();
+    }
+    let views: Vec<String> = report
+        .lost_views
+        .iter()
+        .take(LOST_VIEWS_SHOWN)
+        .map(|l| {
+            let s = &l.scenario;
+            format!(
+                "{} {:.0} % at depth {} x {} y {} tilt {} pan {}",
+                sphere_name(report, l.sphere),
+                100.0 * l.hidden_fraction,
+                s.depth_mm,
+                s.offset_x_mm,
+                s.offset_y_mm,
+                s.tilt_deg,
+                s.pan_deg
+            )
+        })
+        .collect();
+    format!(
+        "{} views lost, no route of the supports clears them: {}{} (all in the export JSON)",
+        lost.len(),
+        views.join("; "),
+        if report.lost_views.len() > LOST_VIEWS_SHOWN {
+            "; …"
+        } else {
+            ""
+        }
+    )
+}
+
+/// The name of sphere `index` in the report's datum table.
+fn sphere_name(report: &ExportReport, index: usize) -> String {
+    report
+        .datum
+        .iter()
+        .filter(|d| d.kind == "sphere")
+        .nth(index)
+        .map_or_else(|| format!("sphere {index}"), |d| d.name.clone())
 }
 
 /// A file size in kB below 1 MiB, else in MB, one decimal.

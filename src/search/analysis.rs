@@ -331,6 +331,7 @@ impl Run<'_, '_> {
         let winner = self.winner(observer, &outcome)?;
         let (rows, seeds, ranges) = self.compare(observer, &outcome, &winner)?;
         let held_out = self.held_out(&winner);
+        let held_out_with_supports = self.held_out_with_supports(&winner);
         let front = self.front(observer, &outcome, &rows[ranges.paper..])?;
         let config = self.config();
         let summary = SearchSummary {
@@ -351,6 +352,7 @@ impl Run<'_, '_> {
             outcome,
             designs: rows,
             held_out,
+            held_out_with_supports,
             front: front.as_ref().map(|f| f.report.clone()),
             identifiability: identify_books,
         };
@@ -607,6 +609,14 @@ impl Run<'_, '_> {
             &first_order.evaluate(&winner.positions(), &winner.point_sigmas()),
             &first_order.evaluate(&paper.positions(), &paper.point_sigmas()),
         )
+    }
+
+    /// [`Self::held_out`] with the supports `export` would print for the
+    /// winner and the paper's biprism counted as occluders (`None`: a part
+    /// could not be built).
+    fn held_out_with_supports(&self, winner: &Layout) -> Option<HeldOutCheck> {
+        let grid = held_out_grid(&self.config().grid);
+        super::held_out_with_supports(&self.evaluator, &grid, winner, &self.hand[0]).ok()
     }
 
     /// The Pareto front's sweep ([`PHASE_FRONT`]), when asked for; `hand`

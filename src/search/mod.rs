@@ -127,6 +127,7 @@ use crate::noise::NoiseModel;
 use crate::pnp::{parallel::reference_index, Solver};
 use crate::scenario::{sphere_images, visibility, visibility_margin_px, Scenario};
 use crate::sphere_image::{ellipse_centre_bias_px_into, Observation};
+use crate::visibility::{hidden_fractions, MaxHidden, Supports};
 use nalgebra::Vector3;
 use serde::Serialize;
 use std::str::FromStr;
@@ -534,6 +535,43 @@ pub struct Evaluator {
     identify_floor: Option<IdentifiabilityFloor>,
     /// The scenarios checked for identifiability.
     identify_scope: IdentifyScope,
+    /// The supports of the one layout this evaluator scores, counted as
+    /// occluders ([`Evaluator::with_supports`]); `None`: spheres alone.
+    supports: Option<std::sync::Arc<(Supports, MaxHidden)>>,
+}
+
+/// [`HeldOutCheck`] of `winner` and `paper` on `grid`, first order, with
+/// the supports counted that `export`'s default structure builds for each,
+/// routed to clear the views of `evaluator`'s (the search's) grid: the
+/// winner's and the biprism's figures as printed. An error when a part
+/// cannot be built.
+pub fn held_out_with_supports(
+    evaluator: &Evaluator,
+    grid: &crate::scenario::ScenarioGrid,
+    winner: &crate::layout::Layout,
+    paper: &crate::layout::Layout,
+) -> Result<HeldOutCheck, crate::mesh::GeometryError> {
+    let range = crate::visibility::WorkingRange {
+        camera: evaluator.camera,
+        scenarios: evaluator.scenarios.clone(),
+        max_hidden: MaxHidden::default(),
+    };
+    let first_order = evaluator
+        .on_scenarios(grid.scenarios(), &paper.positions())
+        .first_order(&paper.positions());
+    let options = crate::mesh::MarkerOptions::default();
+    let evaluate = |layout: &crate::layout::Layout| {
+        crate::mesh::supports_for_range(layout, &options, &range).map(|supports| {
+            first_order
+                .with_supports(supports, range.max_hidden)
+                .evaluate(&layout.positions(), &layout.point_sigmas())
+        })
+    };
+    Ok(HeldOutCheck::new(
+        grid,
+        &evaluate(winner)?,
+        &evaluate(paper)?,
+    ))
 }
 
 /// Per-scenario raw values of one layout: visibility flags and, per term,
@@ -607,6 +645,7 @@ impl Evaluator {
             floor: None,
             identify_floor: None,
             identify_scope: IdentifyScope::Off,
+            supports: None,
             settings,
             constraints,
             penalised,
@@ -714,6 +753,17 @@ impl Evaluator {
         evaluator
     }
 
+    /// The same evaluator with the supports of one layout counted
+    /// ([`crate::visibility`]): a scenario in which they hide more than
+    /// `max_hidden` of a sphere counts as not visible, for availability and
+    /// identifiability alike. Only meaningful for scoring the layout the
+    /// supports were designed for (e.g. a winner against its printed part).
+    pub fn with_supports(&self, supports: Supports, max_hidden: MaxHidden) -> Self {
+        let mut evaluator = self.clone();
+        evaluator.supports = Some(std::sync::Arc::new((supports, max_hidden)));
+        evaluator
+    }
+
     /// The identifiability floor in force.
     pub fn identifiability_floor(&self) -> Option<IdentifiabilityFloor> {
         self.identify_floor
@@ -768,7 +818,19 @@ impl Evaluator {
                 points,
                 self.constraints.sphere_diameter_mm,
             );
-            let v = visibility(&images, &self.camera);
+            let mut v = visibility(&images, &self.camera);
+            if let Some((supports, max_hidden)) = self.supports.as_deref() {
+                if v.is_visible() {
+                    let radius_mm = 0.5 * self.constraints.sphere_diameter_mm;
+                    let fractions =
+                        hidden_fractions(&self.camera, &pose, points, radius_mm, supports);
+                    v.hidden_by_support = (0..points.len())
+                        .filter(|&k| {
+                            fractions[k].is_some_and(|f| f.support > max_hidden.fraction())
+                        })
+                        .collect();
+                }
+            }
             values.occluded += usize::from(!v.occluded.is_empty());
             values.outside += usize::from(!v.outside.is_empty());
             values.behind += usize::from(!v.behind.is_empty());
@@ -783,7 +845,11 @@ impl Evaluator {
                     &images,
                 ));
             }
-            let margin = visibility_margin_px(&images, &self.camera);
+            let margin = if v.hidden_by_support.is_empty() {
+                visibility_margin_px(&images, &self.camera)
+            } else {
+                f64::NEG_INFINITY
+            };
             values.soft_visible += (0.5 + margin / (2.0 * SOFT_MARGIN_PX)).clamp(0.0, 1.0);
             if !v.all_in_front() {
                 continue;

@@ -337,6 +337,21 @@ fn markdown(summary: &SearchSummary, table: &Table) -> String {
             None => "not measurable".to_string(),
         },
     ]);
+    if let Some(supported) = &summary.held_out_with_supports {
+        verdicts.row([
+            "held-out grid with the printed supports counted (winner vs paper's biprism)"
+                .to_string(),
+            format!(
+                "availability {:.1}% vs {:.1}% (without supports {:.1}% vs {:.1}%); RMS rotation {} ° vs {} °",
+                100.0 * supported.winner_availability,
+                100.0 * supported.paper_availability,
+                100.0 * held.winner_availability,
+                100.0 * held.paper_availability,
+                significant(supported.winner_rotation_rms_deg, 4),
+                significant(supported.paper_rotation_rms_deg, 4),
+            ),
+        ]);
+    }
     verdicts.row([
         "availability and occlusions on the held-out grid no worse than the paper's biprism"
             .to_string(),
@@ -546,6 +561,16 @@ pub fn console(summary: &SearchSummary) -> String {
         held.winner_occluded,
         held.paper_occluded
     );
+    if let Some(supported) = &summary.held_out_with_supports {
+        let _ = writeln!(
+            out,
+            "held-out grid with the printed supports counted: availability {:.1}% vs the paper biprism's {:.1}%; RMS rotation {:.4}° vs {:.4}°",
+            100.0 * supported.winner_availability,
+            100.0 * supported.paper_availability,
+            supported.winner_rotation_rms_deg.unwrap_or(f64::NAN),
+            supported.paper_rotation_rms_deg.unwrap_or(f64::NAN),
+        );
+    }
     let best = &summary.outcome.best.evaluation;
     let _ = writeln!(
         out,

@@ -144,6 +144,9 @@ pub struct SearchSummary {
     pub verdicts: Verdicts,
     /// The winner and the paper's biprism on a held-out grid.
     pub held_out: HeldOutCheck,
+    /// The same with the supports `export` builds for each counted as
+    /// occluders (`None`: a part could not be built).
+    pub held_out_with_supports: Option<HeldOutCheck>,
     /// The Pareto front, when asked for.
     pub front: Option<FrontReport>,
     /// How the identifiability floor was enforced (None: no floor).

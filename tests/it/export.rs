@@ -69,6 +69,7 @@ fn options_with(
         },
         resolution_mm: None,
         allow_occlusion: true,
+        working_range: None,
     }
 }
 

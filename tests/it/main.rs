@@ -22,6 +22,7 @@ mod render;
 mod sphere_image;
 mod sqpnp_crosscheck;
 mod unlabelled;
+mod visibility;
 
 #[cfg(feature = "cli")]
 mod cli_consistency;

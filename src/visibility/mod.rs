@@ -1,0 +1,547 @@
+//! Visibility: one model for every command. For a scenario (camera and
+//! pose) and a part, the fraction of each sphere's silhouette that is
+//! hidden, by cause: the part's own supports, another sphere, or the image
+//! border.
+//!
+//! **Method.** A sphere's silhouette is the cone of sight lines from the
+//! camera centre that touch the ball. [`SILHOUETTE_RAYS`] lines spread
+//! evenly over the disc it makes on a plane across the line of sight (a
+//! sunflower pattern) are followed to the sphere: a line that first meets
+//! another sphere is hidden by that sphere, one that first meets a support
+//! ([`Occluder`]: capsules, round cones, the plate's box, all intersected
+//! exactly) is hidden by the supports, and one whose point on the sphere
+//! projects outside the image is outside. Parts that cannot reach the cone
+//! (their bounding ball is off it, or no nearer than the sphere) are culled
+//! first, so a scenario costs little when nothing is in the way.
+//!
+//! **Rule.** The scenario rules of [`crate::scenario::visibility`] (in front
+//! of the camera, inside the image with a margin, no disc overlapping a
+//! nearer sphere's) stand; a sphere whose support-hidden fraction exceeds
+//! [`MaxHidden`] counts as not seen as well
+//! ([`crate::scenario::Visibility::hidden_by_support`]).
+
+pub mod occluders;
+
+use crate::camera::Camera;
+use crate::config::ConfigError;
+use crate::pose::Pose;
+use crate::scenario::{sphere_images, visibility, Scenario, Visibility};
+use nalgebra::{Vector2, Vector3};
+pub use occluders::Occluder;
+use serde::Serialize;
+use std::str::FromStr;
+
+/// Sight lines followed per sphere silhouette.
+pub const SILHOUETTE_RAYS: usize = 400;
+/// Default [`MaxHidden`]: 1 % of the silhouette.
+pub const DEFAULT_MAX_HIDDEN: f64 = 0.01;
+/// A support hit within this of a sphere's surface (mm) is the sphere's:
+/// the cone under a sphere meets it tangentially, and within a printer's
+/// and a mesh's tolerance the two are one outline.
+pub const SURFACE_TOLERANCE_MM: f64 = 0.2;
+/// The golden angle, radians: the sunflower pattern's turn per ray.
+const GOLDEN_ANGLE: f64 = 2.399_963_229_728_653;
+
+/// The largest fraction of a sphere's silhouette that the supports may hide
+/// before the sphere counts as not seen, in 0…1.
+///
+/// ```
+/// use layout_opt::visibility::MaxHidden;
+/// assert_eq!("0.05".parse::<MaxHidden>()?.fraction(), 0.05);
+/// assert!(MaxHidden::new(1.5).is_err());
+/// # Ok::<(), layout_opt::config::ConfigError>(())
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct MaxHidden(f64);
+
+impl MaxHidden {
+    /// Checks that `fraction` lies in 0…1.
+    pub fn new(fraction: f64) -> Result<MaxHidden, ConfigError> {
+        if fraction.is_finite() && (0.0..=1.0).contains(&fraction) {
+            Ok(MaxHidden(fraction))
+        } else {
+            Err(ConfigError::new(
+                "max_hidden",
+                format!("must be a fraction from 0 to 1, got {fraction}"),
+            ))
+        }
+    }
+
+    /// The fraction.
+    pub fn fraction(self) -> f64 {
+        self.0
+    }
+}
+
+impl Default for MaxHidden {
+    fn default() -> Self {
+        MaxHidden(DEFAULT_MAX_HIDDEN)
+    }
+}
+
+impl FromStr for MaxHidden {
+    type Err = ConfigError;
+    fn from_str(text: &str) -> Result<MaxHidden, ConfigError> {
+        let value: f64 = text.trim().parse().map_err(|_| {
+            ConfigError::new(
+                "max_hidden",
+                format!("must be a fraction from 0 to 1, got \"{text}\""),
+            )
+        })?;
+        MaxHidden::new(value)
+    }
+}
+
+/// The fractions of one sphere's silhouette hidden by each cause.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+pub struct HiddenFractions {
+    /// By the part's supports (pillars, struts, cones, plate).
+    pub support: f64,
+    /// By another sphere.
+    pub sphere: f64,
+    /// Outside the image.
+    pub outside: f64,
+}
+
+/// The supports of one part, as analytic occluders in the marker frame.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Supports {
+    occluders: Vec<Occluder>,
+    bounds: Vec<(Vector3<f64>, f64)>,
+}
+
+impl Supports {
+    /// Supports made of these parts.
+    pub fn new(occluders: Vec<Occluder>) -> Supports {
+        let bounds = occluders.iter().map(Occluder::bounding_ball).collect();
+        Supports { occluders, bounds }
+    }
+
+    /// No supports: spheres alone.
+    pub fn none() -> Supports {
+        Supports::default()
+    }
+
+    /// The parts.
+    pub fn occluders(&self) -> &[Occluder] {
+        &self.occluders
+    }
+
+    /// Whether there are none.
+    pub fn is_empty(&self) -> bool {
+        self.occluders.is_empty()
+    }
+}
+
+/// Per sphere, the fractions of its silhouette hidden by each cause under
+/// `pose`, or `None` for a sphere not in front of the camera.
+pub fn hidden_fractions(
+    camera: &Camera,
+    pose: &Pose,
+    centres: &[Vector3<f64>],
+    radius_mm: f64,
+    supports: &Supports,
+) -> Vec<Option<HiddenFractions>> {
+    let rotation = pose.rotation.matrix();
+    let eye = -(rotation.transpose() * pose.translation);
+    (0..centres.len())
+        .map(|k| sphere_hidden(camera, pose, &eye, centres, k, radius_mm, supports))
+        .collect()
+}
+
+/// Whether the cone of sight lines from `eye` to the ball (`centre`,
+/// `radius`), of half-angle `half_angle` about `axis`, can meet a ball
+/// (`other`, `other_radius`) in front of the sphere's nearest silhouette
+/// point at distance `front`.
+fn may_cover(
+    eye: &Vector3<f64>,
+    axis: &Vector3<f64>,
+    half_angle: f64,
+    front: f64,
+    other: &Vector3<f64>,
+    other_radius: f64,
+) -> bool {
+    let to_other = other - eye;
+    let distance = to_other.norm();
+    if distance <= other_radius {
+        return true;
+    }
+    if distance - other_radius >= front {
+        return false;
+    }
+    let angle = (to_other.dot(axis) / distance).clamp(-1.0, 1.0).acos();
+    angle < half_angle + (other_radius / distance).asin()
+}
+
+fn sphere_hidden(
+    camera: &Camera,
+    pose: &Pose,
+    eye: &Vector3<f64>,
+    centres: &[Vector3<f64>],
+    k: usize,
+    radius_mm: f64,
+    supports: &Supports,
+) -> Option<HiddenFractions> {
+    let centre = centres[k];
+    if pose.transform(&centre).z <= 0.0 {
+        return None;
+    }
+    let to_centre = centre - eye;
+    let distance = to_centre.norm();
+    if distance <= radius_mm {
+        return None;
+    }
+    let axis = to_centre / distance;
+    let half_angle = (radius_mm / distance).asin();
+    // Sight lines enter the ball no further than the silhouette's rim.
+    let front = (distance * distance - radius_mm * radius_mm).sqrt();
+    let spheres: Vec<usize> = (0..centres.len())
+        .filter(|&j| j != k && may_cover(eye, &axis, half_angle, front, &centres[j], radius_mm))
+        .collect();
+    let parts: Vec<usize> = (0..supports.occluders.len())
+        .filter(|&p| {
+            let (c, r) = supports.bounds[p];
+            may_cover(eye, &axis, half_angle, front, &c, r)
+        })
+        .collect();
+    let rays = SILHOUETTE_RAYS;
+    let (mut by_support, mut by_sphere, mut outside) = (0usize, 0usize, 0usize);
+    for direction in silhouette_directions(eye, &centre, radius_mm) {
+        let t_sphere = occluders::ray_ball(eye, &direction, &centre, radius_mm)
+            .unwrap_or_else(|| (centre - eye).dot(&direction));
+        let on_sphere = eye + direction * t_sphere;
+        let in_image = camera
+            .project(&pose.transform(&on_sphere))
+            .is_some_and(|px: Vector2<f64>| camera.contains(&px, 0.0));
+        if !in_image {
+            outside += 1;
+        } else if spheres.iter().any(|&j| {
+            occluders::ray_ball(eye, &direction, &centres[j], radius_mm)
+                .is_some_and(|t| t < t_sphere)
+        }) {
+            by_sphere += 1;
+        } else if parts.iter().any(|&p| {
+            supports.occluders[p]
+                .ray_hit(eye, &direction)
+                .is_some_and(|t| {
+                    // A hit on a sphere's surface (the round cone under a
+                    // sphere starts with the sphere's own ball) is the
+                    // sphere's, not a support's.
+                    let hit = eye + direction * t;
+                    t < t_sphere - SURFACE_TOLERANCE_MM
+                        && centres
+                            .iter()
+                            .all(|c| (hit - c).norm() > radius_mm + SURFACE_TOLERANCE_MM)
+                })
+        }) {
+            by_support += 1;
+        }
+    }
+    let share = |n: usize| n as f64 / rays as f64;
+    Some(HiddenFractions {
+        support: share(by_support),
+        sphere: share(by_sphere),
+        outside: share(outside),
+    })
+}
+
+/// The [`SILHOUETTE_RAYS`] unit directions from `eye` that the model
+/// follows to the sphere (`centre`, `radius_mm`): a sunflower pattern,
+/// even over the disc the silhouette cone cuts from a plane across the
+/// line of sight.
+pub fn silhouette_directions(
+    eye: &Vector3<f64>,
+    centre: &Vector3<f64>,
+    radius_mm: f64,
+) -> Vec<Vector3<f64>> {
+    let to_centre = centre - eye;
+    let distance = to_centre.norm();
+    let axis = to_centre / distance;
+    let tan_half = (radius_mm / distance).clamp(-1.0, 1.0).asin().tan();
+    let helper = if axis.x.abs() < 0.9 {
+        Vector3::x()
+    } else {
+        Vector3::y()
+    };
+    let e1 = axis.cross(&helper).normalize();
+    let e2 = axis.cross(&e1);
+    (0..SILHOUETTE_RAYS)
+        .map(|i| {
+            let spread = tan_half * ((i as f64 + 0.5) / SILHOUETTE_RAYS as f64).sqrt();
+            let turn = i as f64 * GOLDEN_ANGLE;
+            (axis + (e1 * turn.cos() + e2 * turn.sin()) * spread).normalize()
+        })
+        .collect()
+}
+
+/// [`crate::scenario::visibility`] with the supports counted: a sphere that
+/// is otherwise seen, but whose support-hidden fraction exceeds
+/// `max_hidden`, is listed in [`Visibility::hidden_by_support`].
+pub fn visibility_with_supports(
+    camera: &Camera,
+    pose: &Pose,
+    centres: &[Vector3<f64>],
+    sphere_diameter_mm: f64,
+    supports: &Supports,
+    max_hidden: MaxHidden,
+) -> Visibility {
+    let images = sphere_images(camera, pose, centres, sphere_diameter_mm);
+    let mut result = visibility(&images, camera);
+    if supports.is_empty() || !result.all_in_front() {
+        return result;
+    }
+    let fractions = hidden_fractions(camera, pose, centres, 0.5 * sphere_diameter_mm, supports);
+    for (k, f) in fractions.iter().enumerate() {
+        if f.is_some_and(|f| f.support > max_hidden.fraction()) {
+            result.hidden_by_support.push(k);
+        }
+    }
+    result
+}
+
+/// The views of a working range that the spheres alone leave usable: the
+/// camera centre, in the marker frame, of every scenario in which every
+/// sphere is in front, inside the image and clear of the others.
+/// Supports are routed so as to hide no sphere from these.
+pub fn clear_views(
+    camera: &Camera,
+    scenarios: &[Scenario],
+    centres: &[Vector3<f64>],
+    sphere_diameter_mm: f64,
+) -> Vec<Vector3<f64>> {
+    scenarios
+        .iter()
+        .filter_map(|s| {
+            let pose = s.pose();
+            let images = sphere_images(camera, &pose, centres, sphere_diameter_mm);
+            visibility(&images, camera)
+                .is_visible()
+                .then(|| -(pose.rotation.matrix().transpose() * pose.translation))
+        })
+        .collect()
+}
+
+/// The working range a part is designed for: the camera, the scenarios
+/// (as `validate`'s grid flags give them) and the largest hidden fraction
+/// that still counts as seen.
+#[derive(Debug, Clone, PartialEq)]
+pub struct WorkingRange {
+    /// The camera.
+    pub camera: Camera,
+    /// The scenarios.
+    pub scenarios: Vec<Scenario>,
+    /// The largest support-hidden fraction that counts as seen.
+    pub max_hidden: MaxHidden,
+}
+
+impl WorkingRange {
+    /// [`clear_views`] of this range for the spheres at `centres`.
+    pub fn clear_views(
+        &self,
+        centres: &[Vector3<f64>],
+        sphere_diameter_mm: f64,
+    ) -> Vec<Vector3<f64>> {
+        clear_views(&self.camera, &self.scenarios, centres, sphere_diameter_mm)
+    }
+
+    /// [`lost_views`] of this range for the spheres at `centres` held by
+    /// `supports`.
+    pub fn lost_views(
+        &self,
+        centres: &[Vector3<f64>],
+        sphere_diameter_mm: f64,
+        supports: &Supports,
+    ) -> Vec<LostView> {
+        lost_views(
+            &self.camera,
+            &self.scenarios,
+            centres,
+            sphere_diameter_mm,
+            supports,
+            self.max_hidden,
+        )
+    }
+}
+
+/// A view of the working range in which the supports hide a sphere.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct LostView {
+    /// The scenario.
+    pub scenario: Scenario,
+    /// The sphere hidden (index into the layout's points).
+    pub sphere: usize,
+    /// Its fraction hidden by the supports.
+    pub hidden_fraction: f64,
+}
+
+/// Every scenario of `scenarios` that the spheres alone leave visible but
+/// in which the supports hide more than `max_hidden` of a sphere: the views
+/// the part loses to its supports.
+pub fn lost_views(
+    camera: &Camera,
+    scenarios: &[Scenario],
+    centres: &[Vector3<f64>],
+    sphere_diameter_mm: f64,
+    supports: &Supports,
+    max_hidden: MaxHidden,
+) -> Vec<LostView> {
+    let mut lost = Vec::new();
+    for scenario in scenarios {
+        let pose = scenario.pose();
+        let images = sphere_images(camera, &pose, centres, sphere_diameter_mm);
+        if !visibility(&images, camera).is_visible() {
+            continue;
+        }
+        let fractions =
+            hidden_fractions(camera, &pose, centres, 0.5 * sphere_diameter_mm, supports);
+        for (sphere, f) in fractions.iter().enumerate() {
+            if let Some(f) = f.filter(|f| f.support > max_hidden.fraction()) {
+                lost.push(LostView {
+                    scenario: *scenario,
+                    sphere,
+                    hidden_fraction: f.support,
+                });
+            }
+        }
+    }
+    lost
+}
+
+/// What each cause costs over a set of scenarios, each scenario counted
+/// once, under the first rule it breaks in the order behind the camera,
+/// outside the image, a sphere behind another, a sphere behind the
+/// supports.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
+pub struct CauseCounts {
+    /// Scenarios.
+    pub scenarios: usize,
+    /// Some sphere behind the camera.
+    pub behind: usize,
+    /// Some sphere's disc leaves the image.
+    pub outside: usize,
+    /// Some disc overlaps a nearer sphere's.
+    pub occluded: usize,
+    /// Otherwise seen, but the supports hide more than the allowed
+    /// fraction of some sphere.
+    pub hidden_by_support: usize,
+    /// Seen with the supports counted.
+    pub visible: usize,
+}
+
+impl CauseCounts {
+    /// Visible when the supports are not counted.
+    pub fn visible_without_supports(&self) -> usize {
+        self.visible + self.hidden_by_support
+    }
+}
+
+/// [`CauseCounts`] of `scenarios` for the spheres at `centres` held by
+/// `supports` (in parallel; the counts do not depend on the thread count).
+pub fn count_causes(
+    camera: &Camera,
+    scenarios: &[Scenario],
+    centres: &[Vector3<f64>],
+    sphere_diameter_mm: f64,
+    supports: &Supports,
+    max_hidden: MaxHidden,
+) -> CauseCounts {
+    use rayon::prelude::*;
+    let classes: Vec<usize> = scenarios
+        .par_iter()
+        .map(|s| {
+            let v = visibility_with_supports(
+                camera,
+                &s.pose(),
+                centres,
+                sphere_diameter_mm,
+                supports,
+                max_hidden,
+            );
+            if !v.behind.is_empty() {
+                0
+            } else if !v.outside.is_empty() {
+                1
+            } else if !v.occluded.is_empty() {
+                2
+            } else if !v.hidden_by_support.is_empty() {
+                3
+            } else {
+                4
+            }
+        })
+        .collect();
+    let count = |class: usize| classes.iter().filter(|&&c| c == class).count();
+    CauseCounts {
+        scenarios: scenarios.len(),
+        behind: count(0),
+        outside: count(1),
+        occluded: count(2),
+        hidden_by_support: count(3),
+        visible: count(4),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use approx::assert_relative_eq;
+    use nalgebra::Rotation3;
+
+    fn head_on(depth_mm: f64) -> Pose {
+        Pose::new(Rotation3::identity(), Vector3::new(0.0, 0.0, depth_mm))
+    }
+
+    #[test]
+    fn max_hidden_rejects_values_outside_zero_to_one() {
+        for bad in ["-0.1", "1.01", "nan", "x"] {
+            let error = bad.parse::<MaxHidden>().unwrap_err();
+            assert_eq!(error.field, "max_hidden");
+            assert!(error.reason.contains("from 0 to 1"), "{error}");
+        }
+        assert_eq!(MaxHidden::default().fraction(), DEFAULT_MAX_HIDDEN);
+        assert_eq!("1".parse::<MaxHidden>().unwrap().fraction(), 1.0);
+    }
+
+    #[test]
+    fn a_capsule_across_half_the_disc_hides_half() {
+        let camera = Camera::default();
+        // A wide slab of capsule covering y < 0 in front of the sphere.
+        let supports = Supports::new(vec![Occluder::Box {
+            centre: Vector3::new(0.0, -50.0, -20.0),
+            half_extents: Vector3::new(50.0, 50.0, 1.0),
+        }]);
+        let fractions = hidden_fractions(
+            &camera,
+            &head_on(500.0),
+            &[Vector3::zeros()],
+            5.0,
+            &supports,
+        );
+        let f = fractions[0].expect("in front");
+        assert_relative_eq!(f.support, 0.5, epsilon = 0.02);
+        assert_eq!(f.sphere, 0.0);
+        assert_eq!(f.outside, 0.0);
+        // Behind the sphere it hides nothing.
+        let behind = Supports::new(vec![Occluder::Box {
+            centre: Vector3::new(0.0, -50.0, 20.0),
+            half_extents: Vector3::new(50.0, 50.0, 1.0),
+        }]);
+        let f = hidden_fractions(&camera, &head_on(500.0), &[Vector3::zeros()], 5.0, &behind)[0]
+            .expect("in front");
+        assert_eq!(f.support, 0.0);
+    }
+
+    #[test]
+    fn a_sphere_in_front_hides_by_sphere_and_the_border_by_outside() {
+        let camera = Camera::default();
+        let centres = [Vector3::zeros(), Vector3::new(0.0, 0.0, -30.0)];
+        let f = hidden_fractions(&camera, &head_on(500.0), &centres, 5.0, &Supports::none());
+        assert_relative_eq!(f[0].unwrap().sphere, 1.0);
+        assert_eq!(f[1].unwrap().sphere, 0.0);
+        // Centre on the image's left border: half outside.
+        let x = -camera.cx() * 500.0 / camera.fx();
+        let pose = Pose::new(Rotation3::identity(), Vector3::new(x, 0.0, 500.0));
+        let f = hidden_fractions(&camera, &pose, &[Vector3::zeros()], 5.0, &Supports::none());
+        assert_relative_eq!(f[0].unwrap().outside, 0.5, epsilon = 0.03);
+    }
+}

@@ -1,0 +1,367 @@
+//! The part's supports as analytic occluders: capsules (struts and
+//! pillars), round cones (the cone under each sphere) and boxes (the base
+//! plate), with exact ray intersections. [`crate::mesh::Marker::occluders`]
+//! lists them from the same design the mesher builds its solid from, so
+//! the two cannot drift apart.
+//!
+//! The fillets that blend parts at junctions are left out: they lie at a
+//! sphere's own exit (behind the sphere from any view in front of it) or at
+//! the base plate, behind every sphere.
+
+use nalgebra::Vector3;
+
+/// Largest number of sphere-tracing steps on a round cone.
+const ROUND_CONE_STEPS: usize = 96;
+/// Distance at which sphere tracing counts a hit, mm.
+const TRACE_HIT_MM: f64 = 1e-5;
+
+/// One analytic part of the supports, in the marker frame, mm.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Occluder {
+    /// A cylinder with round ends from `a` to `b`.
+    Capsule {
+        /// Start of the axis.
+        a: Vector3<f64>,
+        /// End of the axis.
+        b: Vector3<f64>,
+        /// Radius.
+        radius: f64,
+    },
+    /// The convex hull of two balls (a cone with round ends).
+    RoundCone {
+        /// Centre of the first ball.
+        a: Vector3<f64>,
+        /// Its radius.
+        radius_a: f64,
+        /// Centre of the second ball.
+        b: Vector3<f64>,
+        /// Its radius.
+        radius_b: f64,
+    },
+    /// An axis-aligned box.
+    Box {
+        /// Centre.
+        centre: Vector3<f64>,
+        /// Half extents along x, y, z.
+        half_extents: Vector3<f64>,
+    },
+}
+
+/// The entry distance of the ray `origin + t·direction` (unit direction)
+/// into the ball, if it meets it ahead of the origin.
+pub fn ray_ball(
+    origin: &Vector3<f64>,
+    direction: &Vector3<f64>,
+    centre: &Vector3<f64>,
+    radius: f64,
+) -> Option<f64> {
+    let oc = origin - centre;
+    let b = oc.dot(direction);
+    let c = oc.norm_squared() - radius * radius;
+    let h = b * b - c;
+    if h < 0.0 {
+        return None;
+    }
+    let root = h.sqrt();
+    let t = -b - root;
+    if t >= 0.0 {
+        Some(t)
+    } else if -b + root >= 0.0 {
+        Some(0.0)
+    } else {
+        None
+    }
+}
+
+impl Occluder {
+    /// A ball that holds the whole part: (centre, radius).
+    pub fn bounding_ball(&self) -> (Vector3<f64>, f64) {
+        match self {
+            Occluder::Capsule { a, b, radius } => (0.5 * (a + b), 0.5 * (b - a).norm() + radius),
+            Occluder::RoundCone {
+                a,
+                radius_a,
+                b,
+                radius_b,
+            } => {
+                let centre = 0.5 * (a + b);
+                let half = 0.5 * (b - a).norm();
+                (centre, half + radius_a.max(*radius_b))
+            }
+            Occluder::Box {
+                centre,
+                half_extents,
+            } => (*centre, half_extents.norm()),
+        }
+    }
+
+    /// The distance from `p` to the part (0 inside).
+    pub fn distance(&self, p: &Vector3<f64>) -> f64 {
+        match self {
+            Occluder::Capsule { a, b, radius } => {
+                ((p - closest_on_segment(p, a, b)).norm() - radius).max(0.0)
+            }
+            Occluder::RoundCone {
+                a,
+                radius_a,
+                b,
+                radius_b,
+            } => round_cone_distance(p, a, *radius_a, b, *radius_b).max(0.0),
+            Occluder::Box {
+                centre,
+                half_extents,
+            } => ((p - centre).abs() - half_extents)
+                .sup(&Vector3::zeros())
+                .norm(),
+        }
+    }
+
+    /// The entry distance of the ray `origin + t·direction` (unit
+    /// direction, origin outside the part) into the part.
+    pub fn ray_hit(&self, origin: &Vector3<f64>, direction: &Vector3<f64>) -> Option<f64> {
+        match self {
+            Occluder::Capsule { a, b, radius } => ray_capsule(origin, direction, a, b, *radius),
+            Occluder::RoundCone {
+                a,
+                radius_a,
+                b,
+                radius_b,
+            } => {
+                let (centre, bound) = self.bounding_ball();
+                let start = ray_ball(origin, direction, &centre, bound)?;
+                let end = start + 2.0 * bound;
+                let mut t = start;
+                for _ in 0..ROUND_CONE_STEPS {
+                    let d =
+                        round_cone_distance(&(origin + direction * t), a, *radius_a, b, *radius_b);
+                    if d < TRACE_HIT_MM {
+                        return Some(t);
+                    }
+                    t += d;
+                    if t > end {
+                        return None;
+                    }
+                }
+                None
+            }
+            Occluder::Box {
+                centre,
+                half_extents,
+            } => {
+                let (mut near, mut far) = (f64::NEG_INFINITY, f64::INFINITY);
+                for k in 0..3 {
+                    let lo = centre[k] - half_extents[k] - origin[k];
+                    let hi = centre[k] + half_extents[k] - origin[k];
+                    if direction[k] == 0.0 {
+                        if lo > 0.0 || hi < 0.0 {
+                            return None;
+                        }
+                        continue;
+                    }
+                    let (t0, t1) = (lo / direction[k], hi / direction[k]);
+                    near = near.max(t0.min(t1));
+                    far = far.min(t0.max(t1));
+                }
+                (near <= far && far >= 0.0).then_some(near.max(0.0))
+            }
+        }
+    }
+}
+
+/// The point of segment `ab` nearest to `p`.
+fn closest_on_segment(p: &Vector3<f64>, a: &Vector3<f64>, b: &Vector3<f64>) -> Vector3<f64> {
+    let ab = b - a;
+    let length_squared = ab.norm_squared();
+    if length_squared == 0.0 {
+        return *a;
+    }
+    a + ab * ((p - a).dot(&ab) / length_squared).clamp(0.0, 1.0)
+}
+
+/// Exact distance to the convex hull of two balls (negative inside).
+fn round_cone_distance(
+    p: &Vector3<f64>,
+    a: &Vector3<f64>,
+    radius_a: f64,
+    b: &Vector3<f64>,
+    radius_b: f64,
+) -> f64 {
+    let axis_vector = b - a;
+    let length = axis_vector.norm();
+    if length <= (radius_a - radius_b).abs() {
+        // One ball holds the other.
+        return if radius_a >= radius_b {
+            (p - a).norm() - radius_a
+        } else {
+            (p - b).norm() - radius_b
+        };
+    }
+    let axis = axis_vector / length;
+    let rel = p - a;
+    let along = rel.dot(&axis);
+    let radial = (rel - axis * along).norm();
+    let sine = (radius_a - radius_b) / length;
+    let cosine = (1.0 - sine * sine).sqrt();
+    let position_on_flank =
+        (along - radius_a * sine) * cosine - (radial - radius_a * cosine) * sine;
+    if position_on_flank <= 0.0 {
+        (p - a).norm() - radius_a
+    } else if position_on_flank >= length * cosine {
+        (p - b).norm() - radius_b
+    } else {
+        along * sine + radial * cosine - radius_a
+    }
+}
+
+/// Entry distance of a ray into a capsule: its cylinder, else its end balls.
+fn ray_capsule(
+    origin: &Vector3<f64>,
+    direction: &Vector3<f64>,
+    a: &Vector3<f64>,
+    b: &Vector3<f64>,
+    radius: f64,
+) -> Option<f64> {
+    let ba = b - a;
+    let oa = origin - a;
+    let baba = ba.norm_squared();
+    let bard = ba.dot(direction);
+    let baoa = ba.dot(&oa);
+    let rdoa = direction.dot(&oa);
+    let oaoa = oa.norm_squared();
+    let qa = baba - bard * bard;
+    let mut best: Option<f64> = None;
+    let mut take = |t: Option<f64>| {
+        if let Some(t) = t {
+            best = Some(best.map_or(t, |b: f64| b.min(t)));
+        }
+    };
+    if qa > 1e-12 * baba {
+        let qb = baba * rdoa - baoa * bard;
+        let qc = baba * oaoa - baoa * baoa - radius * radius * baba;
+        let h = qb * qb - qa * qc;
+        if h >= 0.0 {
+            let t = (-qb - h.sqrt()) / qa;
+            let y = baoa + t * bard;
+            if t >= 0.0 && y > 0.0 && y < baba {
+                return Some(t);
+            }
+        }
+    }
+    take(ray_ball(origin, direction, a, radius));
+    take(ray_ball(origin, direction, b, radius));
+    best
+}
+
+/// Whether a ball of radius `ball_radius` at `q` covers any of the sphere
+/// (`centre`, `radius`) seen from `camera`: it lies in the cone of sight
+/// lines from the camera to the sphere, nearer than the sphere's centre.
+/// Conservative (a ball just behind the sphere's rim counts).
+pub fn ball_covers_sphere(
+    camera: &Vector3<f64>,
+    q: &Vector3<f64>,
+    ball_radius: f64,
+    centre: &Vector3<f64>,
+    radius: f64,
+) -> bool {
+    let to_sphere = centre - camera;
+    let distance = to_sphere.norm();
+    let to_ball = q - camera;
+    let ball_distance = to_ball.norm();
+    if ball_distance <= ball_radius {
+        return true;
+    }
+    let cosine = (to_ball.dot(&to_sphere) / (ball_distance * distance)).clamp(-1.0, 1.0);
+    if ball_distance * cosine - ball_radius >= distance {
+        return false;
+    }
+    let half_angle = (radius / distance).clamp(-1.0, 1.0).asin();
+    let ball_angle = (ball_radius / ball_distance).clamp(-1.0, 1.0).asin();
+    cosine.acos() < half_angle + ball_angle
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use approx::assert_relative_eq;
+
+    #[test]
+    fn capsule_hits_side_and_end() {
+        let capsule = Occluder::Capsule {
+            a: Vector3::new(0.0, 0.0, 0.0),
+            b: Vector3::new(0.0, 0.0, 10.0),
+            radius: 1.0,
+        };
+        let origin = Vector3::new(-5.0, 0.0, 5.0);
+        let t = capsule.ray_hit(&origin, &Vector3::x()).expect("a hit");
+        assert_relative_eq!(t, 4.0, epsilon = 1e-12);
+        let t = capsule
+            .ray_hit(&Vector3::new(0.0, 0.0, -5.0), &Vector3::z())
+            .expect("the end ball");
+        assert_relative_eq!(t, 4.0, epsilon = 1e-12);
+        assert!(capsule
+            .ray_hit(&Vector3::new(-5.0, 2.0, 5.0), &Vector3::x())
+            .is_none());
+    }
+
+    #[test]
+    fn box_and_round_cone_agree_with_their_distance() {
+        let parts = [
+            Occluder::Box {
+                centre: Vector3::new(1.0, 2.0, 3.0),
+                half_extents: Vector3::new(2.0, 1.0, 0.5),
+            },
+            Occluder::RoundCone {
+                a: Vector3::new(0.0, 0.0, 0.0),
+                radius_a: 5.0,
+                b: Vector3::new(0.0, 0.0, 6.0),
+                radius_b: 1.5,
+            },
+        ];
+        for part in &parts {
+            let (centre, _) = part.bounding_ball();
+            for k in 0..40 {
+                let angle = k as f64 * 0.37;
+                let origin = centre + Vector3::new(angle.cos(), angle.sin(), 0.3) * 30.0;
+                let aim = centre + Vector3::new(0.0, 0.1 * (k % 7) as f64, 0.5 * (k % 5) as f64);
+                let direction = (aim - origin).normalize();
+                if let Some(t) = part.ray_hit(&origin, &direction) {
+                    let hit = origin + direction * t;
+                    assert!(part.distance(&hit) < 1e-4, "{part:?} {k}");
+                    // Nothing of the part lies nearer along the ray.
+                    for s in 0..100 {
+                        let before = origin + direction * (t * s as f64 / 100.0);
+                        assert!(part.distance(&before) > 0.0 || s == 100);
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn a_ball_between_camera_and_sphere_covers_it() {
+        let camera = Vector3::new(0.0, 0.0, -500.0);
+        let centre = Vector3::zeros();
+        assert!(ball_covers_sphere(
+            &camera,
+            &Vector3::new(0.0, 5.5, -20.0),
+            1.0,
+            &centre,
+            5.0
+        ));
+        assert!(!ball_covers_sphere(
+            &camera,
+            &Vector3::new(0.0, 8.0, -20.0),
+            1.0,
+            &centre,
+            5.0
+        ));
+        // Behind the sphere: never.
+        assert!(!ball_covers_sphere(
+            &camera,
+            &Vector3::new(0.0, 0.0, 20.0),
+            1.0,
+            &centre,
+            5.0
+        ));
+    }
+}

@@ -1,0 +1,230 @@
+//! The visibility model's supports against the part that `export` writes:
+//! the analytic hidden fraction agrees with a ray cast of the exported
+//! mesh (OBJ read back with `tobj`); a support that cannot clear the
+//! working range loses exactly the views it hides a sphere in; the
+//! fractions do not depend on the thread count.
+
+use crate::export_common::read_obj;
+use layout_opt::camera::Camera;
+use layout_opt::layout::Layout;
+use layout_opt::mesh::{export, ExportOptions, Format, Marker, MarkerOptions};
+use layout_opt::scenario::{Range, Scenario, ScenarioGrid};
+use layout_opt::visibility::{
+    hidden_fractions, silhouette_directions, MaxHidden, Supports, WorkingRange,
+};
+use nalgebra::Vector3;
+use rayon::prelude::*;
+
+/// Möller–Trumbore: the distance along the ray to the triangle.
+fn ray_triangle(
+    origin: &Vector3<f64>,
+    direction: &Vector3<f64>,
+    t: &[Vector3<f64>; 3],
+) -> Option<f64> {
+    let e1 = t[1] - t[0];
+    let e2 = t[2] - t[0];
+    let p = direction.cross(&e2);
+    let det = e1.dot(&p);
+    if det.abs() < 1e-14 {
+        return None;
+    }
+    let s = origin - t[0];
+    let u = s.dot(&p) / det;
+    let q = s.cross(&e1);
+    let v = direction.dot(&q) / det;
+    if u < 0.0 || v < 0.0 || u + v > 1.0 {
+        return None;
+    }
+    Some(e2.dot(&q) / det).filter(|d| *d > 0.0)
+}
+
+/// The fraction of sphere `k`'s silhouette lines whose first triangle lies
+/// well before the sphere and on no sphere: hidden by a support.
+fn mesh_support_fraction(
+    triangles: &[[Vector3<f64>; 3]],
+    scenario: &Scenario,
+    centres: &[Vector3<f64>],
+    radius: f64,
+    k: usize,
+) -> f64 {
+    let pose = scenario.pose();
+    let eye = -(pose.rotation.matrix().transpose() * pose.translation);
+    let directions = silhouette_directions(&eye, &centres[k], radius);
+    let tolerance = layout_opt::visibility::SURFACE_TOLERANCE_MM;
+    let hidden = directions
+        .iter()
+        .filter(|d| {
+            let oc = eye - centres[k];
+            let b = oc.dot(d);
+            let t_sphere = -b
+                - (b * b - oc.norm_squared() + radius * radius)
+                    .max(0.0)
+                    .sqrt();
+            let nearest = triangles
+                .iter()
+                .filter_map(|t| ray_triangle(&eye, d, t))
+                .fold(f64::INFINITY, f64::min);
+            let hit = eye + *d * nearest;
+            nearest < t_sphere - tolerance
+                && centres
+                    .iter()
+                    .all(|c| (hit - c).norm() > radius + tolerance)
+        })
+        .count();
+    hidden as f64 / directions.len() as f64
+}
+
+fn grid(depth: &str, tilt: &str, pan: &str) -> Vec<Scenario> {
+    ScenarioGrid::new(
+        depth.parse().unwrap(),
+        Range::single(0.0),
+        Range::single(0.0),
+        tilt.parse().unwrap(),
+        pan.parse().unwrap(),
+        Range::single(0.0),
+        Range::single(0.5),
+    )
+    .unwrap()
+    .scenarios()
+}
+
+#[test]
+fn analytic_support_fraction_agrees_with_a_ray_cast_of_the_exported_mesh() {
+    let layout = Layout::paper_biprism();
+    let dir = tempfile::tempdir().unwrap();
+    let options = ExportOptions {
+        formats: vec![Format::Obj],
+        allow_occlusion: true,
+        ..Default::default()
+    };
+    let report = export(&layout, &options, dir.path()).unwrap();
+    let mesh = read_obj(&dir.path().join(format!("{}.obj", report.name)));
+    let triangles: Vec<[Vector3<f64>; 3]> = mesh
+        .triangles
+        .iter()
+        .map(|t| t.map(|i| mesh.positions[i]))
+        .collect();
+    let marker = Marker::design(&layout, &MarkerOptions::default()).unwrap();
+    let supports = Supports::new(marker.occluders());
+    let camera = Camera::paper();
+    let centres = layout.positions();
+    let radius = 0.5 * layout.sphere_diameter_mm;
+    // Views from above and below, where the pillars of the front spheres
+    // pass in front of the spheres behind them.
+    let mut compared = 0;
+    let mut partly_hidden = 0;
+    for scenario in grid("400", "-60..60:15", "-20,0,20") {
+        let pose = scenario.pose();
+        let fractions = hidden_fractions(&camera, &pose, &centres, radius, &supports);
+        for (k, f) in fractions.iter().enumerate() {
+            let Some(f) = f else { continue };
+            if f.sphere > 0.0 || f.outside > 0.0 {
+                continue;
+            }
+            // Every sphere a pillar hides, and every tenth of the others.
+            if f.support == 0.0 && (scenario.index + k) % 10 != 0 {
+                continue;
+            }
+            let measured = mesh_support_fraction(&triangles, &scenario, &centres, radius, k);
+            assert!(
+                (measured - f.support).abs() <= 0.01,
+                "{} at tilt {} pan {}: analytic {:.4}, mesh {:.4}",
+                layout.points[k].name,
+                scenario.tilt_deg,
+                scenario.pan_deg,
+                f.support,
+                measured
+            );
+            compared += 1;
+            partly_hidden += usize::from(f.support > 0.02 && f.support < 0.98);
+        }
+    }
+    assert!(partly_hidden >= 3, "{partly_hidden} partly hidden spheres");
+    assert!(compared >= 20, "{compared} compared");
+}
+
+#[test]
+fn a_support_that_cannot_clear_the_range_loses_exactly_those_views() {
+    let layout = Layout::paper_biprism();
+    let range = WorkingRange {
+        camera: Camera::paper(),
+        scenarios: grid("300", "-80..80:10", "-60..60:30"),
+        max_hidden: MaxHidden::default(),
+    };
+    let centres = layout.positions();
+    let options = MarkerOptions {
+        working_views: range.clear_views(&centres, layout.sphere_diameter_mm),
+        ..Default::default()
+    };
+    let marker = Marker::design(&layout, &options).unwrap();
+    let supports = Supports::new(marker.occluders());
+    let lost = range.lost_views(&centres, layout.sphere_diameter_mm, &supports);
+    assert!(!lost.is_empty(), "this range is too wide to clear");
+    let visible: Vec<usize> = range
+        .scenarios
+        .iter()
+        .filter(|s| {
+            let images = layout_opt::scenario::sphere_images(
+                &range.camera,
+                &s.pose(),
+                &centres,
+                layout.sphere_diameter_mm,
+            );
+            layout_opt::scenario::visibility(&images, &range.camera).is_visible()
+        })
+        .map(|s| s.index)
+        .collect();
+    for scenario in &range.scenarios {
+        let fractions = hidden_fractions(
+            &range.camera,
+            &scenario.pose(),
+            &centres,
+            0.5 * layout.sphere_diameter_mm,
+            &supports,
+        );
+        for (k, f) in fractions.iter().enumerate() {
+            let hidden = f.is_some_and(|f| f.support > 0.01) && visible.contains(&scenario.index);
+            let reported = lost
+                .iter()
+                .any(|l| l.scenario.index == scenario.index && l.sphere == k);
+            assert_eq!(hidden, reported, "scenario {} sphere {k}", scenario.index);
+        }
+    }
+    // Not every view is lost.
+    let lost_scenarios: std::collections::BTreeSet<usize> =
+        lost.iter().map(|l| l.scenario.index).collect();
+    assert!(
+        lost_scenarios.len() < visible.len(),
+        "{} of {}",
+        lost_scenarios.len(),
+        visible.len()
+    );
+}
+
+#[test]
+fn hidden_fractions_do_not_depend_on_the_thread_count() {
+    let layout = Layout::paper_biprism();
+    let marker = Marker::design(&layout, &MarkerOptions::default()).unwrap();
+    let supports = Supports::new(marker.occluders());
+    let camera = Camera::paper();
+    let centres = layout.positions();
+    let scenarios = grid("400..1000:300", "-60..60:20", "-20,20");
+    let run = |threads: usize| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| {
+                scenarios
+                    .par_iter()
+                    .map(|s| hidden_fractions(&camera, &s.pose(), &centres, 5.0, &supports))
+                    .collect::<Vec<_>>()
+            })
+    };
+    let one = run(1);
+    assert_eq!(one, run(3));
+    assert!(one
+        .iter()
+        .flatten()
+        .any(|f| f.is_some_and(|f| f.support > 0.0)));
+}
