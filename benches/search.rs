@@ -4,20 +4,42 @@
 //! on two seeds, and the winner's sensitivity report), on every core. The
 //! outputs go to a temporary directory instead of `layouts/` and `reports/`.
 //!
-//! Run with `cargo bench --bench search`; criterion reports the median wall
-//! time of the whole command over ten runs (about 11 s each). The second
-//! benchmark adds `--front` (the ε-constraint sweep of the Pareto front);
-//! `cargo bench --bench search -- front` runs it alone.
+//! Run with `cargo build --release && cargo bench --bench search` (the
+//! bench runs the binary that build leaves beside it); criterion reports the
+//! median wall time of the whole command over ten runs (about 11 s each).
+//! The second benchmark adds `--front` (the ε-constraint sweep of the Pareto
+//! front); `cargo bench --bench search -- front` runs it alone.
 
 use criterion::{criterion_group, criterion_main, Criterion, SamplingMode};
+use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Duration;
 
-fn search_command(dir: &std::path::Path, extra: &[&str]) -> impl Fn() {
+/// The `layout-opt` binary of this build. The benches are a package of their
+/// own, so Cargo does not build it for them: `cargo build --release` puts it
+/// in `target/release/`, and `cargo bench` this bench in
+/// `target/release/deps/`.
+fn binary() -> PathBuf {
+    let bench = std::env::current_exe().expect("the bench knows its own path");
+    let path = bench
+        .parent()
+        .and_then(Path::parent)
+        .expect("the bench lies in target/<profile>/deps/")
+        .join(format!("layout-opt{}", std::env::consts::EXE_SUFFIX));
+    assert!(
+        path.is_file(),
+        "{} is missing: run `cargo build --release` first",
+        path.display()
+    );
+    path
+}
+
+fn search_command(dir: &Path, extra: &[&str]) -> impl Fn() {
+    let binary = binary();
     let dir = dir.to_path_buf();
     let extra: Vec<String> = extra.iter().map(|s| s.to_string()).collect();
     move || {
-        let status = Command::new(env!("CARGO_BIN_EXE_layout-opt"))
+        let status = Command::new(&binary)
             .args(["search", "--depth", "200..1000", "--quiet"])
             .args(&extra)
             .arg("--out")

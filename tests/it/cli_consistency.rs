@@ -30,6 +30,8 @@ fn small_validate(out: &Path, extra: &[&str]) -> assert_cmd::assert::Assert {
             "0",
             "--tilt",
             "0",
+            "--identify-trials",
+            "0",
         ])
         .args(extra)
         .arg("--out")
@@ -191,6 +193,8 @@ fn visibility_counts_are_a_partition_and_every_occlusion_is_listed() {
             "200..1000:400",
             "--tilt",
             "-90..90:15",
+            "--identify-trials",
+            "0",
             "--out",
         ])
         .arg(dir.path())

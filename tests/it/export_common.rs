@@ -7,7 +7,6 @@ use layout_opt::mesh::geometry::{gltf_rotation, Marker, Node, TEARDROP_HALF_ANGL
 use layout_opt::synthetic::stream_rng;
 use nalgebra::{Matrix3, Matrix4, Vector3, Vector4};
 use rand::Rng;
-use std::collections::HashMap;
 use std::path::Path;
 
 /// A mesh read back from a file, in the marker frame, mm.
@@ -209,59 +208,45 @@ pub struct Soundness {
 pub const DEGENERATE_AREA_MM2: f64 = 1e-6;
 
 pub fn soundness(mesh: &ReadBack) -> Soundness {
-    let mut directed: HashMap<(usize, usize), usize> = HashMap::new();
-    for t in &mesh.triangles {
-        for k in 0..3 {
-            *directed.entry((t[k], t[(k + 1) % 3])).or_default() += 1;
-        }
-    }
-    let mut undirected: HashMap<(usize, usize), (usize, usize)> = HashMap::new();
-    for (&(a, b), &n) in &directed {
-        let entry = undirected.entry((a.min(b), a.max(b))).or_default();
-        if a < b {
-            entry.0 += n;
-        } else {
-            entry.1 += n;
-        }
-    }
-    let bad_edges = undirected
-        .values()
-        .filter(|&&(f, b)| (f, b) != (1, 1))
-        .count();
-
-    // Components by flood fill over shared edges.
-    let mut faces_of_edge: HashMap<(usize, usize), Vec<usize>> = HashMap::new();
-    for (f, t) in mesh.triangles.iter().enumerate() {
-        for k in 0..3 {
-            let (a, b) = (t[k], t[(k + 1) % 3]);
-            faces_of_edge
-                .entry((a.min(b), a.max(b)))
-                .or_default()
-                .push(f);
-        }
-    }
-    let mut seen = vec![false; mesh.triangles.len()];
-    let mut components = 0;
-    for start in 0..mesh.triangles.len() {
-        if seen[start] {
-            continue;
-        }
-        components += 1;
-        let mut stack = vec![start];
-        seen[start] = true;
-        while let Some(f) = stack.pop() {
-            let t = mesh.triangles[f];
-            for k in 0..3 {
+    // Every side of every face as (low vertex, high vertex, runs low to
+    // high, face), sorted so that the sides of one undirected edge lie
+    // together. A sound edge has one side each way.
+    let mut sides: Vec<(usize, usize, bool, usize)> = mesh
+        .triangles
+        .iter()
+        .enumerate()
+        .flat_map(|(f, t)| {
+            (0..3).map(move |k| {
                 let (a, b) = (t[k], t[(k + 1) % 3]);
-                for &g in &faces_of_edge[&(a.min(b), a.max(b))] {
-                    if !seen[g] {
-                        seen[g] = true;
-                        stack.push(g);
-                    }
-                }
-            }
+                (a.min(b), a.max(b), a < b, f)
+            })
+        })
+        .collect();
+    sides.sort_unstable();
+    // Components: faces joined by the edges they share (union-find).
+    let mut parent: Vec<usize> = (0..mesh.triangles.len()).collect();
+    fn root(parent: &mut [usize], mut f: usize) -> usize {
+        while parent[f] != f {
+            parent[f] = parent[parent[f]];
+            f = parent[f];
+        }
+        f
+    }
+    let mut edges = 0;
+    let mut bad_edges = 0;
+    for edge in sides.chunk_by(|x, y| (x.0, x.1) == (y.0, y.1)) {
+        edges += 1;
+        let forward = edge.iter().filter(|side| side.2).count();
+        if (forward, edge.len() - forward) != (1, 1) {
+            bad_edges += 1;
+        }
+        let first = root(&mut parent, edge[0].3);
+        for side in &edge[1..] {
+            let other = root(&mut parent, side.3);
+            parent[other] = first;
         }
     }
+    let components = (0..parent.len()).filter(|&f| parent[f] == f).count();
 
     let mut used = vec![false; mesh.positions.len()];
     let mut degenerate_faces = 0;
@@ -280,12 +265,11 @@ pub fn soundness(mesh: &ReadBack) -> Soundness {
     let vertices = used.iter().filter(|&&u| u).count();
     Soundness {
         vertices,
-        edges: undirected.len(),
+        edges,
         faces: mesh.triangles.len(),
         bad_edges,
         components,
-        euler_characteristic: vertices as i64 - undirected.len() as i64
-            + mesh.triangles.len() as i64,
+        euler_characteristic: vertices as i64 - edges as i64 + mesh.triangles.len() as i64,
         degenerate_faces,
         signed_volume_mm3: volume,
     }

@@ -33,6 +33,11 @@ fn first_order_prediction_matches_ml_on_the_default_grid() {
             "3",
             "--noise",
             "0.5,1",
+            // Identifiability is not asserted on here (see
+            // validate_reports_identifiability_per_scenario_and_axis); its
+            // default 200 trials per scenario would be most of the run.
+            "--identify-trials",
+            "0",
             "--out",
         ])
         .arg(dir.path())
@@ -80,6 +85,10 @@ fn summary_is_identical_at_any_thread_count() {
                 "0,80",
                 "--solvers",
                 "all",
+                // Few identifiability trials: what is compared is that the
+                // seeded streams give the same draws at any thread count.
+                "--identify-trials",
+                "2",
                 "--out",
             ])
             .arg(dir.path())
@@ -125,6 +134,8 @@ fn report_has_every_part() {
             "0.3,0.6",
             "--solvers",
             "ml,parallel-weighted",
+            "--identify-trials",
+            "0",
             "--out",
         ])
         .arg(dir.path())
