@@ -31,7 +31,7 @@ pub mod report;
 pub mod reproduce;
 pub mod scenario;
 pub mod search;
-pub mod sensitivity;
 pub mod sphere_image;
 pub mod spread;
 pub mod synthetic;
+pub mod validate;

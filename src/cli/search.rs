@@ -351,7 +351,7 @@ fn config(args: SearchArgs, global: &GlobalOptions) -> anyhow::Result<SearchConf
         },
         compare_solver: args.compare_solver,
         compare_trials: args.compare_trials,
-        validate_solvers: super::validate::parse_solvers(&args.validate_solvers)?,
+        validate_solvers: super::common::parse_solvers(&args.validate_solvers)?,
         resume: args.resume,
         command: command_line(),
         report_dir,

@@ -39,7 +39,7 @@ use crate::observer::{watch, Observer};
 use crate::pnp::Solver;
 use crate::report::{write_text, ReportError};
 use crate::scenario::{Range, ScenarioGrid};
-use crate::sensitivity::{self, SensitivityError};
+use crate::validate::{self, ValidateConfig, ValidateError};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
@@ -252,8 +252,8 @@ impl SearchConfig {
     }
 
     /// How the winner's validation checks identifiability.
-    pub fn identifiability_check(&self) -> sensitivity::IdentifiabilityCheck {
-        sensitivity::IdentifiabilityCheck {
+    pub fn identifiability_check(&self) -> validate::IdentifiabilityCheck {
+        validate::IdentifiabilityCheck {
             min_correct: self
                 .min_identifiability
                 .map_or(crate::identifiability::DEFAULT_MIN_CORRECT, |f| {
@@ -420,7 +420,7 @@ pub enum SearchError {
     MonteCarlo(#[from] MonteCarloError),
     /// The winner's validation failed.
     #[error(transparent)]
-    Sensitivity(#[from] SensitivityError),
+    Sensitivity(#[from] ValidateError),
     /// A report file could not be written.
     #[error(transparent)]
     Report(#[from] ReportError),
@@ -1349,6 +1349,16 @@ pub fn run(
         gross_threshold_deg: DEFAULT_GROSS_THRESHOLD_DEG,
         observation: config.objective.observation,
     };
+    let validation_config = ValidateConfig {
+        layout: winner.clone(),
+        camera: config.camera,
+        grid: config.grid.clone(),
+        monte_carlo: validation_config,
+        identifiability: config.identifiability_check(),
+        fabrication_sigma_mm: 0.0,
+        command: config.command.clone(),
+    };
+    let validation_config = validation_config.check().map_err(ValidateError::from)?;
     let scenarios_done = AtomicU64::new(0);
     let validation = watch(
         observer,
@@ -1357,23 +1367,20 @@ pub fn run(
         || scenarios_done.load(Ordering::Relaxed),
         Some(&stop),
         || {
-            sensitivity::run_until(
-                &winner,
-                &config.camera,
-                &config.grid,
-                &validation_config,
-                &config.identifiability_check(),
-                &config.command,
-                &|_| {
-                    scenarios_done.fetch_add(1, Ordering::Relaxed);
+            validate::analysis::monte_carlo_until(
+                validation_config,
+                validate::analysis::Hooks {
+                    on_scenario_done: &|_| {
+                        scenarios_done.fetch_add(1, Ordering::Relaxed);
+                    },
+                    stop: &stop,
                 },
-                &stop,
             )
         },
     );
     let validation =
         match validation {
-            Err(SensitivityError::MonteCarlo(MonteCarloError::Interrupted)) => return interrupted(
+            Err(ValidateError::MonteCarlo(MonteCarloError::Interrupted)) => return interrupted(
                 result,
                 PHASE_VALIDATE,
                 "interrupted in the winner's validation: the search's winner, report not written",
@@ -1384,11 +1391,7 @@ pub fn run(
     // Every phase finished: only now are the finished outputs replaced.
     winner.save_atomic(&config.layout_path)?;
     search_report::write(&config.report_dir, &summary)?;
-    sensitivity::write_report(
-        &config.report_dir.join("winner-validation"),
-        &winner,
-        &validation,
-    )?;
+    validate::report::write(&config.report_dir.join("winner-validation"), &validation)?;
     let total_seconds = started.elapsed().as_secs_f64();
     let run_path = config.report_dir.join("run.json");
     let run_json = serde_json::to_string_pretty(&serde_json::json!({
