@@ -14,7 +14,7 @@ use layout_opt::sphere_image::Observation;
 use layout_opt::validate::config::default_tilt_step_deg;
 use layout_opt::validate::markdown::{console, fabrication_line};
 use layout_opt::validate::{
-    self, IdentifiabilityCheck, ValidateConfig, ValidateError, WorkflowConfig,
+    self, IdentifiabilityCheck, ValidateConfig, ValidateError, WorkflowConfig, WorkflowError,
     DEFAULT_TILT_STEP_DEG, POLYNOMIAL_TILT_STEP_DEG,
 };
 use std::path::PathBuf;
@@ -138,10 +138,10 @@ pub fn run(args: ValidateArgs, global: &GlobalOptions) -> anyhow::Result<()> {
     let result = validate::workflow::run(&config, &mut bars);
     bars.finish();
     let interrupted = match &result {
-        Err(ValidateError::MonteCarlo(MonteCarloError::Interrupted)) => {
+        Err(WorkflowError::Validate(ValidateError::MonteCarlo(MonteCarloError::Interrupted))) => {
             Some("interrupted: no report written")
         }
-        Err(ValidateError::Fabrication(FabricationError::Interrupted)) => {
+        Err(WorkflowError::Validate(ValidateError::Fabrication(FabricationError::Interrupted))) => {
             Some("interrupted during the fabrication check")
         }
         _ => None,

@@ -17,7 +17,8 @@ use super::summary::{
     Curve, CurveSolver, Header, IdentifiabilityCurve, IdentifiabilitySummary, Overview, SolverRow,
     Systematic, ValidateSummary, VisibilityClass, VisibilityCounts,
 };
-use super::ValidateError;
+use crate::config::ConfigError;
+use crate::error_model::fabrication::FabricationError;
 use crate::error_model::fabrication::{self, FabricationMonteCarlo, FabricationRun};
 use crate::identifiability::{self, IdentifiabilitySettings, ScenarioIdentifiability};
 use crate::layout::Layout;
@@ -30,6 +31,21 @@ use crate::pnp::parallel::reference_index;
 use crate::report::significant;
 use crate::scenario::ScenarioGrid;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+
+/// Why a validation's analysis could not run.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum ValidateError {
+    /// A configuration value is unusable.
+    #[error("invalid validation settings: {0}")]
+    Config(#[from] ConfigError),
+    /// The Monte-Carlo run failed or was interrupted.
+    #[error(transparent)]
+    MonteCarlo(#[from] MonteCarloError),
+    /// The fabrication run failed or was interrupted.
+    #[error(transparent)]
+    Fabrication(#[from] FabricationError),
+}
 
 /// Progress phase of the Monte-Carlo runs: one step per scenario for the
 /// solvers, then one per scenario for identifiability.

@@ -27,7 +27,7 @@
 //! println!("{} visible scenarios", summary.overview.visibility.visible);
 //! // The report and run.json in a directory:
 //! validate::workflow::run(&WorkflowConfig::new(config, "reports/biprism"), &mut Silent)?;
-//! # Ok::<(), validate::ValidateError>(())
+//! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
 pub mod analysis;
@@ -37,7 +37,7 @@ pub mod report;
 pub mod summary;
 pub mod workflow;
 
-pub use analysis::{analyse, PHASE};
+pub use analysis::{analyse, ValidateError, PHASE};
 pub use config::{
     IdentifiabilityCheck, ValidateConfig, DEFAULT_IDENTIFY_TRIALS, DEFAULT_TILT_STEP_DEG,
     POLYNOMIAL_TILT_STEP_DEG,
@@ -47,31 +47,4 @@ pub use summary::{
     IdentifiabilitySummary, Overview, SolverRow, Systematic, ValidateSummary, VisibilityClass,
     VisibilityCounts,
 };
-pub use workflow::{ValidateOutcome, WorkflowConfig};
-
-use crate::config::ConfigError;
-use crate::error_model::fabrication::FabricationError;
-use crate::files::LockError;
-use crate::montecarlo::MonteCarloError;
-use crate::report::ReportError;
-
-/// Why a validation could not run.
-#[derive(Debug, thiserror::Error)]
-#[non_exhaustive]
-pub enum ValidateError {
-    /// A configuration value is unusable.
-    #[error("invalid validation settings: {0}")]
-    Config(#[from] ConfigError),
-    /// The Monte-Carlo run failed or was interrupted.
-    #[error(transparent)]
-    MonteCarlo(#[from] MonteCarloError),
-    /// The fabrication run failed or was interrupted.
-    #[error(transparent)]
-    Fabrication(#[from] FabricationError),
-    /// The output directory is locked by another run, or the lock failed.
-    #[error(transparent)]
-    Lock(#[from] LockError),
-    /// The report could not be written.
-    #[error(transparent)]
-    Report(#[from] ReportError),
-}
+pub use workflow::{ValidateOutcome, WorkflowConfig, WorkflowError};

@@ -5,14 +5,13 @@
 
 use super::markdown::markdown;
 use super::summary::{occluded_pairs, visible, Curve, IdentifiabilityCurve, ValidateSummary};
-use super::ValidateError;
 use crate::report::{plots, write_text, ReportError, Table};
 use crate::validate::VisibilityClass;
 use std::path::Path;
 
 /// Writes the report of `validation` into `dir` (created if missing), each
 /// file atomically.
-pub fn write(dir: &Path, validation: &ValidateSummary) -> Result<(), ValidateError> {
+pub fn write(dir: &Path, validation: &ValidateSummary) -> Result<(), ReportError> {
     let layout = &validation.layout;
     std::fs::create_dir_all(dir).map_err(|e| ReportError::write(dir, e))?;
     let summary = &validation.overview;
@@ -75,7 +74,7 @@ pub fn write(dir: &Path, validation: &ValidateSummary) -> Result<(), ValidateErr
     Ok(())
 }
 
-fn write_curve(dir: &Path, curve: &Curve) -> Result<(), ValidateError> {
+fn write_curve(dir: &Path, curve: &Curve) -> Result<(), ReportError> {
     let mut table = Table::new(
         [
             format!("{} ({})", curve.axis, curve.unit),
@@ -165,7 +164,7 @@ fn write_curve(dir: &Path, curve: &Curve) -> Result<(), ValidateError> {
 fn write_identifiability_curve(
     dir: &Path,
     curve: &IdentifiabilityCurve,
-) -> Result<(), ValidateError> {
+) -> Result<(), ReportError> {
     let mut table = Table::new([
         format!("{} ({})", curve.axis, curve.unit),
         "visible".into(),

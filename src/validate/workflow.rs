@@ -10,9 +10,11 @@
 //! does not change.
 
 use super::analysis;
+use super::analysis::ValidateError;
 use super::config::{Checked, ValidateConfig};
+use super::report;
 use super::summary::ValidateSummary;
-use super::{report, ValidateError};
+use crate::files::LockError;
 use crate::files::OutputLock;
 use crate::montecarlo::{self, MonteCarloConfig, Target};
 use crate::observer::Observer;
@@ -20,6 +22,21 @@ use crate::report::{duration_text, write_text, ReportError, SLOW_RUN_SECONDS};
 use crate::scenario::Scenario;
 use std::path::PathBuf;
 use std::time::Instant;
+
+/// Why a validation run could not finish.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum WorkflowError {
+    /// The analysis failed, was interrupted, or its config is unusable.
+    #[error(transparent)]
+    Validate(#[from] ValidateError),
+    /// The output directory is locked by another run, or the lock failed.
+    #[error(transparent)]
+    Lock(#[from] LockError),
+    /// The report could not be written.
+    #[error(transparent)]
+    Report(#[from] ReportError),
+}
 
 /// Every input of a validation run: the analysis's configuration and where
 /// and how the run writes.
@@ -88,7 +105,7 @@ pub struct Run<'a, O: Observer> {
 }
 
 /// One step of a run, after the analysis.
-type Phase<O> = fn(&mut Run<'_, O>) -> Result<(), ValidateError>;
+type Phase<O> = fn(&mut Run<'_, O>) -> Result<(), WorkflowError>;
 
 /// Validates [`WorkflowConfig::validate`] and writes its report, with
 /// `run.json` (timing, threads, solves, the grid note), into
@@ -102,8 +119,8 @@ type Phase<O> = fn(&mut Run<'_, O>) -> Result<(), ValidateError>;
 pub fn run(
     config: &WorkflowConfig,
     observer: &mut impl Observer,
-) -> Result<ValidateOutcome, ValidateError> {
-    let validate = config.validate.check()?;
+) -> Result<ValidateOutcome, WorkflowError> {
+    let validate = config.validate.check().map_err(ValidateError::from)?;
     let _lock = OutputLock::acquire(&config.out_dir)?;
     let estimate = match config.estimate {
         true => Some(estimate(validate, observer)?),
@@ -150,13 +167,13 @@ fn estimate(validate: Checked, observer: &mut impl Observer) -> Result<RunEstima
 }
 
 /// The report, from the summary.
-fn write_report<O: Observer>(run: &mut Run<'_, O>) -> Result<(), ValidateError> {
-    report::write(&run.config.out_dir, &run.summary)
+fn write_report<O: Observer>(run: &mut Run<'_, O>) -> Result<(), WorkflowError> {
+    Ok(report::write(&run.config.out_dir, &run.summary)?)
 }
 
 /// `run.json`: what depends on the machine (timing, threads), kept out of
 /// `summary.json`.
-fn write_run_json<O: Observer>(run: &mut Run<'_, O>) -> Result<(), ValidateError> {
+fn write_run_json<O: Observer>(run: &mut Run<'_, O>) -> Result<(), WorkflowError> {
     let solves = run.summary.solves();
     let path = run.config.out_dir.join("run.json");
     let json = serde_json::json!({
@@ -172,7 +189,7 @@ fn write_run_json<O: Observer>(run: &mut Run<'_, O>) -> Result<(), ValidateError
 }
 
 /// The fabrication Monte-Carlo run, when σ_fab > 0.
-fn fabrication<O: Observer>(run: &mut Run<'_, O>) -> Result<(), ValidateError> {
+fn fabrication<O: Observer>(run: &mut Run<'_, O>) -> Result<(), WorkflowError> {
     run.summary.fabrication = analysis::fabrication(run.validate, run.observer)?;
     Ok(())
 }
@@ -303,7 +320,7 @@ mod tests {
         config.validate.monte_carlo.gross_threshold_deg = 0.0;
         assert!(matches!(
             run(&config, &mut Silent),
-            Err(ValidateError::Config(e)) if e.field == "gross_threshold_deg"
+            Err(WorkflowError::Validate(ValidateError::Config(e))) if e.field == "gross_threshold_deg"
         ));
     }
 
@@ -330,9 +347,9 @@ mod tests {
         assert!(
             matches!(
                 result,
-                Err(ValidateError::MonteCarlo(
+                Err(WorkflowError::Validate(ValidateError::MonteCarlo(
                     crate::montecarlo::MonteCarloError::Interrupted
-                ))
+                )))
             ),
             "{result:?}"
         );
