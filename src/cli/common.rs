@@ -1,5 +1,5 @@
-//! Flags shared by the commands that run scenarios: the camera and the
-//! scenario grid.
+//! Flags shared by the commands that run scenarios: the camera, the
+//! scenario grid and the solvers.
 
 use clap::Args;
 use layout_opt::camera::Camera;
@@ -117,25 +117,7 @@ pub fn command_line() -> String {
         .join(" ")
 }
 
-/// Runs estimated to take at least this long, seconds, print their
-/// estimate before they start.
-pub const SLOW_RUN_SECONDS: f64 = 10.0;
-
-/// A duration for an estimate, rounded to what an estimate can promise:
-/// "5 s", "40 s", "3 min", "1.5 h".
-pub fn duration_text(seconds: f64) -> String {
-    if !seconds.is_finite() {
-        "an unknown time".into()
-    } else if seconds < 1.0 {
-        "1 s".into()
-    } else if seconds < 90.0 {
-        format!("{:.0} s", seconds)
-    } else if seconds < 5400.0 {
-        format!("{:.0} min", seconds / 60.0)
-    } else {
-        format!("{:.1} h", seconds / 3600.0)
-    }
-}
+pub use layout_opt::report::{duration_text, SLOW_RUN_SECONDS};
 
 /// Parses `all` or a comma list of solver names.
 pub fn parse_solvers(text: &str) -> anyhow::Result<Vec<Solver>> {

@@ -295,6 +295,25 @@ impl FabricationRun {
     }
 }
 
+/// The inputs of a fabrication Monte-Carlo run ([`monte_carlo`]).
+#[derive(Debug, Clone, Copy)]
+pub struct FabricationMonteCarlo<'a> {
+    /// The camera.
+    pub camera: &'a Camera,
+    /// The nominal sphere centres, marker frame, mm (what the solver fits).
+    pub object: &'a [Vector3<f64>],
+    /// Sphere diameter, mm (for visibility).
+    pub sphere_diameter_mm: f64,
+    /// σ_fab, mm per coordinate.
+    pub sigma_fab_mm: f64,
+    /// Trials per scenario.
+    pub trials: usize,
+    /// The run's seed (the streams add [`FABRICATION_SEED_OFFSET`]).
+    pub seed: u64,
+    /// The solver.
+    pub solver: Solver,
+}
+
 /// Monte-Carlo check of the fabrication term: in every scenario of
 /// `scenarios` that sees every sphere with σ > 0, each trial prints a new
 /// part (centres `Xᵢ + eᵢ`, `eᵢ ~ N(0, σ_fab² I₃)`), projects its centres
@@ -304,60 +323,43 @@ impl FabricationRun {
 /// [`FABRICATION_SEED_OFFSET`]`, s, k)`: the part first, then the noise,
 /// so the results do not depend on the thread count. `stop` is read before
 /// every trial.
-#[allow(clippy::too_many_arguments)]
 pub fn monte_carlo(
-    camera: &Camera,
+    run: &FabricationMonteCarlo,
     scenarios: &[Scenario],
-    object: &[Vector3<f64>],
-    sphere_diameter_mm: f64,
-    sigma_fab_mm: f64,
-    trials: usize,
-    seed: u64,
-    solver: Solver,
     stop: &(dyn Fn() -> bool + Sync),
 ) -> Result<FabricationRun, FabricationError> {
-    if !(sigma_fab_mm >= 0.0 && sigma_fab_mm.is_finite()) {
-        return Err(FabricationError::BadSigma(sigma_fab_mm));
+    if !(run.sigma_fab_mm >= 0.0 && run.sigma_fab_mm.is_finite()) {
+        return Err(FabricationError::BadSigma(run.sigma_fab_mm));
     }
-    if trials == 0 {
+    if run.trials == 0 {
         return Err(FabricationError::NoTrials);
     }
     let outcomes: Vec<Option<FabricationOutcome>> = scenarios
         .par_iter()
-        .map(|scenario| {
-            run_scenario(
-                camera,
-                scenario,
-                object,
-                sphere_diameter_mm,
-                sigma_fab_mm,
-                trials,
-                seed,
-                solver,
-                stop,
-            )
-        })
+        .map(|scenario| run_scenario(run, scenario, stop))
         .collect::<Result<_, _>>()?;
     Ok(FabricationRun {
-        sigma_fab_mm,
-        solver: solver.name().to_string(),
-        trials,
+        sigma_fab_mm: run.sigma_fab_mm,
+        solver: run.solver.name().to_string(),
+        trials: run.trials,
         outcomes: outcomes.into_iter().flatten().collect(),
     })
 }
 
-#[allow(clippy::too_many_arguments)]
 fn run_scenario(
-    camera: &Camera,
+    run: &FabricationMonteCarlo,
     scenario: &Scenario,
-    object: &[Vector3<f64>],
-    sphere_diameter_mm: f64,
-    sigma_fab_mm: f64,
-    trials: usize,
-    seed: u64,
-    solver: Solver,
     stop: &(dyn Fn() -> bool + Sync),
 ) -> Result<Option<FabricationOutcome>, FabricationError> {
+    let FabricationMonteCarlo {
+        camera,
+        object,
+        sphere_diameter_mm,
+        sigma_fab_mm,
+        trials,
+        seed,
+        solver,
+    } = *run;
     if scenario.sigma_px.is_nan() || scenario.sigma_px <= 0.0 {
         return Ok(None);
     }
@@ -518,17 +520,25 @@ mod tests {
         );
         let never = || false;
         let scenarios = grid.scenarios();
+        let base = FabricationMonteCarlo {
+            camera: &camera,
+            object: &object,
+            sphere_diameter_mm: 10.0,
+            sigma_fab_mm: 0.0,
+            trials: 1,
+            seed: 1,
+            solver: Solver::Ml,
+        };
         for bad in [-0.1, f64::NAN, f64::INFINITY] {
             assert!(matches!(
                 monte_carlo(
-                    &camera,
+                    &FabricationMonteCarlo {
+                        sigma_fab_mm: bad,
+                        trials: 10,
+                        seed: 1,
+                        ..base
+                    },
                     &scenarios,
-                    &object,
-                    10.0,
-                    bad,
-                    10,
-                    1,
-                    Solver::Ml,
                     &never
                 ),
                 Err(FabricationError::BadSigma(_))
@@ -536,14 +546,13 @@ mod tests {
         }
         assert_eq!(
             monte_carlo(
-                &camera,
+                &FabricationMonteCarlo {
+                    sigma_fab_mm: 0.1,
+                    trials: 0,
+                    seed: 1,
+                    ..base
+                },
                 &scenarios,
-                &object,
-                10.0,
-                0.1,
-                0,
-                1,
-                Solver::Ml,
                 &never
             )
             .unwrap_err(),
@@ -551,14 +560,13 @@ mod tests {
         );
         assert_eq!(
             monte_carlo(
-                &camera,
+                &FabricationMonteCarlo {
+                    sigma_fab_mm: 0.1,
+                    trials: 3,
+                    seed: 1,
+                    ..base
+                },
                 &scenarios,
-                &object,
-                10.0,
-                0.1,
-                3,
-                1,
-                Solver::Ml,
                 &|| true
             )
             .unwrap_err(),
@@ -614,6 +622,15 @@ mod tests {
         )
         .unwrap();
         let scenarios = grid.scenarios();
+        let base = FabricationMonteCarlo {
+            camera: &camera,
+            object: &object,
+            sphere_diameter_mm: 10.0,
+            sigma_fab_mm: 0.0,
+            trials: 1,
+            seed: 1,
+            solver: Solver::Ml,
+        };
         let run = |sigma_fab: f64, threads: usize| {
             rayon::ThreadPoolBuilder::new()
                 .num_threads(threads)
@@ -621,14 +638,13 @@ mod tests {
                 .unwrap()
                 .install(|| {
                     monte_carlo(
-                        &camera,
+                        &FabricationMonteCarlo {
+                            sigma_fab_mm: sigma_fab,
+                            trials: 400,
+                            seed: 7,
+                            ..base
+                        },
                         &scenarios,
-                        &object,
-                        10.0,
-                        sigma_fab,
-                        400,
-                        7,
-                        Solver::Ml,
                         &|| false,
                     )
                     .unwrap()

@@ -151,6 +151,26 @@ pub fn write_text(path: &Path, text: &str) -> Result<(), ReportError> {
     crate::files::write_text_atomic(path, text).map_err(|e| ReportError::write(path, e))
 }
 
+/// Runs estimated to take at least this long, seconds, print their
+/// estimate before they start.
+pub const SLOW_RUN_SECONDS: f64 = 10.0;
+
+/// A duration for an estimate, rounded to what an estimate can promise:
+/// "5 s", "40 s", "3 min", "1.5 h".
+pub fn duration_text(seconds: f64) -> String {
+    if !seconds.is_finite() {
+        "an unknown time".into()
+    } else if seconds < 1.0 {
+        "1 s".into()
+    } else if seconds < 90.0 {
+        format!("{:.0} s", seconds)
+    } else if seconds < 5400.0 {
+        format!("{:.0} min", seconds / 60.0)
+    } else {
+        format!("{:.1} h", seconds / 3600.0)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

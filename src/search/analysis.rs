@@ -38,7 +38,7 @@ use crate::family::{Family, FamilyError, FamilyKind};
 use crate::layout::Layout;
 use crate::montecarlo::{MonteCarloConfig, MonteCarloError, DEFAULT_GROSS_THRESHOLD_DEG};
 use crate::observer::{watch, Observer};
-use crate::sensitivity::{self, SensitivityError};
+use crate::validate::{self, ValidateConfig, ValidateError};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Arc;
 use std::time::Instant;
@@ -143,7 +143,7 @@ pub struct Finished {
     /// The comparison, verdicts and books.
     pub summary: SearchSummary,
     /// The winner's sensitivity analysis on the validation seed.
-    pub validation: sensitivity::Analysis,
+    pub validation: validate::ValidateSummary,
     /// The Pareto front and its members' layouts, when asked for.
     pub front: Option<FrontFiles>,
     /// Seconds spent optimising.
@@ -683,7 +683,7 @@ impl Run<'_, '_> {
         observer: &mut impl Observer,
         winner: &Layout,
         summary: &SearchSummary,
-    ) -> Result<sensitivity::Analysis, Halt> {
+    ) -> Result<validate::ValidateSummary, Halt> {
         let config = self.config();
         let monte_carlo = MonteCarloConfig {
             trials: config.compare_trials,
@@ -693,6 +693,18 @@ impl Run<'_, '_> {
             gross_threshold_deg: DEFAULT_GROSS_THRESHOLD_DEG,
             observation: config.objective.observation,
         };
+        let validation_config = ValidateConfig {
+            layout: winner.clone(),
+            camera: config.camera,
+            grid: config.grid.clone(),
+            monte_carlo,
+            identifiability: config.identifiability_check(),
+            fabrication_sigma_mm: 0.0,
+            command: config.command.clone(),
+        };
+        let checked = validation_config
+            .check()
+            .map_err(|error| Halt::from(ValidateError::from(error)))?;
         let scenarios_done = AtomicU64::new(0);
         let validation = watch(
             observer,
@@ -701,22 +713,19 @@ impl Run<'_, '_> {
             || scenarios_done.load(Ordering::Relaxed),
             Some(&self.stop),
             || {
-                sensitivity::run_until(
-                    winner,
-                    &config.camera,
-                    &config.grid,
-                    &monte_carlo,
-                    &config.identifiability_check(),
-                    &config.command,
-                    &|_| {
-                        scenarios_done.fetch_add(1, Ordering::Relaxed);
+                validate::analysis::monte_carlo_until(
+                    checked,
+                    validate::analysis::Hooks {
+                        on_scenario_done: &|_| {
+                            scenarios_done.fetch_add(1, Ordering::Relaxed);
+                        },
+                        stop: &self.stop,
                     },
-                    &self.stop,
                 )
             },
         );
         match validation {
-            Err(SensitivityError::MonteCarlo(MonteCarloError::Interrupted)) => {
+            Err(ValidateError::MonteCarlo(MonteCarloError::Interrupted)) => {
                 Err(Halt::Stopped(Analysed::Interrupted(self.stopped(
                     &summary.outcome,
                     PHASE_VALIDATE,

@@ -13,12 +13,12 @@ use crate::mesh::Format;
 use crate::noise::NoiseModel;
 use crate::pnp::Solver;
 use crate::scenario::{Range, ScenarioGrid};
-use crate::sensitivity;
+use crate::validate;
 use std::path::{Path, PathBuf};
 
 /// Default Monte-Carlo trials of the unlabelled solver per visible scenario
 /// in the search winner's validation (`validate` runs more by default:
-/// [`crate::sensitivity::WINNER_IDENTIFY_TRIALS`]).
+/// [`WINNER_IDENTIFY_TRIALS`]).
 pub const WINNER_IDENTIFY_TRIALS: usize = 50;
 
 /// The polish budget when none is given: two thirds of `iterations` (2000
@@ -206,8 +206,8 @@ impl SearchConfig {
     }
 
     /// How the winner's validation checks identifiability.
-    pub fn identifiability_check(&self) -> sensitivity::IdentifiabilityCheck {
-        sensitivity::IdentifiabilityCheck {
+    pub fn identifiability_check(&self) -> validate::IdentifiabilityCheck {
+        validate::IdentifiabilityCheck {
             min_correct: self
                 .min_identifiability
                 .map_or(crate::identifiability::DEFAULT_MIN_CORRECT, |f| {

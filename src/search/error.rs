@@ -10,7 +10,7 @@ use crate::layout::LayoutError;
 use crate::mesh::ExportError;
 use crate::montecarlo::MonteCarloError;
 use crate::report::ReportError;
-use crate::sensitivity::SensitivityError;
+use crate::validate::ValidateError;
 use std::path::PathBuf;
 
 /// Why a search failed.
@@ -70,7 +70,7 @@ pub enum SearchError {
     MonteCarlo(#[from] MonteCarloError),
     /// The winner's validation failed.
     #[error(transparent)]
-    Sensitivity(#[from] SensitivityError),
+    Sensitivity(#[from] ValidateError),
     /// A report file could not be written.
     #[error(transparent)]
     Report(#[from] ReportError),

@@ -14,7 +14,7 @@ use super::front::{self, FrontFiles, FrontReport};
 use super::summary::{grid_text, SearchSummary};
 use super::{AvailabilityFloor, IdentifiabilityFigures, AVAILABILITY_PENALTY};
 use crate::report::{percent_lower, plots, significant, write_text, ReportError, Table};
-use crate::sensitivity;
+use crate::validate;
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -23,11 +23,7 @@ use std::path::Path;
 /// (its members' layouts at their entries' paths).
 pub fn write(dir: &Path, finished: &Finished) -> Result<(), SearchError> {
     write_summary(dir, &finished.summary)?;
-    sensitivity::write_report(
-        &dir.join("winner-validation"),
-        &finished.winner,
-        &finished.validation,
-    )?;
+    validate::report::write(&dir.join("winner-validation"), &finished.validation)?;
     if let Some(files) = &finished.front {
         write_front(dir, files)?;
     }

@@ -18,7 +18,7 @@ use layout_opt::reproduce::pipeline::ReproduceConfig;
 use layout_opt::reproduce::{Config, Experiment};
 use layout_opt::scenario::{Range, ScenarioGrid};
 use layout_opt::search::SearchConfig;
-use layout_opt::sensitivity::pipeline::SensitivityConfig;
+use layout_opt::validate::{ValidateConfig, WorkflowConfig};
 use std::path::{Path, PathBuf};
 
 const WIDTH_EM: f64 = 0.6;
@@ -214,7 +214,7 @@ fn svgs(dir: &Path, out: &mut Vec<PathBuf>) {
 fn write_reports(dir: &Path) {
     // Sensitivity: every solver (every style at once); at 200 mm the paper's
     // biprism leaves the image, so the depth plot has an empty value.
-    let sensitivity = SensitivityConfig {
+    let validate = ValidateConfig {
         layout: Layout::paper_biprism(),
         camera: Camera::paper(),
         grid: ScenarioGrid::new(
@@ -235,15 +235,15 @@ fn write_reports(dir: &Path) {
             gross_threshold_deg: DEFAULT_GROSS_THRESHOLD_DEG,
             observation: Default::default(),
         },
-        identifiability: layout_opt::sensitivity::IdentifiabilityCheck {
+        identifiability: layout_opt::validate::IdentifiabilityCheck {
             trials: 4,
             ..Default::default()
         },
+        fabrication_sigma_mm: 0.0,
         command: "plots test".into(),
-        grid_note: None,
-        out_dir: dir.join("sensitivity"),
     };
-    layout_opt::sensitivity::pipeline::run(&sensitivity, &mut Silent).unwrap();
+    let sensitivity = WorkflowConfig::new(validate, dir.join("sensitivity"));
+    layout_opt::validate::workflow::run(&sensitivity, &mut Silent).unwrap();
 
     let reproduce = ReproduceConfig {
         experiments: Config {

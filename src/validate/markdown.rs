@@ -1,0 +1,460 @@
+//! Renders a [`ValidateSummary`] as text: `report.md` ([`markdown`]) and the
+//! lines the command line prints when a run ends ([`console`],
+//! [`fabrication_line`]). Computes nothing new.
+
+use super::summary::{
+    axis_unit, AxisErrors, AxisVisibility, IdentifiabilitySummary, Overview, Systematic,
+    ValidateSummary,
+};
+use crate::error_model::fabrication::FabricationRun;
+use crate::report::{significant, Table};
+use std::fmt::Write as _;
+use std::path::Path;
+
+/// What a run prints when it ends: the visibility counts, one row per
+/// solver, the models' predictions, the systematic part, identifiability
+/// and (when there was one) the fabrication run. `out` is the report
+/// directory the lines point to.
+pub fn console(validation: &ValidateSummary, out: &Path) -> String {
+    let summary = &validation.overview;
+    let h = &summary.header;
+    let v = &summary.visibility;
+    let mut text = String::new();
+    let _ = writeln!(
+        text,
+        "{}: {} scenarios × {} trials, seed {}: {} visible, {} occluded, {} outside the image, {} behind the camera (each scenario counted once, in the order behind, outside, occluded)",
+        h.layout, v.scenarios, h.trials_per_scenario, h.seed, v.visible, v.occluded, v.outside_image, v.behind_camera
+    );
+    if v.visible == 0 {
+        let _ = writeln!(text, "no scenario is visible, so no error is measurable; see {} for why each scenario is hidden", out.join("scenarios.csv").display());
+    }
+    let mut table = Table::new([
+        "solver",
+        "RMS rot (°)",
+        "/ 1st order",
+        "RMS trans (mm)",
+        "gross",
+    ]);
+    for row in &summary.solvers {
+        let p = &row.pooled;
+        table.row([
+            p.solver.name().to_string(),
+            format!("{:.4}", p.rms_rotation_deg),
+            p.first_order
+                .rotation_ratio
+                .map_or("—".into(), |r| format!("{r:.3}")),
+            format!("{:.3}", p.rms_translation_mm),
+            p.gross_failures.to_string(),
+        ]);
+    }
+    if !summary.solvers.is_empty() {
+        text.push_str(&table.console());
+    }
+    if let Some(first) = summary.solvers.first() {
+        let (f, t) = (&first.pooled.first_order, &first.pooled.transfer);
+        let show = |v: Option<f64>, unit: &str| {
+            v.filter(|v| v.is_finite())
+                .map_or("not measurable".into(), |v| format!("{v:.4}{unit}"))
+        };
+        let _ = writeln!(
+            text,
+            "first-order limit: {} / {} over {} scenarios; transfer model: {} over {} scenarios{}",
+            show(f.predicted_rms_rotation_deg, "°"),
+            show(f.predicted_rms_translation_mm, " mm"),
+            f.scenarios,
+            show(t.predicted_rms_rotation_deg, "°"),
+            t.scenarios,
+            if h.grid.sigma_px.values.contains(&0.0) {
+                " (the models predict nothing at σ = 0)"
+            } else {
+                ""
+            }
+        );
+    }
+    let s = &summary.systematic;
+    let _ = writeln!(
+        text,
+        "observation {}: image bias up to {:.3} px (median {:.3} px); systematic rotation (first-order bias, RMS) {:.2e}° beside random {:.2e}°, translation {:.2e} mm beside {:.2e} mm",
+        h.observation,
+        s.max_displacement_px,
+        s.median_displacement_px,
+        s.first_order_bias.rms_rotation_deg,
+        s.first_order_random.rms_rotation_deg,
+        s.first_order_bias.rms_translation_mm,
+        s.first_order_random.rms_translation_mm
+    );
+    let id = &summary.identifiability;
+    let _ = writeln!(
+        text,
+        "identifiability (criterion {:.1}% correct labels): {} of {} visible scenarios, smallest margin {}; predicted wrong-label rate {} (mean), Monte-Carlo {} ({} of {} trials)",
+        100.0 * id.min_correct,
+        id.identifiable,
+        id.scenarios,
+        id.smallest_margin_px
+            .map_or("above the gate".to_string(), |m| format!("{m:.3} px")),
+        id.mean_predicted_wrong
+            .map_or("—".to_string(), |p| format!("{p:.2e}")),
+        id.monte_carlo_wrong
+            .map_or("—".to_string(), |p| format!("{p:.2e}")),
+        id.trials.wrong,
+        id.trials.trials
+    );
+    text
+}
+
+/// The fabrication run in one line: the first-order parts and the
+/// Monte-Carlo measurement, with their ratio.
+pub fn fabrication_line(run: &FabricationRun) -> String {
+    let show = |v: Option<f64>| v.map_or("not measurable".into(), |v| format!("{v:.4}°"));
+    let ratio = run
+        .measured_rotation_deg()
+        .zip(run.predicted_rotation_deg())
+        .map_or("—".into(), |(m, p)| format!("{:.3}", m / p));
+    format!(
+        "fabrication σ {} mm ({}, a new part per trial, projected centres, isotropic noise; {} scenarios × {} trials): first-order RMS rotation {} from the noise, {} from the fabrication, {} both; Monte-Carlo {} (ratio {ratio})",
+        run.sigma_fab_mm,
+        run.solver,
+        run.outcomes.len(),
+        run.trials,
+        show(run.noise_rotation_deg()),
+        show(run.fabrication_rotation_deg()),
+        show(run.predicted_rotation_deg()),
+        show(run.measured_rotation_deg()),
+    )
+}
+
+fn range_text(values: &[f64]) -> String {
+    match values {
+        [single] => single.to_string(),
+        [first, .., last] if values.len() > 4 => {
+            format!("{first} … {last} ({} values)", values.len())
+        }
+        _ => values
+            .iter()
+            .map(|v| v.to_string())
+            .collect::<Vec<_>>()
+            .join(", "),
+    }
+}
+
+/// One axis's visibility counts as a table, consecutive values with the
+/// same counts merged into one row ("−90 … −60").
+fn axis_visibility_table(axis: &AxisVisibility) -> Table {
+    let mut table = Table::new([
+        format!("{} ({})", axis.axis, axis.unit),
+        "visible".to_string(),
+        "occluded".to_string(),
+        "outside image".to_string(),
+        "behind camera".to_string(),
+    ]);
+    let mut start = 0;
+    while start < axis.values.len() {
+        let mut end = start;
+        while end + 1 < axis.values.len() && axis.counts[end + 1] == axis.counts[start] {
+            end += 1;
+        }
+        let values = if end == start {
+            axis.values[start].to_string()
+        } else {
+            format!("{} … {}", axis.values[start], axis.values[end])
+        };
+        let counts = axis.counts[start];
+        table.row(std::iter::once(values).chain(counts.iter().map(|c| c.to_string())));
+        start = end + 1;
+    }
+    table
+}
+
+/// `report.md`: every pooled number, with the plots beside them.
+pub(super) fn markdown(summary: &Overview) -> String {
+    let h = &summary.header;
+    let v = &summary.visibility;
+    let mut out = String::new();
+    let _ = writeln!(out, "# Sensitivity report: {}\n", h.layout);
+    let _ = writeln!(out, "| | |\n|---|---|");
+    let _ = writeln!(out, "| command | `{}` |", h.command);
+    let _ = writeln!(out, "| layout-opt | {} |", h.version);
+    let _ = writeln!(out, "| seed | {} |", h.seed);
+    let _ = writeln!(out, "| trials per scenario | {} |", h.trials_per_scenario);
+    let _ = writeln!(out, "| solvers | {} |", h.solvers.join(", "));
+    let _ = writeln!(out, "| noise model | {} |", h.noise_model);
+    let _ = writeln!(
+        out,
+        "| camera | fx {} fy {} cx {} cy {}, {}×{} px, distortion {:?} |",
+        h.camera.fx(),
+        h.camera.fy(),
+        h.camera.cx(),
+        h.camera.cy(),
+        h.camera.width(),
+        h.camera.height(),
+        h.camera.distortion()
+    );
+    let _ = writeln!(out, "| spheres | {} mm |", h.sphere_diameter_mm);
+    let _ = writeln!(
+        out,
+        "| observation | {} (noise added on top) |",
+        h.observation
+    );
+    let _ = writeln!(
+        out,
+        "| reference feature (paraperspective P0, transfer-model segment origin) | {} |",
+        h.reference_point
+    );
+    let _ = writeln!(
+        out,
+        "| gross failure | rotation error > {}° |\n",
+        h.gross_threshold_deg
+    );
+
+    let _ = writeln!(out, "## Scenarios\n");
+    let mut grid = Table::new(["axis", "values"]);
+    for (name, range) in h.grid.named_ranges() {
+        grid.row([
+            format!("{name} ({})", axis_unit(name)),
+            range_text(&range.values),
+        ]);
+    }
+    out.push_str(&grid.markdown());
+    let _ = writeln!(
+        out,
+        "\n{} scenarios: **{} visible** (availability {:.1}%), {} occluded, {} with a sphere outside the image (margin 5 px), {} with a sphere behind the camera (no trials); {} + {} + {} + {} = {}.",
+        v.scenarios, v.visible, 100.0 * v.availability, v.occluded, v.outside_image, v.behind_camera,
+        v.visible, v.occluded, v.outside_image, v.behind_camera, v.scenarios
+    );
+    let _ = writeln!(out, "Each scenario is counted once, under the first rule it breaks in the order behind the camera, outside the image, occluded. A sphere is occluded when its image disc overlaps the disc of a nearer sphere; {} scenarios have an occluded sphere, {} of them also breaking an earlier rule. Statistics below pool the visible scenarios; `scenarios.csv` has every scenario, visible or not, with its class, and `occlusions.csv` every scenario with an occluded sphere and which sphere hides which.\n", v.with_occlusion, v.with_occlusion - v.occluded);
+    for axis in &v.by_axis {
+        let _ = writeln!(out, "Visibility by {} ({}): scenarios at each value; a row \"A … B\" stands for consecutive values with the same counts.\n", axis.axis, axis.unit);
+        out.push_str(&axis_visibility_table(axis).markdown());
+        out.push('\n');
+    }
+    if !v.occlusion_examples.is_empty() {
+        let _ = writeln!(
+            out,
+            "Occluded scenarios (first {} of {}; `occlusions.csv` lists all {} scenarios with an occluded sphere):\n",
+            v.occlusion_examples.len(),
+            v.occluded,
+            v.with_occlusion
+        );
+        for example in &v.occlusion_examples {
+            let _ = writeln!(out, "- {example}");
+        }
+        out.push('\n');
+    }
+
+    let _ = writeln!(out, "## Accuracy per solver (visible scenarios)\n");
+    let _ = writeln!(out, "Monte-Carlo, {} trials per scenario, seed {}. RMS pools every trial; \"worst\" is the worst scenario's RMS. Translation errors are |t − t_true|.\n", h.trials_per_scenario, h.seed);
+    let mut table = Table::new([
+        "solver",
+        "trials",
+        "RMS rot (°)",
+        "mean rot (°)",
+        "worst scenario RMS rot (°)",
+        "RMS E_rot eq. 33 (°)",
+        "RMS trans (mm)",
+        "RMS trans (%)",
+        "gross",
+        "errors",
+    ]);
+    for row in &summary.solvers {
+        let p = &row.pooled;
+        table.row([
+            format!("`{}`", p.solver.name()),
+            p.trials.to_string(),
+            significant(Some(p.rms_rotation_deg), 3),
+            significant(Some(p.mean_rotation_deg), 3),
+            significant(Some(p.worst_rms_rotation_deg), 3),
+            significant(Some(p.rms_paper_rotation_deg), 3),
+            significant(Some(p.rms_translation_mm), 3),
+            significant(Some(p.rms_translation_percent), 3),
+            p.gross_failures.to_string(),
+            p.solver_errors.to_string(),
+        ]);
+    }
+    out.push_str(&table.markdown());
+
+    let _ = writeln!(out, "\n## Predicted against measured\n");
+    if let Some(first) = summary.solvers.first() {
+        let (f, t) = (&first.pooled.first_order, &first.pooled.transfer);
+        let _ = writeln!(
+            out,
+            "The first-order (Cramér–Rao) model, `(JᵀWJ)⁻¹` at the true pose, predicts an RMS rotation error of **{}°** and RMS translation error of **{} mm** over the {} visible scenarios. The paper's transfer model (eqs. 26–29, aggregated as documented in `error_model::transfer`) predicts **{}°** and **{} mm** over the {} of them where it is finite (it diverges where every segment through the reference point is parallel or perpendicular to the optical axis).\n",
+            significant(f.predicted_rms_rotation_deg, 3), significant(f.predicted_rms_translation_mm, 3), f.scenarios,
+            significant(t.predicted_rms_rotation_deg, 3), significant(t.predicted_rms_translation_mm, 3), t.scenarios
+        );
+    }
+    let _ = writeln!(out, "Ratios are measured / predicted over the scenarios each model covers; 1.00 means the model is exact, above 1 the solver does worse than the model predicts.\n");
+    let mut agreement = Table::new([
+        "solver",
+        "rot / first-order",
+        "median scenario rot / first-order",
+        "trans / first-order",
+        "rot / transfer",
+        "median scenario rot / transfer",
+        "trans / transfer",
+    ]);
+    for row in &summary.solvers {
+        let (f, t) = (&row.pooled.first_order, &row.pooled.transfer);
+        agreement.row([
+            format!("`{}`", row.pooled.solver.name()),
+            significant(f.rotation_ratio, 3),
+            significant(row.median_scenario_ratio_to_first_order, 3),
+            significant(f.translation_ratio, 3),
+            significant(t.rotation_ratio, 3),
+            significant(row.median_scenario_ratio_to_transfer, 3),
+            significant(t.translation_ratio, 3),
+        ]);
+    }
+    out.push_str(&agreement.markdown());
+    let _ = writeln!(
+        out,
+        "\n![predicted vs measured](predicted_vs_measured.svg)\n"
+    );
+
+    out.push_str(&systematic_markdown(&summary.systematic, &h.observation));
+    out.push_str(&identifiability_markdown(&summary.identifiability));
+
+    if !summary.curves.is_empty() {
+        let _ = writeln!(out, "## Error along each axis\n");
+        let _ = writeln!(out, "Each point pools the visible scenarios at that value; dashed lines are the model predictions. CSV beside each plot.\n");
+        for curve in &summary.curves {
+            let _ = writeln!(
+                out,
+                "### {}\n\n![error vs {}](error_vs_{}.svg)\n\n[error_vs_{}.csv](error_vs_{}.csv)\n",
+                curve.axis, curve.axis, curve.axis, curve.axis, curve.axis
+            );
+        }
+    }
+    let _ = writeln!(out, "## Marker\n\n![three views](marker_views.svg)\n");
+    out
+}
+
+fn identifiability_markdown(s: &IdentifiabilitySummary) -> String {
+    let mut out = String::new();
+    let _ = writeln!(out, "## Identifiability (visible scenarios)\n");
+    let _ = writeln!(
+        out,
+        "Whether one image tells which blob is which sphere: the unlabelled solver on the blobs, shuffled. Predicted from the noise-free ambiguity margin (the residual norm ‖r‖ of the best wrong labelling that is geometrically consistent): {}. A scenario is identifiable when its predicted wrong-label probability is at most {}. Monte-Carlo: {} trials per visible scenario (the validation's noise draws, seed {}, blobs shuffled), per-point gate {}σ; the wrong labellings are counted, a trial without any labelling counts as wrong. A wrong labelling that fits the blobs worse than the true labelling (refitted) means the solver's search lost the truth, which no margin predicts; the last column is the rest, the wrong labellings that fit better, which is what the prediction models.\n",
+        s.model,
+        significant(Some(1.0 - s.min_correct), 3),
+        s.trials_per_scenario,
+        s.seed,
+        s.trial_gate_sigmas
+    );
+    let mut table = Table::new([
+        "visible scenarios",
+        "identifiable",
+        "share",
+        "smallest margin (px)",
+        "mean predicted wrong",
+        "Monte-Carlo wrong (trials)",
+        "of which a better fit than the truth",
+    ]);
+    table.row([
+        s.scenarios.to_string(),
+        s.identifiable.to_string(),
+        s.identifiable_share
+            .map_or("—".into(), |v| format!("{:.1}%", 100.0 * v)),
+        s.smallest_margin_px.map_or(
+            format!("> {}σ everywhere", s.prediction_gate_sigmas),
+            |m| significant(Some(m), 3),
+        ),
+        significant(s.mean_predicted_wrong, 3),
+        format!(
+            "{} ({} of {}, {} without a labelling, {} fitting worse than the truth)",
+            significant(s.monte_carlo_wrong, 3),
+            s.trials.wrong,
+            s.trials.trials,
+            s.trials.failed,
+            s.trials.missed
+        ),
+        significant(s.monte_carlo_ambiguous, 3),
+    ]);
+    out.push_str(&table.markdown());
+    if !s.worst.is_empty() {
+        let _ = writeln!(
+            out,
+            "\nScenarios that are not identifiable ({} of {}, first {}):\n",
+            s.scenarios - s.identifiable,
+            s.scenarios,
+            s.worst.len()
+        );
+        for line in &s.worst {
+            let _ = writeln!(out, "- {line}");
+        }
+    }
+    for curve in &s.curves {
+        let _ = writeln!(
+            out,
+            "\n### Identifiability vs {}\n\n![identifiability vs {}](identifiability_vs_{}.svg)\n\n[identifiability_vs_{}.csv](identifiability_vs_{}.csv)",
+            curve.axis, curve.axis, curve.axis, curve.axis, curve.axis
+        );
+    }
+    out.push('\n');
+    out
+}
+
+fn systematic_markdown(s: &Systematic, observation: &str) -> String {
+    let mut out = String::new();
+    let _ = writeln!(
+        out,
+        "\n## Systematic and random error (visible scenarios)\n"
+    );
+    let _ = writeln!(
+        out,
+        "Observation `{observation}`: the image point of each sphere is displaced from its projected centre by up to **{} px** (median over scenarios of the largest displacement {} px, {} scenarios). The systematic part is the pose error with zero noise; unlike the random part it does not average out over frames. Rotation about camera x, y, z (pitch, yaw, roll); RMS over scenarios.\n",
+        significant(Some(s.max_displacement_px), 3),
+        significant(Some(s.median_displacement_px), 3),
+        s.scenarios
+    );
+    let mut table = Table::new([
+        "part",
+        "rot x (°)",
+        "rot y (°)",
+        "rot z (°)",
+        "rot (°)",
+        "max rot (°)",
+        "trans (mm)",
+        "max trans (mm)",
+    ]);
+    let mut row = |name: String, e: &AxisErrors| {
+        let [x, y, z] = e.rms_rotation_per_axis_deg;
+        table.row([
+            name,
+            significant(Some(x), 3),
+            significant(Some(y), 3),
+            significant(Some(z), 3),
+            significant(Some(e.rms_rotation_deg), 3),
+            significant(Some(e.max_rotation_deg), 3),
+            significant(Some(e.rms_translation_mm), 3),
+            significant(Some(e.max_translation_mm), 3),
+        ]);
+    };
+    row("random, first-order (1σ)".into(), &s.first_order_random);
+    row("systematic, first-order bias".into(), &s.first_order_bias);
+    for (solver, errors) in &s.solvers {
+        row(format!("systematic, `{solver}` at zero noise"), errors);
+    }
+    out.push_str(&table.markdown());
+    out.push('\n');
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn axis_table_merges_runs_of_equal_counts() {
+        let axis = AxisVisibility {
+            axis: "tilt".into(),
+            unit: "deg".into(),
+            values: vec![-20.0, -10.0, 0.0, 10.0],
+            counts: vec![[3, 0, 0, 0], [3, 0, 0, 0], [1, 2, 0, 0], [3, 0, 0, 0]],
+        };
+        assert_eq!(
+            axis_visibility_table(&axis).markdown(),
+            "| tilt (deg) | visible | occluded | outside image | behind camera |\n|---|---|---|---|---|\n\
+| -20 … -10 | 3 | 0 | 0 | 0 |\n| 0 | 1 | 2 | 0 | 0 |\n| 10 | 3 | 0 | 0 | 0 |\n"
+        );
+    }
+}
