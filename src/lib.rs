@@ -35,3 +35,4 @@ pub mod sensitivity;
 pub mod sphere_image;
 pub mod spread;
 pub mod synthetic;
+pub mod track;

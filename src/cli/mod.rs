@@ -7,6 +7,7 @@ mod progress;
 mod reproduce;
 mod search;
 mod solve;
+mod track;
 mod validate;
 
 use clap::{Args, CommandFactory, FromArgMatches, Parser, Subcommand};
@@ -55,6 +56,9 @@ enum Command {
     /// Printable watertight marker mesh (STL, OBJ, glTF, GLB) and a
     /// fabrication sheet.
     Export(export::ExportArgs),
+    /// Grey camera frames of a printed marker → labelled poses with their
+    /// uncertainty (JSON lines).
+    Track(Box<track::TrackArgs>),
 }
 
 /// Parses the command line and runs the chosen subcommand.
@@ -79,6 +83,7 @@ pub fn run() -> anyhow::Result<()> {
         Command::Search(args) => search::run(*args, &cli.global),
         Command::Reproduce(args) => reproduce::run(args, &cli.global),
         Command::Export(args) => export::run(args, &cli.global),
+        Command::Track(args) => track::run(*args, &cli.global),
     }
 }
 

@@ -19,6 +19,7 @@ mod noisy;
 mod plots;
 mod sphere_image;
 mod sqpnp_crosscheck;
+mod track;
 mod unlabelled;
 
 #[cfg(feature = "cli")]
