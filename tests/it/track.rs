@@ -218,6 +218,7 @@ fn noise_free_frames_give_exact_labels_centres_and_poses() {
             "{depth} mm: ellipse centres off by {ellipse} px"
         );
     }
+    assert!(tracked >= 30, "only {tracked} clean views");
 }
 
 /// A seeded random view of the winner around `depth_mm`, within ±40° of
@@ -303,7 +304,7 @@ fn hidden_flags_match_the_ground_truth() {
     let layout = winner();
     let object = layout.positions();
     let config = TrackConfig::new(layout, camera);
-    const FRAMES: u64 = 160;
+    const FRAMES: u64 = 320;
     let counts: Vec<[usize; 3]> = (0..FRAMES)
         .into_par_iter()
         .filter_map(|k| {
@@ -357,7 +358,7 @@ fn hidden_flags_match_the_ground_truth() {
     let precision = total[0] as f64 / (total[0] + total[1]) as f64;
     let recall = total[0] as f64 / (total[0] + total[2]) as f64;
     eprintln!("hidden flags over {} frames: {} flagged hidden, {} flagged whole, {} missed (≥10% hidden): precision {precision:.3}, recall {recall:.3}", counts.len(), total[0], total[1], total[2]);
-    assert!(total[0] >= 40, "{total:?}");
+    assert!(total[0] >= 50, "{total:?}");
     assert!(precision >= 0.95, "{total:?}");
     assert!(recall >= 0.90, "{total:?}");
 }

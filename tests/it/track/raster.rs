@@ -35,11 +35,10 @@ pub struct Bar {
 
 impl Bar {
     fn covers(&self, p: &Vector2<f64>) -> bool {
-        let normal = Vector2::new(-self.angle.sin(), self.angle.cos());
-        (p - Vector2::new(self.centre[0], self.centre[1]))
-            .dot(&normal)
-            .abs()
-            < self.half_width
+        let along = Vector2::new(self.angle.cos(), self.angle.sin());
+        let normal = Vector2::new(-along.y, along.x);
+        let d = p - Vector2::new(self.centre[0], self.centre[1]);
+        d.dot(&normal).abs() < self.half_width && d.dot(&along).abs() < self.half_length
     }
 }
 
