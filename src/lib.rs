@@ -37,5 +37,6 @@ pub mod sphere_image;
 pub mod spread;
 pub mod statistics;
 pub mod synthetic;
+pub mod track;
 pub mod validate;
 pub mod visibility;

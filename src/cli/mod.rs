@@ -8,6 +8,7 @@ mod render;
 mod reproduce;
 mod search;
 mod solve;
+mod track;
 mod validate;
 
 use clap::{Args, CommandFactory, FromArgMatches, Parser, Subcommand};
@@ -59,6 +60,9 @@ enum Command {
     /// Grey PNG images of the part export builds, as the camera sees it,
     /// with the ground truth of every frame.
     Render(Box<render::RenderArgs>),
+    /// Grey camera frames of a printed marker → labelled poses with their
+    /// uncertainty (JSON lines).
+    Track(Box<track::TrackArgs>),
 }
 
 /// Parses the command line and runs the chosen subcommand.
@@ -84,6 +88,7 @@ pub fn run() -> anyhow::Result<()> {
         Command::Reproduce(args) => reproduce::run(args, &cli.global),
         Command::Export(args) => export::run(args, &cli.global),
         Command::Render(args) => render::run(*args, &cli.global),
+        Command::Track(args) => track::run(*args, &cli.global),
     }
 }
 

@@ -5,6 +5,7 @@ use anyhow::Context;
 use clap::Args;
 use layout_opt::batch::{demo_batch_json, Batch, ProblemResult, UnlabelledConfig, DEFAULT_GATE_PX};
 use layout_opt::pnp::Solver;
+use layout_opt::track::uncertainty::solve_figures;
 use std::path::PathBuf;
 
 /// Flags of `solve`.
@@ -101,7 +102,31 @@ pub fn run(args: SolveArgs, global: &GlobalOptions) -> anyhow::Result<()> {
         batch.solve_with_spheres(solver, args.sphere_diameter, on_progress)
     };
     bar.finish_and_clear();
-    let json = serde_json::to_string_pretty(&output)?;
+    // rvec/tvec, residuals, σ, covariance and label trust beside each pose.
+    let figures = solve_figures(&batch, &output, args.sphere_diameter);
+    let mut document = serde_json::to_value(&output)?;
+    if let Some(results) = document.get_mut("results").and_then(|r| r.as_array_mut()) {
+        for ((result, figures), (id, _)) in results.iter_mut().zip(&figures).zip(&batch.problems) {
+            let Some(entry) = result.as_object_mut() else {
+                continue;
+            };
+            match figures {
+                Some(Ok(figures)) => {
+                    if let Some(warning) = &figures.warning {
+                        eprintln!("warning: {id}: {warning}");
+                    }
+                    if let serde_json::Value::Object(fields) = serde_json::to_value(figures)? {
+                        entry.extend(fields);
+                    }
+                }
+                Some(Err(error)) => {
+                    entry.insert("figures_error".into(), error.clone().into());
+                }
+                None => {}
+            }
+        }
+    }
+    let json = serde_json::to_string_pretty(&document)?;
 
     let mut seconds: Vec<f64> = output
         .results

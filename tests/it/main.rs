@@ -21,6 +21,7 @@ mod plots;
 mod render;
 mod sphere_image;
 mod sqpnp_crosscheck;
+mod track;
 mod unlabelled;
 mod visibility;
 

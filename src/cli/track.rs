@@ -1,0 +1,162 @@
+//! `layout-opt track`: grey camera frames of a printed marker → labelled
+//! poses with their uncertainty, one JSON line per frame.
+
+use super::common::{naming_file, CameraArgs};
+use super::{progress, GlobalOptions};
+use anyhow::Context;
+use clap::Args;
+use layout_opt::layout::Layout;
+use layout_opt::pnp::Solver;
+use layout_opt::track::config::{
+    DEFAULT_MAX_AREA_PX, DEFAULT_MIN_AREA_PX, DEFAULT_MIN_CONTRAST, MAX_EXTRA_BLOBS,
+};
+use layout_opt::track::workflow::{run as run_track, TrackOutputs, WorkflowError};
+use layout_opt::track::{CentreMethod, Threshold, TrackConfig};
+use std::path::PathBuf;
+
+/// Flags of `track`.
+#[derive(Debug, Args)]
+pub struct TrackArgs {
+    /// The marker's layout file (JSON).
+    layout: PathBuf,
+    /// Frames: 8- or 16-bit greyscale PNG files, or directories of them.
+    #[arg(required = true, value_name = "IMAGES")]
+    images: Vec<PathBuf>,
+    #[command(flatten)]
+    camera: CameraArgs,
+    /// Sphere diameter, mm. Default: the layout's.
+    #[arg(long, value_name = "MM")]
+    sphere_diameter: Option<f64>,
+    /// Threshold: otsu, local (uneven light), local:RADIUS_PX:OFFSET, or a
+    /// fixed level in 0..1 of full scale.
+    #[arg(long, default_value = "otsu")]
+    threshold: Threshold,
+    /// Which blob centre feeds the pose: ellipse (fit to the subpixel edge)
+    /// or centroid (intensity-weighted).
+    #[arg(long, default_value = "ellipse")]
+    centre: CentreMethod,
+    /// Solver of the final pose; ml fits the exact sphere-image model, the
+    /// others fit the projected sphere centres.
+    #[arg(long, default_value = "ml")]
+    solver: Solver,
+    /// Pixel σ of the blob centres for the covariance. Default: estimated
+    /// from each frame's residuals.
+    #[arg(long, value_name = "PX")]
+    sigma_px: Option<f64>,
+    /// Identification gate, px.
+    #[arg(long, value_name = "PX", default_value_t = layout_opt::batch::DEFAULT_GATE_PX)]
+    gate_px: f64,
+    /// Blobs tolerated beyond the spheres (clutter, reflections).
+    #[arg(long, default_value_t = 2, value_name = "N")]
+    max_extra_blobs: usize,
+    /// Smallest blob, px.
+    #[arg(long, default_value_t = DEFAULT_MIN_AREA_PX, value_name = "PX")]
+    min_area: usize,
+    /// Largest blob, px.
+    #[arg(long, default_value_t = DEFAULT_MAX_AREA_PX, value_name = "PX")]
+    max_area: usize,
+    /// Least blob contrast, fraction of full scale.
+    #[arg(long, default_value_t = DEFAULT_MIN_CONTRAST, value_name = "FRACTION")]
+    min_contrast: f64,
+    /// Refuse a frame whose labels are wrong with a larger predicted
+    /// probability (the identifiability model's bar is 1e-3).
+    #[arg(long, value_name = "P")]
+    max_wrong_labels: Option<f64>,
+    /// Write the JSON lines here instead of stdout.
+    #[arg(long, value_name = "FILE")]
+    output: Option<PathBuf>,
+    /// Also write a CSV table (one row per frame).
+    #[arg(long, value_name = "FILE")]
+    csv: Option<PathBuf>,
+    /// Write an annotated PNG per frame into this directory.
+    #[arg(long, value_name = "DIR")]
+    overlay: Option<PathBuf>,
+}
+
+/// Exit status of a run stopped by Ctrl-C.
+const EXIT_INTERRUPTED: i32 = 130;
+
+/// The flag of a config field, for error messages.
+fn flag_of(field: &str) -> &str {
+    match field {
+        "sphere_diameter_mm" => "--sphere-diameter",
+        "threshold" => "--threshold",
+        "min_area_px" => "--min-area",
+        "max_area_px" => "--max-area",
+        "min_contrast" => "--min-contrast",
+        "sigma_px" => "--sigma-px",
+        "gate_px" => "--gate-px",
+        "max_extra_blobs" => "--max-extra-blobs",
+        "max_wrong_labels" => "--max-wrong-labels",
+        "object" => "LAYOUT",
+        other => other,
+    }
+}
+
+pub fn run(args: TrackArgs, global: &GlobalOptions) -> anyhow::Result<()> {
+    let layout = naming_file(Layout::load(&args.layout), "layout", &args.layout)?;
+    let camera = args.camera.camera()?;
+    let mut config = TrackConfig::new(&layout, camera);
+    if let Some(diameter) = args.sphere_diameter {
+        config.sphere_diameter_mm = diameter;
+    }
+    config.detector.threshold = args.threshold;
+    config.detector.min_area_px = args.min_area;
+    config.detector.max_area_px = args.max_area;
+    config.detector.min_contrast = args.min_contrast;
+    config.centre = args.centre;
+    config.solver = args.solver;
+    config.sigma_px = args.sigma_px;
+    config.gate_px = args.gate_px;
+    config.max_extra_blobs = args.max_extra_blobs;
+    if let Some(p) = args.max_wrong_labels {
+        config.max_wrong_labels = p;
+    }
+    if let Err(error) = config.validate() {
+        anyhow::bail!("{}: {}", flag_of(error.field), error.reason);
+    }
+    anyhow::ensure!(
+        config.max_extra_blobs <= MAX_EXTRA_BLOBS,
+        "--max-extra-blobs must be at most {MAX_EXTRA_BLOBS}"
+    );
+    let outputs = TrackOutputs {
+        json_lines: args.output.clone(),
+        csv: args.csv.clone(),
+        overlay_dir: args.overlay.clone(),
+    };
+    progress::catch_ctrl_c();
+    let mut bars = progress::Bars::new(global.quiet);
+    let result = run_track(&config, &args.images, &outputs, &mut bars);
+    bars.finish();
+    let run = match result {
+        Ok(run) => run,
+        Err(WorkflowError::Interrupted) => {
+            eprintln!("interrupted; no output written");
+            std::process::exit(EXIT_INTERRUPTED);
+        }
+        Err(error) => return Err(error).context("track"),
+    };
+    for (name, analysis) in &run.frames {
+        if let Err(error) = &analysis.outcome {
+            eprintln!("{name}: {error}");
+        }
+    }
+    let summary = format!(
+        "tracked {} of {} frames with {} ({} spheres of {} mm, {} centres, {} solver)",
+        run.tracked(),
+        run.frames.len(),
+        layout.name,
+        config.object.len(),
+        config.sphere_diameter_mm,
+        config.centre.name(),
+        config.solver
+    );
+    match &args.output {
+        Some(path) => eprintln!("{summary}; wrote {}", path.display()),
+        None => {
+            print!("{}", run.json_lines);
+            eprintln!("{summary}");
+        }
+    }
+    Ok(())
+}

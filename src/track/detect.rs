@@ -1,0 +1,853 @@
+//! Blob detection: bright discs on a dark background, each measured to a
+//! fraction of a pixel.
+//!
+//! 1. **Threshold** ([`Threshold`]): Otsu's level on a 256-bin histogram,
+//!    a fixed level, or a local level (the mean of a square window plus an
+//!    offset) for uneven illumination.
+//! 2. **Components, coarse to fine.** Each 4×4 cell of the frame keeps its
+//!    brightest sample; the cells above threshold are labelled into
+//!    8-connected components (`imageproc::region_labelling`). Around each
+//!    coarse component, the pixels above threshold of its window are
+//!    labelled again at full resolution. Every fine component lies inside
+//!    one coarse component, so only windows around bright regions are
+//!    visited at full resolution, and the labelling never walks the whole
+//!    frame pixel by pixel.
+//! 3. **Measurement** of each component, in a window padded by
+//!    [`WINDOW_PAD_PX`]; pixels of other components are left out:
+//!    * background: median of the window's border, noise σ from its median
+//!      absolute deviation; plateau: median of the component's interior;
+//!      contrast: their difference;
+//!    * the **intensity-weighted centroid**, weights `I − background`;
+//!    * **subpixel edge points**: where the intensity crosses half-way
+//!      between background and plateau, linearly interpolated between
+//!      horizontally and vertically adjacent pixels (for an area-sampled or
+//!      symmetrically blurred edge, the half level lies on the true edge);
+//!    * with lens distortion, the edge points are undistorted first, so the
+//!      silhouette is an exact conic again ([`crate::sphere_image`]);
+//!    * the **ellipse** by the direct least-squares fit ([`super::conic`]),
+//!      refitted without the edge points farther from it than their noise
+//!      allows (a straight occluder's edge, a neighbour's);
+//!    * the sphere's **projected centre** from the ellipse
+//!      ([`super::conic::SphereFromEllipse`]) and, with the radius, its depth.
+//! 4. **Judgement.** A blob is rejected for size, contrast or a shape no
+//!    sphere casts; it is **flagged as partly hidden** when it touches the
+//!    image border, when its photometric area fills too little of its fitted
+//!    ellipse, when too many edge points leave the ellipse, or when the
+//!    ellipse's axis ratio is not the one a sphere's silhouette has there.
+//!
+//! Pixel convention: the centre of the pixel in column `x`, row `y` is the
+//! point `(x, y)` (OpenCV's).
+
+use super::config::{DetectorConfig, Threshold};
+use super::conic::{fit_ellipse, Ellipse, SphereFromEllipse, MIN_EDGE_POINTS};
+use super::frame::GreyFrame;
+use crate::camera::Camera;
+use image::{GrayImage, Luma};
+use imageproc::region_labelling::{connected_components, Connectivity};
+use nalgebra::Vector2;
+use serde::Serialize;
+
+/// Side of the coarse cells, px.
+pub const CELL_PX: usize = 4;
+/// Pixels added around a component's bounding box for its measurement (a
+/// blurred edge's tail).
+pub const WINDOW_PAD_PX: usize = 3;
+/// Smallest tolerance of an edge point's distance from the ellipse, px: the
+/// linear interpolation of an area-sampled edge is off by up to a tenth of
+/// a pixel, so a whole, noise-free disc keeps every point.
+pub const MIN_EDGE_TOLERANCE_PX: f64 = 0.3;
+/// An edge point is off the ellipse beyond this many σ of its position
+/// noise (image noise over the local intensity step).
+pub const EDGE_OUTLIER_SIGMAS: f64 = 4.0;
+/// Rounds of refitting without the outlying edge points.
+pub const REFIT_ROUNDS: usize = 3;
+/// A blob's axis ratio may exceed a sphere's by this factor before the blob
+/// is rejected as no sphere at all (a streak, a reflection).
+pub const MAX_AXIS_RATIO_FACTOR: f64 = 1.6;
+/// A blob's axis ratio may differ from a sphere's by this much before it is
+/// flagged as partly hidden.
+pub const MAX_AXIS_RATIO_ERROR: f64 = 0.08;
+
+/// Why a component is not a blob.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
+pub struct Rejected {
+    /// Smaller than `min_area_px`.
+    pub small: usize,
+    /// Larger than `max_area_px`.
+    pub large: usize,
+    /// Contrast below `min_contrast`.
+    pub contrast: usize,
+    /// No ellipse fits, or one no sphere casts.
+    pub shape: usize,
+}
+
+/// One blob and the detector's figures for it.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Blob {
+    /// Pixels above threshold.
+    pub area_px: usize,
+    /// Plateau minus background, fraction of full scale.
+    pub contrast: f64,
+    /// Background noise σ around the blob, fraction of full scale.
+    pub noise: f64,
+    /// Intensity-weighted centroid, raw px.
+    pub centroid_px: [f64; 2],
+    /// Centre of the fitted ellipse, raw px (the undistorted ellipse centre
+    /// mapped through the lens).
+    pub ellipse_centre_px: [f64; 2],
+    /// The sphere's projected centre from the ellipse, raw px.
+    pub centre_px: [f64; 2],
+    /// Semi-axes of the fitted ellipse (major, minor), undistorted px.
+    pub semi_axes_px: [f64; 2],
+    /// Depth of the sphere centre from the ellipse and the diameter, mm.
+    pub depth_mm: f64,
+    /// Edge points found.
+    pub edge_points: usize,
+    /// RMS distance of the kept edge points from the ellipse, px.
+    pub fit_residual_px: f64,
+    /// Share of edge points left out as off the ellipse.
+    pub outlier_fraction: f64,
+    /// Photometric area over the fitted ellipse's area.
+    pub filled_fraction: f64,
+    /// Fitted axis ratio (major / minor).
+    pub axis_ratio: f64,
+    /// The axis ratio a whole sphere has at this place in the image.
+    pub expected_axis_ratio: f64,
+    /// Why the blob counts as partly hidden (empty: it does not).
+    pub hidden_because: Vec<&'static str>,
+    /// The label the tracker gave the blob (index into the layout's
+    /// spheres), if any.
+    pub label: Option<usize>,
+    /// Ellipse centre on the undistorted normalised plane.
+    #[serde(skip)]
+    pub ellipse_centre_normalised: Vector2<f64>,
+    /// Centroid on the undistorted normalised plane.
+    #[serde(skip)]
+    pub centroid_normalised: Vector2<f64>,
+    /// `1 + b²` of the fitted ellipse (normalised minor semi-axis `b`): an
+    /// ellipse centre over it is the projected sphere centre.
+    #[serde(skip)]
+    pub centre_shrink: f64,
+    /// The fitted ellipse in undistorted pixels.
+    #[serde(skip)]
+    pub ellipse_px: Ellipse,
+}
+
+impl Blob {
+    /// Whether the blob is flagged as partly hidden.
+    pub fn hidden(&self) -> bool {
+        !self.hidden_because.is_empty()
+    }
+}
+
+/// Why a frame yields no usable detection at all.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum DetectError {
+    /// More blobs than the tracker can sort through.
+    #[error("more than {max} blobs pass the detector (at least {found}); is this a frame of the marker?")]
+    TooManyBlobs {
+        /// The most accepted.
+        max: usize,
+        /// Blobs found before the detector stopped counting.
+        found: usize,
+    },
+}
+
+/// What the detector found in one frame.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Detection {
+    /// Accepted blobs (hidden ones included, flagged), in raster order.
+    pub blobs: Vec<Blob>,
+    /// Components rejected, by reason.
+    pub rejected: Rejected,
+    /// Threshold level used (global) or the local offset, fraction of full
+    /// scale.
+    pub threshold_level: f64,
+}
+
+/// The threshold as applied: a level per coarse cell, raw units.
+enum Levels {
+    Global(f64),
+    Local {
+        cell_levels: Vec<f64>,
+        cells_wide: usize,
+    },
+}
+
+impl Levels {
+    fn at(&self, x: usize, y: usize) -> f64 {
+        match self {
+            Levels::Global(level) => *level,
+            Levels::Local {
+                cell_levels,
+                cells_wide,
+            } => cell_levels[(y / CELL_PX) * cells_wide + x / CELL_PX],
+        }
+    }
+}
+
+/// Otsu's threshold bin on a histogram: samples in bins above it are
+/// foreground; `None` when every sample falls in one bin.
+fn otsu_bin(histogram: &[u64; 256]) -> Option<usize> {
+    let total: u64 = histogram.iter().sum();
+    let total_sum: f64 = histogram
+        .iter()
+        .enumerate()
+        .map(|(bin, &n)| bin as f64 * n as f64)
+        .sum();
+    let (mut weight_low, mut sum_low) = (0u64, 0.0);
+    let mut best: Option<(f64, usize)> = None;
+    for (bin, &count) in histogram.iter().enumerate().take(255) {
+        weight_low += count;
+        sum_low += bin as f64 * count as f64;
+        let weight_high = total - weight_low;
+        if weight_low == 0 || weight_high == 0 {
+            continue;
+        }
+        let mean_low = sum_low / weight_low as f64;
+        let mean_high = (total_sum - sum_low) / weight_high as f64;
+        let between = weight_low as f64 * weight_high as f64 * (mean_high - mean_low).powi(2);
+        if best.is_none_or(|(value, _)| between > value) {
+            best = Some((between, bin));
+        }
+    }
+    best.map(|(_, bin)| bin)
+}
+
+/// Finds and measures the blobs of `frame` (module docs). Stops with
+/// [`DetectError::TooManyBlobs`] once more than `max_blobs` are accepted.
+pub fn detect(
+    frame: &GreyFrame,
+    camera: &Camera,
+    config: &DetectorConfig,
+    radius_mm: f64,
+    max_blobs: usize,
+) -> Result<Detection, DetectError> {
+    let width = frame.width() as usize;
+    let height = frame.height() as usize;
+    let pixels = frame.pixels();
+    let full_scale = f64::from(frame.full_scale());
+    let shift = frame.bit_depth() - 8;
+    let cells_wide = width.div_ceil(CELL_PX);
+    let cells_high = height.div_ceil(CELL_PX);
+    let local = matches!(config.threshold, Threshold::Local { .. });
+    // One pass: the histogram, each cell's maximum and (local) sum.
+    let mut histogram = [0u64; 256];
+    let mut cell_max = vec![0u16; cells_wide * cells_high];
+    let mut cell_sum = vec![0u64; if local { cells_wide * cells_high } else { 0 }];
+    for (y, row) in pixels.chunks_exact(width).enumerate() {
+        let cell_row = (y / CELL_PX) * cells_wide;
+        for (cx, chunk) in row.chunks(CELL_PX).enumerate() {
+            let mut max = 0u16;
+            let mut sum = 0u64;
+            for &v in chunk {
+                histogram[usize::from(v >> shift)] += 1;
+                max = max.max(v);
+                sum += u64::from(v);
+            }
+            let cell = &mut cell_max[cell_row + cx];
+            *cell = (*cell).max(max);
+            if local {
+                cell_sum[cell_row + cx] += sum;
+            }
+        }
+    }
+    let bin_scale = f64::from(1u32 << shift);
+    let levels = match config.threshold {
+        Threshold::Otsu => Levels::Global(match otsu_bin(&histogram) {
+            Some(bin) => (bin as f64 + 1.0) * bin_scale - 0.5,
+            None => full_scale,
+        }),
+        Threshold::Fixed(level) => Levels::Global(level * full_scale),
+        Threshold::Local { radius_px, offset } => {
+            let radius_cells = (radius_px as usize).div_ceil(CELL_PX);
+            let cell_levels = local_levels(
+                &cell_sum,
+                cells_wide,
+                cells_high,
+                (width, height),
+                radius_cells,
+            )
+            .into_iter()
+            .map(|mean| mean + offset * full_scale)
+            .collect();
+            Levels::Local {
+                cell_levels,
+                cells_wide,
+            }
+        }
+    };
+    let threshold_level = match (&levels, config.threshold) {
+        (Levels::Global(level), _) => level / full_scale,
+        (_, Threshold::Local { offset, .. }) => offset,
+        _ => unreachable!("local levels come from a local threshold"),
+    };
+    // Background of the whole frame: the mean below a global level (or
+    // below the median, for a local threshold), for blobs whose window
+    // border is all foreground.
+    let fallback_background = {
+        let cut = match &levels {
+            Levels::Global(level) => level / bin_scale,
+            Levels::Local { .. } => 127.0,
+        };
+        let (mut n, mut sum) = (0.0, 0.0);
+        for (bin, &count) in histogram.iter().enumerate() {
+            if (bin as f64) < cut {
+                n += count as f64;
+                sum += (bin as f64 + 0.5) * bin_scale * count as f64;
+            }
+        }
+        if n > 0.0 {
+            sum / n
+        } else {
+            0.0
+        }
+    };
+
+    let mut coarse = GrayImage::new(cells_wide as u32, cells_high as u32);
+    for cy in 0..cells_high {
+        for cx in 0..cells_wide {
+            let level = levels.at(cx * CELL_PX, cy * CELL_PX);
+            if f64::from(cell_max[cy * cells_wide + cx]) > level {
+                coarse.put_pixel(cx as u32, cy as u32, Luma([255]));
+            }
+        }
+    }
+    let coarse_labels = connected_components(&coarse, Connectivity::Eight, Luma([0u8]));
+    let coarse_label =
+        |x: usize, y: usize| coarse_labels.get_pixel((x / CELL_PX) as u32, (y / CELL_PX) as u32)[0];
+    // Bounding boxes of the coarse components, in cells.
+    let mut boxes: Vec<[usize; 4]> = Vec::new();
+    for (cx, cy, label) in coarse_labels.enumerate_pixels() {
+        let label = label[0] as usize;
+        if label == 0 {
+            continue;
+        }
+        if boxes.len() < label {
+            boxes.resize(label, [usize::MAX, usize::MAX, 0, 0]);
+        }
+        let b = &mut boxes[label - 1];
+        b[0] = b[0].min(cx as usize);
+        b[1] = b[1].min(cy as usize);
+        b[2] = b[2].max(cx as usize);
+        b[3] = b[3].max(cy as usize);
+    }
+
+    let context = Context {
+        frame,
+        camera,
+        config,
+        radius_mm,
+        full_scale,
+        fallback_background,
+    };
+    let mut detection = Detection {
+        blobs: Vec::new(),
+        rejected: Rejected::default(),
+        threshold_level,
+    };
+    let mut order: Vec<(usize, Blob)> = Vec::new();
+    for (index, b) in boxes.iter().enumerate() {
+        let label = index as u32 + 1;
+        let x0 = (b[0] * CELL_PX).saturating_sub(CELL_PX);
+        let y0 = (b[1] * CELL_PX).saturating_sub(CELL_PX);
+        let x1 = ((b[2] + 2) * CELL_PX).min(width);
+        let y1 = ((b[3] + 2) * CELL_PX).min(height);
+        let window = Window { x0, y0, x1, y1 };
+        let mut mask = GrayImage::new((x1 - x0) as u32, (y1 - y0) as u32);
+        for y in y0..y1 {
+            for x in x0..x1 {
+                if f64::from(pixels[y * width + x]) > levels.at(x, y) {
+                    mask.put_pixel((x - x0) as u32, (y - y0) as u32, Luma([255]));
+                }
+            }
+        }
+        let fine = connected_components(&mask, Connectivity::Eight, Luma([0u8]));
+        let labels: Vec<u32> = fine.into_raw();
+        let components = component_stats(&labels, &window);
+        for (id, stats) in components.iter().enumerate() {
+            let (fx, fy) = stats.first;
+            if stats.count == 0 || coarse_label(fx, fy) != label {
+                continue;
+            }
+            match measure(&context, &levels, &labels, &window, id as u32 + 1, stats) {
+                Ok(blob) => {
+                    order.push((fy * width + fx, blob));
+                    if order.len() > max_blobs {
+                        return Err(DetectError::TooManyBlobs {
+                            max: max_blobs,
+                            found: order.len(),
+                        });
+                    }
+                }
+                Err(reason) => match reason {
+                    Reason::Small => detection.rejected.small += 1,
+                    Reason::Large => detection.rejected.large += 1,
+                    Reason::Contrast => detection.rejected.contrast += 1,
+                    Reason::Shape => detection.rejected.shape += 1,
+                },
+            }
+        }
+    }
+    order.sort_by_key(|(first, _)| *first);
+    detection.blobs = order.into_iter().map(|(_, blob)| blob).collect();
+    Ok(detection)
+}
+
+/// Per-cell local means over a square of `radius_cells` cells, raw units.
+fn local_levels(
+    cell_sum: &[u64],
+    cells_wide: usize,
+    cells_high: usize,
+    (width, height): (usize, usize),
+    radius_cells: usize,
+) -> Vec<f64> {
+    // Summed-area tables of the sums and of the pixel counts per cell.
+    let stride = cells_wide + 1;
+    let mut sums = vec![0.0f64; stride * (cells_high + 1)];
+    let mut counts = vec![0.0f64; stride * (cells_high + 1)];
+    for cy in 0..cells_high {
+        for cx in 0..cells_wide {
+            let cell_w = CELL_PX.min(width - cx * CELL_PX);
+            let cell_h = CELL_PX.min(height - cy * CELL_PX);
+            let i = (cy + 1) * stride + cx + 1;
+            sums[i] = cell_sum[cy * cells_wide + cx] as f64 + sums[i - 1] + sums[i - stride]
+                - sums[i - stride - 1];
+            counts[i] = (cell_w * cell_h) as f64 + counts[i - 1] + counts[i - stride]
+                - counts[i - stride - 1];
+        }
+    }
+    let mut out = Vec::with_capacity(cells_wide * cells_high);
+    for cy in 0..cells_high {
+        let (ya, yb) = (
+            cy.saturating_sub(radius_cells),
+            (cy + radius_cells + 1).min(cells_high),
+        );
+        for cx in 0..cells_wide {
+            let (xa, xb) = (
+                cx.saturating_sub(radius_cells),
+                (cx + radius_cells + 1).min(cells_wide),
+            );
+            let area = |table: &[f64]| {
+                table[yb * stride + xb] - table[ya * stride + xb] - table[yb * stride + xa]
+                    + table[ya * stride + xa]
+            };
+            out.push(area(&sums) / area(&counts));
+        }
+    }
+    out
+}
+
+/// A window of the frame: columns `x0..x1`, rows `y0..y1`.
+#[derive(Debug, Clone, Copy)]
+struct Window {
+    x0: usize,
+    y0: usize,
+    x1: usize,
+    y1: usize,
+}
+
+impl Window {
+    fn width(&self) -> usize {
+        self.x1 - self.x0
+    }
+}
+
+#[derive(Debug, Clone, Copy)]
+struct Stats {
+    count: usize,
+    first: (usize, usize),
+    min: (usize, usize),
+    max: (usize, usize),
+}
+
+fn component_stats(labels: &[u32], window: &Window) -> Vec<Stats> {
+    let mut stats: Vec<Stats> = Vec::new();
+    let w = window.width();
+    for (i, &label) in labels.iter().enumerate() {
+        if label == 0 {
+            continue;
+        }
+        let (x, y) = (window.x0 + i % w, window.y0 + i / w);
+        let index = label as usize - 1;
+        if stats.len() <= index {
+            stats.resize(
+                index + 1,
+                Stats {
+                    count: 0,
+                    first: (0, 0),
+                    min: (usize::MAX, usize::MAX),
+                    max: (0, 0),
+                },
+            );
+        }
+        let s = &mut stats[index];
+        if s.count == 0 {
+            s.first = (x, y);
+        }
+        s.count += 1;
+        s.min = (s.min.0.min(x), s.min.1.min(y));
+        s.max = (s.max.0.max(x), s.max.1.max(y));
+    }
+    stats
+}
+
+struct Context<'a> {
+    frame: &'a GreyFrame,
+    camera: &'a Camera,
+    config: &'a DetectorConfig,
+    radius_mm: f64,
+    full_scale: f64,
+    fallback_background: f64,
+}
+
+enum Reason {
+    Small,
+    Large,
+    Contrast,
+    Shape,
+}
+
+fn median(values: &mut [f64]) -> f64 {
+    let mid = values.len() / 2;
+    let (_, m, _) = values.select_nth_unstable_by(mid, f64::total_cmp);
+    *m
+}
+
+/// Measures component `id` of the window's labels (module docs, step 3).
+fn measure(
+    context: &Context,
+    levels: &Levels,
+    labels: &[u32],
+    window: &Window,
+    id: u32,
+    stats: &Stats,
+) -> Result<Blob, Reason> {
+    let config = context.config;
+    if stats.count < config.min_area_px {
+        return Err(Reason::Small);
+    }
+    if stats.count > config.max_area_px {
+        return Err(Reason::Large);
+    }
+    let frame = context.frame;
+    let (width, height) = (frame.width() as usize, frame.height() as usize);
+    let value = |x: usize, y: usize| f64::from(frame.pixels()[y * width + x]);
+    let label = |x: usize, y: usize| labels[(y - window.y0) * window.width() + (x - window.x0)];
+    let x0 = stats.min.0.saturating_sub(WINDOW_PAD_PX).max(window.x0);
+    let y0 = stats.min.1.saturating_sub(WINDOW_PAD_PX).max(window.y0);
+    let x1 = (stats.max.0 + WINDOW_PAD_PX).min(window.x1 - 1);
+    let y1 = (stats.max.1 + WINDOW_PAD_PX).min(window.y1 - 1);
+    let touches_border = stats.min.0 == 0
+        || stats.min.1 == 0
+        || stats.max.0 + 1 == width
+        || stats.max.1 + 1 == height;
+    let foreign = |x: usize, y: usize| {
+        let l = label(x, y);
+        l != 0 && l != id
+    };
+
+    // Background and noise from the window's border.
+    let mut ring = Vec::new();
+    for x in x0..=x1 {
+        for y in [y0, y1] {
+            if label(x, y) == 0 {
+                ring.push(value(x, y));
+            }
+        }
+    }
+    for y in y0 + 1..y1 {
+        for x in [x0, x1] {
+            if label(x, y) == 0 {
+                ring.push(value(x, y));
+            }
+        }
+    }
+    let (background, noise) = if ring.len() >= 8 {
+        let background = median(&mut ring);
+        let mut deviations: Vec<f64> = ring.iter().map(|v| (v - background).abs()).collect();
+        (background, 1.4826 * median(&mut deviations))
+    } else {
+        (context.fallback_background, 0.0)
+    };
+    // Plateau: the component's interior (all four neighbours in it).
+    let mut interior = Vec::new();
+    let mut peak = f64::MIN;
+    for y in stats.min.1..=stats.max.1 {
+        for x in stats.min.0..=stats.max.0 {
+            if label(x, y) != id {
+                continue;
+            }
+            let v = value(x, y);
+            peak = peak.max(v);
+            let inside = x > window.x0
+                && y > window.y0
+                && x + 1 < window.x1
+                && y + 1 < window.y1
+                && label(x - 1, y) == id
+                && label(x + 1, y) == id
+                && label(x, y - 1) == id
+                && label(x, y + 1) == id;
+            if inside {
+                interior.push(v);
+            }
+        }
+    }
+    let plateau = if interior.len() >= 3 {
+        median(&mut interior)
+    } else {
+        peak
+    };
+    let step = plateau - background;
+    let contrast = step / context.full_scale;
+    if !(contrast >= config.min_contrast && step > 0.0) {
+        return Err(Reason::Contrast);
+    }
+    let half = background + 0.5 * step;
+
+    // Photometric sum and centroid over the window, other components out.
+    let (mut sum, mut sum_x, mut sum_y) = (0.0, 0.0, 0.0);
+    for y in y0..=y1 {
+        for x in x0..=x1 {
+            if foreign(x, y) {
+                continue;
+            }
+            let w = value(x, y) - background;
+            sum += w;
+            sum_x += w * x as f64;
+            sum_y += w * y as f64;
+        }
+    }
+    let centroid_px = Vector2::new(sum_x / sum, sum_y / sum);
+    let photometric_area = sum / step;
+
+    // Subpixel edge points: half-level crossings between neighbours, the
+    // brighter of the two in this component; and the intensity step there.
+    let mut edges: Vec<(Vector2<f64>, f64)> = Vec::new();
+    let mut crossing = |a: (usize, usize), b: (usize, usize)| {
+        if foreign(a.0, a.1) || foreign(b.0, b.1) {
+            return;
+        }
+        let (va, vb) = (value(a.0, a.1), value(b.0, b.1));
+        if (va >= half) == (vb >= half) {
+            return;
+        }
+        let bright = if va >= half { a } else { b };
+        if label(bright.0, bright.1) != id {
+            return;
+        }
+        let t = (half - va) / (vb - va);
+        let p = Vector2::new(
+            a.0 as f64 + t * (b.0 as f64 - a.0 as f64),
+            a.1 as f64 + t * (b.1 as f64 - a.1 as f64),
+        );
+        edges.push((p, (vb - va).abs()));
+    };
+    for y in y0..=y1 {
+        for x in x0..=x1 {
+            if x < x1 {
+                crossing((x, y), (x + 1, y));
+            }
+            if y < y1 {
+                crossing((x, y), (x, y + 1));
+            }
+        }
+    }
+    // Undistorted pixels: K · undistort(p).
+    let camera = context.camera;
+    let focal = Vector2::new(camera.fx(), camera.fy());
+    let principal = Vector2::new(camera.cx(), camera.cy());
+    let ideal = |p: &Vector2<f64>| -> Option<Vector2<f64>> {
+        if camera.has_distortion() {
+            camera
+                .pixel_to_normalised(p)
+                .ok()
+                .map(|m| m.component_mul(&focal) + principal)
+        } else {
+            Some(*p)
+        }
+    };
+    let mut points = Vec::with_capacity(edges.len());
+    let mut tolerances = Vec::with_capacity(edges.len());
+    for (p, step_here) in &edges {
+        if let Some(q) = ideal(p) {
+            points.push(q);
+            let sigma = std::f64::consts::SQRT_2 * noise / step_here.max(f64::MIN_POSITIVE);
+            tolerances.push(MIN_EDGE_TOLERANCE_PX.max(EDGE_OUTLIER_SIGMAS * sigma));
+        }
+    }
+    let Some(mut ellipse) = fit_ellipse(&points) else {
+        return Err(Reason::Shape);
+    };
+    let mut inliers: Vec<bool> = vec![true; points.len()];
+    for _ in 0..REFIT_ROUNDS {
+        let next: Vec<bool> = points
+            .iter()
+            .zip(&tolerances)
+            .map(|(p, tolerance)| ellipse.distance(p).abs() <= *tolerance)
+            .collect();
+        if next == inliers {
+            break;
+        }
+        let kept: Vec<Vector2<f64>> = points
+            .iter()
+            .zip(&next)
+            .filter(|(_, keep)| **keep)
+            .map(|(p, _)| *p)
+            .collect();
+        if kept.len() < MIN_EDGE_POINTS.max(points.len() / 2) {
+            break;
+        }
+        match fit_ellipse(&kept) {
+            Some(refit) => {
+                ellipse = refit;
+                inliers = next;
+            }
+            None => break,
+        }
+    }
+    let kept = inliers.iter().filter(|k| **k).count();
+    let fit_residual_px = (points
+        .iter()
+        .zip(&inliers)
+        .filter(|(_, keep)| **keep)
+        .map(|(p, _)| ellipse.distance(p).powi(2))
+        .sum::<f64>()
+        / kept.max(1) as f64)
+        .sqrt();
+    let outlier_fraction = 1.0 - kept as f64 / points.len() as f64;
+    let filled_fraction = photometric_area / ellipse.area();
+
+    let normalised = ellipse.scaled(
+        &Vector2::new(1.0 / focal.x, 1.0 / focal.y),
+        &Vector2::new(-principal.x / focal.x, -principal.y / focal.y),
+    );
+    let sphere = SphereFromEllipse::of(&normalised);
+    let limit = MAX_AXIS_RATIO_FACTOR * sphere.expected_axis_ratio;
+    if sphere.axis_ratio.is_nan() || sphere.axis_ratio > limit {
+        return Err(Reason::Shape);
+    }
+    let centroid_normalised = camera
+        .pixel_to_normalised(&centroid_px)
+        .map_err(|_| Reason::Shape)?;
+    let (major, minor, _) = ellipse.axes();
+    let centre_shrink = 1.0 + sphere.minor_normalised.powi(2);
+
+    let mut hidden_because = Vec::new();
+    if touches_border {
+        hidden_because.push("touches the image border");
+    }
+    if filled_fraction < config.min_filled_fraction {
+        hidden_because.push("fills too little of its ellipse");
+    }
+    if outlier_fraction > config.max_outlier_fraction {
+        hidden_because.push("edge leaves the ellipse");
+    }
+    if (sphere.axis_ratio - sphere.expected_axis_ratio).abs() > MAX_AXIS_RATIO_ERROR {
+        hidden_because.push("axis ratio not a sphere's");
+    }
+    let _ = levels;
+    let to_array = |v: Vector2<f64>| [v.x, v.y];
+    Ok(Blob {
+        area_px: stats.count,
+        contrast,
+        noise: noise / context.full_scale,
+        centroid_px: to_array(centroid_px),
+        ellipse_centre_px: to_array(camera.normalised_to_pixel(&normalised.centre)),
+        centre_px: to_array(camera.normalised_to_pixel(&sphere.centre_normalised)),
+        semi_axes_px: [major, minor],
+        depth_mm: sphere.depth_mm(context.radius_mm),
+        edge_points: points.len(),
+        fit_residual_px,
+        outlier_fraction,
+        filled_fraction,
+        axis_ratio: sphere.axis_ratio,
+        expected_axis_ratio: sphere.expected_axis_ratio,
+        hidden_because,
+        label: None,
+        ellipse_centre_normalised: normalised.centre,
+        centroid_normalised,
+        centre_shrink,
+        ellipse_px: ellipse,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A frame with two area-sampled discs (8×8 subsamples) on a dark
+    /// background, one cut by the right image border.
+    fn two_discs() -> GreyFrame {
+        let (width, height) = (120u32, 80u32);
+        let discs = [(40.3, 37.7, 9.0), (116.0, 20.0, 7.0)];
+        let mut pixels = vec![20u16; (width * height) as usize];
+        for y in 0..height {
+            for x in 0..width {
+                let mut covered = 0;
+                for sy in 0..8 {
+                    for sx in 0..8 {
+                        let px = x as f64 - 0.5 + (sx as f64 + 0.5) / 8.0;
+                        let py = y as f64 - 0.5 + (sy as f64 + 0.5) / 8.0;
+                        if discs
+                            .iter()
+                            .any(|(cx, cy, r)| (px - cx).powi(2) + (py - cy).powi(2) < r * r)
+                        {
+                            covered += 1;
+                        }
+                    }
+                }
+                pixels[(y * width + x) as usize] =
+                    (20.0 + 200.0 * covered as f64 / 64.0).round() as u16;
+            }
+        }
+        GreyFrame::new(width, height, 8, pixels).unwrap()
+    }
+
+    #[test]
+    fn finds_a_disc_to_a_fraction_of_a_pixel_and_flags_the_clipped_one() {
+        let frame = two_discs();
+        let camera = Camera::new(1000.0, 1000.0, 60.0, 40.0, 120, 80, [0.0; 5]).unwrap();
+        let detection = detect(&frame, &camera, &DetectorConfig::default(), 5.0, 10).unwrap();
+        assert_eq!(detection.blobs.len(), 2, "{detection:?}");
+        let clipped = &detection.blobs[0];
+        assert!(
+            clipped.hidden_because.contains(&"touches the image border"),
+            "{:?}",
+            clipped.hidden_because
+        );
+        let whole = &detection.blobs[1];
+        assert!(!whole.hidden(), "{whole:?}");
+        for centre in [whole.ellipse_centre_px, whole.centroid_px] {
+            let error = ((centre[0] - 40.3).powi(2) + (centre[1] - 37.7).powi(2)).sqrt();
+            assert!(error < 0.05, "{centre:?}");
+        }
+        assert!(
+            (whole.semi_axes_px[0] - 9.0).abs() < 0.1,
+            "{:?}",
+            whole.semi_axes_px
+        );
+        assert!(
+            (whole.filled_fraction - 1.0).abs() < 0.02,
+            "{}",
+            whole.filled_fraction
+        );
+        assert!(matches!(
+            detect(&frame, &camera, &DetectorConfig::default(), 5.0, 1),
+            Err(DetectError::TooManyBlobs { max: 1, found: 2 })
+        ));
+    }
+
+    #[test]
+    fn otsu_splits_two_modes_and_refuses_one() {
+        let mut histogram = [0u64; 256];
+        histogram[10] = 1000;
+        histogram[200] = 10;
+        let bin = otsu_bin(&histogram).unwrap();
+        assert!((10..200).contains(&bin));
+        let mut flat = [0u64; 256];
+        flat[7] = 5;
+        assert_eq!(otsu_bin(&flat), None);
+    }
+}

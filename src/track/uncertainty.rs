@@ -1,0 +1,378 @@
+//! The pose fields that `track` and `solve` write beside R and t: OpenCV's
+//! `rvec`/`tvec`, each point's reprojection residual, the noise σ (given, or
+//! estimated from the residuals), the first-order 6×6 covariance of
+//! `(rvec, tvec)` and its 1σ figures, and how far the labels can be trusted.
+//!
+//! **Covariance.** [`crate::error_model::first_order`] gives the covariance
+//! of the pose perturbation `(ω, δt)` with `R ← exp([ω]×) R`. OpenCV's rvec
+//! is the rotation vector θ of R itself; to first order
+//! `exp([ω]×) exp([θ]×) = exp([θ + J_l⁻¹(θ) ω]×)`, with the inverse left
+//! Jacobian of SO(3)
+//! `J_l⁻¹(θ) = I − ½[θ]× + (1/|θ|² − (1 + cos|θ|)/(2|θ| sin|θ|)) [θ]×²`
+//! (Barfoot, *State Estimation for Robotics*, 2017, eq. (7.185)). The
+//! covariance written is `J Σ Jᵀ` with `J = diag(J_l⁻¹(θ), I)`. The
+//! 1σ figures are basis-free: `sigma_rot_deg = √trace Σ_ωω` (RMS geodesic
+//! rotation error) and `sigma_trans_mm = √trace Σ_tt`.
+//!
+//! **σ from residuals.** With `n` points and 6 pose parameters the fit
+//! leaves `2n − 6` degrees of freedom: `σ̂² = Σ‖rᵢ‖² / (2n − 6)`.
+//!
+//! **Label trust.** `identify` ranks labellings by RMS; `ambiguity` is the
+//! runner-up's RMS over the best's. The identifiability model
+//! ([`crate::identifiability`]) says a wrong labelling whose residual norm
+//! is `‖r‖` wins with probability `Φ(−‖r‖ / 2σ)`. From the two fits,
+//! `‖r‖² ≈ n (rms₂² − rms₁²) = n rms₁² (a² − 1)` and
+//! `σ² ≈ n rms₁² / (2n − 6)`, so the predicted probability that the labels
+//! are wrong is `Φ(−√((a² − 1)(2n − 6)) / 2)`: ½ for twins (a = 1), and
+//! below the identifiability bar of 1e-3 once `a ≥ √(1 + 38.2/(2n − 6))`
+//! (2.40 for 7 blobs, 4.48 for 4).
+
+use crate::camera::Camera;
+use crate::error_model::first_order::{pose_covariance_isotropic, FirstOrderError};
+use crate::identifiability::normal_upper_tail;
+use crate::pose::Pose;
+use crate::sphere_image::ellipse_centre_normalised;
+use nalgebra::{Matrix3, SMatrix, Vector2, Vector3};
+use serde::{Deserialize, Serialize};
+
+/// Smallest σ estimated from residuals, px: noise-free synthetic frames fit
+/// to rounding, and a zero σ has no covariance.
+pub const MIN_SIGMA_PX: f64 = 1e-6;
+
+/// Where σ came from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum SigmaSource {
+    /// Given by the caller.
+    Given,
+    /// Estimated from the fit's residuals.
+    Residuals,
+}
+
+/// The pose fields shared by `track` and `solve` (docs/formats.md).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PoseFigures {
+    /// OpenCV's rotation vector of R (axis × angle), rad.
+    pub rvec: [f64; 3],
+    /// OpenCV's tvec (= t), mm.
+    pub tvec: [f64; 3],
+    /// Each point's residual, measured minus model, raw px.
+    pub residuals_px: Vec<[f64; 2]>,
+    /// The σ of the covariance, px.
+    pub sigma_px: f64,
+    /// Where σ came from.
+    pub sigma_source: SigmaSource,
+    /// First-order covariance of `(rvec [rad], tvec [mm])`, row-major 6×6.
+    pub covariance: [[f64; 6]; 6],
+    /// 1σ rotation error (RMS geodesic angle), degrees.
+    pub sigma_rot_deg: f64,
+    /// 1σ translation error (RMS), mm.
+    pub sigma_trans_mm: f64,
+}
+
+/// Why the figures could not be computed.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum FiguresError {
+    /// Too few points to estimate σ, and none was given.
+    #[error("{points} points leave no degrees of freedom to estimate σ from; give σ")]
+    NoDegreesOfFreedom {
+        /// Points fitted.
+        points: usize,
+    },
+    /// The point counts differ.
+    #[error("{object} object points but {image} image points")]
+    Mismatched {
+        /// Object points.
+        object: usize,
+        /// Image points.
+        image: usize,
+    },
+    /// The first-order covariance failed.
+    #[error("covariance: {0}")]
+    Covariance(#[from] FirstOrderError),
+}
+
+/// The inverse left Jacobian of SO(3) at the rotation vector θ (module docs).
+pub fn inverse_left_jacobian(theta: &Vector3<f64>) -> Matrix3<f64> {
+    let angle = theta.norm();
+    let skew = theta.cross_matrix();
+    let coefficient = if angle < 1e-5 {
+        1.0 / 12.0 + angle * angle / 720.0
+    } else {
+        1.0 / (angle * angle) - (1.0 + angle.cos()) / (2.0 * angle * angle.sin())
+    };
+    Matrix3::identity() - 0.5 * skew + coefficient * skew * skew
+}
+
+/// The model image point of object point `p` at `pose`, raw px: the sphere's
+/// ellipse centre when `radius_mm` is given, else its projection; `None`
+/// when it is not in front of the camera.
+pub fn model_pixel(
+    camera: &Camera,
+    pose: &Pose,
+    p: &Vector3<f64>,
+    radius_mm: Option<f64>,
+) -> Option<Vector2<f64>> {
+    let c = pose.transform(p);
+    match radius_mm {
+        Some(r) => ellipse_centre_normalised(&c, r)
+            .ok()
+            .map(|m| camera.normalised_to_pixel(&m)),
+        None => camera.project(&c),
+    }
+}
+
+/// Computes [`PoseFigures`] for `pose` fitted to `pixels` (raw px) of the
+/// matched `object` points; σ is `sigma_px` when given, else estimated
+/// from the residuals.
+pub fn pose_figures(
+    camera: &Camera,
+    pose: &Pose,
+    object: &[Vector3<f64>],
+    pixels: &[Vector2<f64>],
+    radius_mm: Option<f64>,
+    sigma_px: Option<f64>,
+) -> Result<PoseFigures, FiguresError> {
+    if object.len() != pixels.len() {
+        return Err(FiguresError::Mismatched {
+            object: object.len(),
+            image: pixels.len(),
+        });
+    }
+    let mut residuals_px = Vec::with_capacity(object.len());
+    let mut sum = 0.0;
+    for (index, (p, measured)) in object.iter().zip(pixels).enumerate() {
+        let model = model_pixel(camera, pose, p, radius_mm).ok_or(FiguresError::Covariance(
+            FirstOrderError::BehindCamera(index),
+        ))?;
+        let r = measured - model;
+        sum += r.norm_squared();
+        residuals_px.push([r.x, r.y]);
+    }
+    let (sigma, source) = match sigma_px {
+        Some(sigma) => (sigma, SigmaSource::Given),
+        None => {
+            let dof = 2 * object.len() as i64 - 6;
+            if dof <= 0 {
+                return Err(FiguresError::NoDegreesOfFreedom {
+                    points: object.len(),
+                });
+            }
+            (
+                (sum / dof as f64).sqrt().max(MIN_SIGMA_PX),
+                SigmaSource::Residuals,
+            )
+        }
+    };
+    let first_order = pose_covariance_isotropic(camera, pose, object, sigma)?;
+    let sigma_rot_deg = first_order.rms_rotation_deg();
+    let sigma_trans_mm = first_order.rms_translation_mm();
+    let theta = pose.rotation.scaled_axis();
+    let mut jacobian = SMatrix::<f64, 6, 6>::identity();
+    jacobian
+        .fixed_view_mut::<3, 3>(0, 0)
+        .copy_from(&inverse_left_jacobian(&theta));
+    let covariance = jacobian * first_order.covariance * jacobian.transpose();
+    Ok(PoseFigures {
+        rvec: [theta.x, theta.y, theta.z],
+        tvec: [pose.translation.x, pose.translation.y, pose.translation.z],
+        residuals_px,
+        sigma_px: sigma,
+        sigma_source: source,
+        covariance: std::array::from_fn(|i| std::array::from_fn(|j| covariance[(i, j)])),
+        sigma_rot_deg,
+        sigma_trans_mm,
+    })
+}
+
+/// Predicted probability that the best labelling of `matched` blobs is
+/// wrong, from its `ambiguity` (module docs); 0 when no other labelling is
+/// consistent (the search gate bounds it, far below any bar we set).
+pub fn wrong_label_probability(ambiguity: Option<f64>, matched: usize) -> f64 {
+    let Some(a) = ambiguity else {
+        return 0.0;
+    };
+    let dof = (2 * matched).saturating_sub(6) as f64;
+    if dof == 0.0 || !a.is_finite() {
+        return if a.is_finite() { 0.5 } else { 0.0 };
+    }
+    let margin_over_sigma = ((a * a - 1.0).max(0.0) * dof).sqrt();
+    normal_upper_tail(0.5 * margin_over_sigma)
+}
+
+/// The pose fields of one `solve` result (docs/formats.md, "`solve`
+/// batch"): for a solved problem, its [`PoseFigures`] (σ from the
+/// residuals) and, for an unlabelled one, the predicted probability that
+/// its labels are wrong.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SolveFigures {
+    /// The pose fields.
+    #[serde(flatten)]
+    pub figures: PoseFigures,
+    /// Unlabelled solves: predicted probability that the labels are wrong.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub wrong_label_probability: Option<f64>,
+    /// Set when the labels cannot be trusted.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub warning: Option<String>,
+}
+
+/// [`SolveFigures`] for every result of a `solve` batch, in order; `None`
+/// for failed problems, and an error message where the figures cannot be
+/// computed. `sphere_diameter_mm` is the run's default diameter (a
+/// problem's own wins, as in [`crate::batch`]).
+pub fn solve_figures(
+    batch: &crate::batch::Batch,
+    output: &crate::batch::BatchOutput,
+    sphere_diameter_mm: Option<f64>,
+) -> Vec<Option<Result<SolveFigures, String>>> {
+    use crate::batch::ProblemResult;
+    batch
+        .problems
+        .iter()
+        .zip(&output.results)
+        .map(|((_, problem), result)| {
+            let ProblemResult::Solved {
+                rotation,
+                translation,
+                labels,
+                ambiguity,
+                ..
+            } = result
+            else {
+                return None;
+            };
+            let problem = problem.as_ref().ok()?;
+            let object: Vec<Vector3<f64>> = match labels {
+                Some(labels) => labels
+                    .iter()
+                    .map(|&k| Vector3::from(problem.object_points[k]))
+                    .collect(),
+                None => problem.object_points.iter().map(|p| Vector3::from(*p)).collect(),
+            };
+            let pixels: Vec<Vector2<f64>> =
+                problem.image_points.iter().map(|p| Vector2::from(*p)).collect();
+            let matrix = Matrix3::from_fn(|i, j| rotation[i][j]);
+            let pose = Pose::new(
+                nalgebra::Rotation3::from_matrix_unchecked(matrix),
+                Vector3::from(*translation),
+            );
+            let radius_mm = problem.sphere_diameter.or(sphere_diameter_mm).map(|d| 0.5 * d);
+            let figures = match pose_figures(&batch.camera, &pose, &object, &pixels, radius_mm, None) {
+                Ok(figures) => figures,
+                Err(error) => return Some(Err(error.to_string())),
+            };
+            let wrong = labels
+                .as_ref()
+                .map(|labels| wrong_label_probability(ambiguity.flatten(), labels.len()));
+            let warning = wrong.filter(|&p| p > LABEL_TRUST_BAR).map(|p| {
+                format!(
+                    "labels cannot be trusted: ambiguity {:.3} predicts wrong labels with probability {p:.2e} (above {LABEL_TRUST_BAR:.0e})",
+                    ambiguity.flatten().unwrap_or(f64::NAN)
+                )
+            });
+            Some(Ok(SolveFigures {
+                figures,
+                wrong_label_probability: wrong,
+                warning,
+            }))
+        })
+        .collect()
+}
+
+/// Largest predicted wrong-label probability `solve` accepts without a
+/// warning: the identifiability model's bar,
+/// `1 − `[`crate::identifiability::DEFAULT_MIN_CORRECT`].
+pub const LABEL_TRUST_BAR: f64 = 1.0 - crate::identifiability::DEFAULT_MIN_CORRECT;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use approx::assert_relative_eq;
+    use nalgebra::Rotation3;
+
+    #[test]
+    fn inverse_left_jacobian_matches_central_differences() {
+        // The series branch meets the closed form at its switch-over.
+        let below = inverse_left_jacobian(&Vector3::new(0.99e-5, 0.0, 0.0));
+        let above = inverse_left_jacobian(&Vector3::new(1.01e-5, 0.0, 0.0));
+        assert_relative_eq!(below, above, epsilon = 2e-7);
+        for theta in [
+            Vector3::new(0.4, -1.1, 0.7),
+            Vector3::new(0.02, -0.01, 0.005),
+        ] {
+            let rotation = Rotation3::new(theta);
+            let analytic = inverse_left_jacobian(&theta);
+            let h = 1e-6;
+            for k in 0..3 {
+                let mut omega = Vector3::zeros();
+                omega[k] = h;
+                let plus = (Rotation3::new(omega) * rotation).scaled_axis();
+                let minus = (Rotation3::new(-omega) * rotation).scaled_axis();
+                assert_relative_eq!(
+                    analytic.column(k).into_owned(),
+                    (plus - minus) / (2.0 * h),
+                    epsilon = 1e-7
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn figures_of_an_exact_fit_and_given_sigma() {
+        let camera = Camera::paper_with_distortion();
+        let object = crate::layout::biprism_points(50.0);
+        let pose = Pose::new(
+            Rotation3::from_euler_angles(0.3, -0.2, 0.5),
+            Vector3::new(30.0, -20.0, 500.0),
+        );
+        let pixels: Vec<Vector2<f64>> = object
+            .iter()
+            .map(|p| model_pixel(&camera, &pose, p, Some(5.0)).unwrap())
+            .collect();
+        let figures = pose_figures(&camera, &pose, &object, &pixels, Some(5.0), Some(0.5)).unwrap();
+        assert_eq!(figures.sigma_source, SigmaSource::Given);
+        assert!(figures
+            .residuals_px
+            .iter()
+            .all(|r| r[0].abs() < 1e-9 && r[1].abs() < 1e-9));
+        assert_relative_eq!(
+            Rotation3::new(Vector3::from(figures.rvec)).matrix(),
+            pose.rotation.matrix(),
+            epsilon = 1e-12
+        );
+        let first = pose_covariance_isotropic(&camera, &pose, &object, 0.5).unwrap();
+        assert_relative_eq!(figures.sigma_rot_deg, first.rms_rotation_deg());
+        // The translation block is untouched; the matrix is symmetric.
+        for i in 0..6 {
+            for j in 0..6 {
+                assert_relative_eq!(
+                    figures.covariance[i][j],
+                    figures.covariance[j][i],
+                    max_relative = 1e-9
+                );
+                if i >= 3 && j >= 3 {
+                    assert_relative_eq!(figures.covariance[i][j], first.covariance[(i, j)]);
+                }
+            }
+        }
+        let estimated = pose_figures(&camera, &pose, &object, &pixels, Some(5.0), None).unwrap();
+        assert_eq!(estimated.sigma_px, MIN_SIGMA_PX);
+        assert!(matches!(
+            pose_figures(&camera, &pose, &object[..3], &pixels[..3], None, None),
+            Err(FiguresError::NoDegreesOfFreedom { points: 3 })
+        ));
+    }
+
+    #[test]
+    fn label_trust_follows_the_identifiability_model() {
+        assert_eq!(wrong_label_probability(None, 7), 0.0);
+        assert_relative_eq!(wrong_label_probability(Some(1.0), 7), 0.5, epsilon = 1e-6);
+        // The 1e-3 bar sits at a = √(1 + 38.2/8) ≈ 2.40 for 7 blobs.
+        assert!(wrong_label_probability(Some(2.3), 7) > 1e-3);
+        assert!(wrong_label_probability(Some(2.5), 7) < 1e-3);
+        assert!(wrong_label_probability(Some(4.3), 4) > 1e-3);
+        assert!(wrong_label_probability(Some(4.6), 4) < 1e-3);
+    }
+}

@@ -1,0 +1,203 @@
+//! `track`'s run: frames from files or directories, analysed in parallel
+//! (results in input order, independent of the thread count), progress and
+//! interruption through an [`Observer`], outputs written atomically.
+
+use super::analysis::{analyse_png, FrameAnalysis, TrackError};
+use super::config::TrackConfig;
+use super::frame::GreyFrame;
+use super::report;
+use crate::config::ConfigError;
+use crate::observer::{watch, Observer};
+use rayon::prelude::*;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+
+/// Name of the analysis phase, for progress.
+pub const PHASE_TRACK: &str = "tracking";
+
+/// Where the outputs go.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct TrackOutputs {
+    /// JSON lines file (None: the caller takes the text).
+    pub json_lines: Option<PathBuf>,
+    /// CSV table.
+    pub csv: Option<PathBuf>,
+    /// Directory of overlay PNGs (created if missing).
+    pub overlay_dir: Option<PathBuf>,
+}
+
+/// Why a run could not be made or finished.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum WorkflowError {
+    /// The configuration is invalid.
+    #[error(transparent)]
+    Config(#[from] ConfigError),
+    /// An input path is neither a file nor a readable directory.
+    #[error("cannot read {path}: {reason}")]
+    Input {
+        /// The path.
+        path: PathBuf,
+        /// What went wrong.
+        reason: String,
+    },
+    /// No frames to track.
+    #[error("no frames: the inputs hold no .png files")]
+    NoFrames,
+    /// An output could not be written.
+    #[error("cannot write {path}: {source}")]
+    Write {
+        /// The path.
+        path: PathBuf,
+        /// The I/O error.
+        source: std::io::Error,
+    },
+    /// The caller asked to stop; nothing was written.
+    #[error("interrupted; no output written")]
+    Interrupted,
+}
+
+/// The frames of `inputs`: files as given, directories' `.png` files
+/// (not recursive) sorted by name.
+pub fn expand_inputs(inputs: &[PathBuf]) -> Result<Vec<PathBuf>, WorkflowError> {
+    let mut frames = Vec::new();
+    for path in inputs {
+        if path.is_dir() {
+            let entries = std::fs::read_dir(path).map_err(|e| WorkflowError::Input {
+                path: path.clone(),
+                reason: e.to_string(),
+            })?;
+            let mut found: Vec<PathBuf> = entries
+                .filter_map(|entry| entry.ok().map(|e| e.path()))
+                .filter(|p| {
+                    p.is_file() && p.extension().is_some_and(|e| e.eq_ignore_ascii_case("png"))
+                })
+                .collect();
+            found.sort();
+            frames.extend(found);
+        } else {
+            frames.push(path.clone());
+        }
+    }
+    if frames.is_empty() {
+        return Err(WorkflowError::NoFrames);
+    }
+    Ok(frames)
+}
+
+/// What a run produced.
+#[derive(Debug)]
+pub struct TrackRun {
+    /// Each frame's name and analysis, in input order.
+    pub frames: Vec<(String, FrameAnalysis)>,
+    /// The JSON-lines text (also written when asked).
+    pub json_lines: String,
+}
+
+impl TrackRun {
+    /// Frames with a pose.
+    pub fn tracked(&self) -> usize {
+        self.frames
+            .iter()
+            .filter(|(_, a)| a.outcome.is_ok())
+            .count()
+    }
+}
+
+/// Tracks every frame of `inputs` and writes the outputs.
+pub fn run(
+    config: &TrackConfig,
+    inputs: &[PathBuf],
+    outputs: &TrackOutputs,
+    observer: &mut impl Observer,
+) -> Result<TrackRun, WorkflowError> {
+    config.validate()?;
+    let paths = expand_inputs(inputs)?;
+    if let Some(dir) = &outputs.overlay_dir {
+        std::fs::create_dir_all(dir).map_err(|source| WorkflowError::Write {
+            path: dir.clone(),
+            source,
+        })?;
+    }
+    let done = AtomicU64::new(0);
+    let stop = AtomicBool::new(false);
+    let frames: Vec<Result<(String, FrameAnalysis), WorkflowError>> = watch(
+        observer,
+        PHASE_TRACK,
+        paths.len() as u64,
+        || done.load(Ordering::Relaxed),
+        Some(&stop),
+        || {
+            paths
+                .par_iter()
+                .map(|path| {
+                    if stop.load(Ordering::Relaxed) {
+                        return Err(WorkflowError::Interrupted);
+                    }
+                    let result = track_file(config, path, outputs.overlay_dir.as_deref());
+                    done.fetch_add(1, Ordering::Relaxed);
+                    result
+                })
+                .collect()
+        },
+    );
+    if stop.load(Ordering::SeqCst) {
+        return Err(WorkflowError::Interrupted);
+    }
+    let frames: Vec<(String, FrameAnalysis)> = frames.into_iter().collect::<Result<_, _>>()?;
+    let json_lines = report::json_lines(&frames);
+    if let Some(path) = &outputs.json_lines {
+        write(path, json_lines.as_bytes())?;
+    }
+    if let Some(path) = &outputs.csv {
+        write(path, report::csv(&frames).as_bytes())?;
+    }
+    Ok(TrackRun { frames, json_lines })
+}
+
+fn write(path: &Path, bytes: &[u8]) -> Result<(), WorkflowError> {
+    crate::files::write_atomic(path, bytes).map_err(|source| WorkflowError::Write {
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
+/// One file: read, analyse and (when asked) write its overlay.
+fn track_file(
+    config: &TrackConfig,
+    path: &Path,
+    overlay_dir: Option<&Path>,
+) -> Result<(String, FrameAnalysis), WorkflowError> {
+    let name = path.display().to_string();
+    let bytes = match std::fs::read(path) {
+        Ok(bytes) => bytes,
+        Err(e) => {
+            let analysis = FrameAnalysis {
+                outcome: Err(TrackError::Frame(super::frame::FrameError::Decode(
+                    format!("cannot read the file: {e}"),
+                ))),
+                detection: None,
+                pose: None,
+            };
+            return Ok((name, analysis));
+        }
+    };
+    let analysis = analyse_png(config, &bytes);
+    if let Some(dir) = overlay_dir {
+        if let Ok(frame) = GreyFrame::from_png(&bytes) {
+            let png = report::overlay_png(
+                &frame,
+                &analysis,
+                &config.camera,
+                &config.object,
+                config.radius_mm(),
+                analysis.pose.as_ref(),
+            );
+            let stem = path
+                .file_stem()
+                .map_or("frame".into(), |s| s.to_string_lossy().into_owned());
+            write(&dir.join(format!("{stem}.overlay.png")), &png)?;
+        }
+    }
+    Ok((name, analysis))
+}
