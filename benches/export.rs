@@ -23,7 +23,11 @@ fn bench_export(c: &mut Criterion) {
     let solid = build(&layout, &options).expect("the biprism builds");
     for &format in Format::ALL {
         group.bench_function(format!("write {format}"), |b| {
-            b.iter(|| format.writer().write(&solid, dir.path()).expect("writes"))
+            b.iter(|| {
+                layout_opt::mesh::writer(format)
+                    .write(&solid, dir.path())
+                    .expect("writes")
+            })
         });
     }
     group.bench_function("export all formats + sheet", |b| {

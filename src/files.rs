@@ -383,3 +383,27 @@ mod tests {
         assert!(check_writable_dir(&file.join("below")).is_err());
     }
 }
+
+/// Errors while writing a report.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum ReportError {
+    /// A file could not be written.
+    #[error("cannot write {path}: {message}")]
+    Write {
+        /// The file.
+        path: String,
+        /// What went wrong.
+        message: String,
+    },
+}
+
+impl ReportError {
+    /// Wraps any displayable error for `path`.
+    pub fn write(path: &Path, error: impl std::fmt::Display) -> Self {
+        ReportError::Write {
+            path: path.display().to_string(),
+            message: error.to_string(),
+        }
+    }
+}

@@ -13,9 +13,10 @@ use layout_opt::scenario::ScenarioGrid;
 use layout_opt::sphere_image::Observation;
 use layout_opt::validate::config::default_tilt_step_deg;
 use layout_opt::validate::markdown::{console, fabrication_line};
+use layout_opt::validate::workflow::{WorkflowConfig, WorkflowError};
 use layout_opt::validate::{
-    self, IdentifiabilityCheck, ValidateConfig, ValidateError, WorkflowConfig, WorkflowError,
-    DEFAULT_TILT_STEP_DEG, POLYNOMIAL_TILT_STEP_DEG,
+    self, IdentifiabilityCheck, ValidateConfig, ValidateError, DEFAULT_TILT_STEP_DEG,
+    POLYNOMIAL_TILT_STEP_DEG,
 };
 use std::path::PathBuf;
 

@@ -46,7 +46,9 @@
 //! # Ok::<(), layout_opt::mesh::ExportError>(())
 //! ```
 
+pub mod error;
 pub(crate) mod extract;
+pub mod format;
 pub mod geometry;
 pub(crate) mod gltf;
 pub(crate) mod obj;
@@ -60,7 +62,9 @@ pub(crate) mod threemf;
 pub mod trimesh;
 pub mod view_cone;
 
-pub use geometry::{Axis, GeometryError, Marker, MarkerOptions, MountHoles};
+pub use error::ExportError;
+pub use format::Format;
+pub use geometry::{supports_for_range, Axis, GeometryError, Marker, MarkerOptions, MountHoles};
 pub use sheet::{datum_positions, Datum, DatumPosition, Tolerances, CSV_HEADER};
 pub use trimesh::{Topology, TriangleMesh};
 
@@ -68,9 +72,7 @@ use crate::layout::Layout;
 use crate::visibility::{LostView, Supports, WorkingRange};
 use nalgebra::Vector3;
 use serde::Serialize;
-use std::fmt;
 use std::path::{Path, PathBuf};
-use std::str::FromStr;
 use std::time::Instant;
 
 /// Grid spacing when none is asked for (and the features allow it), mm.
@@ -79,131 +81,14 @@ pub const DEFAULT_RESOLUTION_MM: f64 = 0.5;
 /// (strut radius, fillet radius, hole radius, minimum feature).
 pub const RESOLUTION_PER_FEATURE: f64 = 0.5;
 
-/// Why an export failed.
-#[derive(Debug, thiserror::Error)]
-#[non_exhaustive]
-pub enum ExportError {
-    /// The observer asked to stop (Ctrl-C); none of the export's files
-    /// were left.
-    #[error("export interrupted; none of its files were written")]
-    Interrupted,
-    /// The marker cannot be built (layout or geometry options).
-    #[error(transparent)]
-    Geometry(#[from] GeometryError),
-    /// The resolution is not a positive finite number.
-    #[error("--resolution must be positive and finite, got {0}")]
-    BadResolution(f64),
-    /// The grid is too coarse for the finest feature.
-    #[error("--resolution {resolution_mm} mm is too coarse for the finest feature ({finest_mm} mm); use at most {max_mm} mm")]
-    ResolutionTooCoarse {
-        /// Resolution asked for, mm.
-        resolution_mm: f64,
-        /// Finest feature of the marker, mm.
-        finest_mm: f64,
-        /// Largest resolution allowed, mm.
-        max_mm: f64,
-    },
-    /// The mesh failed a soundness check.
-    #[error("the mesh is not a watertight solid ({0}); try a finer --resolution")]
-    NotWatertight(String),
-    /// A format name is unknown.
-    #[error("unknown format \"{0}\": expected stl, 3mf, obj, gltf or glb")]
-    UnknownFormat(String),
-    /// No format was asked for.
-    #[error("no output format given; expected stl, 3mf, obj, gltf or glb")]
-    NoFormat,
-    /// A file could not be written.
-    #[error("cannot write {path}: {source}")]
-    Io {
-        /// The file.
-        path: PathBuf,
-        /// The cause.
-        source: std::io::Error,
-    },
-    /// A strut covers a sphere from the view cone.
-    #[error("{} covers {:.1} % of sphere {sphere} seen {angle_deg:.0} degrees off the main view ({view}); the camera would lose that sphere. Try another --view, a smaller --view-cone, --structure, or pass --allow-occlusion", if *main_view { "in the main view a strut" } else { "a strut" }, 100.0 * fraction)]
-    Occluded {
-        /// The sphere.
-        sphere: String,
-        /// Fraction of its disc covered.
-        fraction: f64,
-        /// Angle of the viewing direction from the main view, degrees.
-        angle_deg: f64,
-        /// The main view.
-        view: Axis,
-        /// Whether it happens in the main view itself.
-        main_view: bool,
-    },
-    /// glTF serialisation failed.
-    #[error("cannot encode glTF: {0}")]
-    Gltf(String),
-}
-
-/// An output mesh format.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Format {
-    /// Binary STL, mm, print frame (Z up).
-    Stl,
-    /// Wavefront OBJ, mm, marker frame.
-    Obj,
-    /// glTF 2.0 JSON + .bin, metres, Y up.
-    Gltf,
-    /// Binary glTF 2.0, metres, Y up.
-    Glb,
-    /// 3MF (zipped XML), mm, print frame (Z up), for slicers.
-    #[serde(rename = "3mf")]
-    ThreeMf,
-}
-
-impl Format {
-    /// Every format, in the order files are written.
-    pub const ALL: &'static [Format] = &[
-        Format::Stl,
-        Format::ThreeMf,
-        Format::Obj,
-        Format::Gltf,
-        Format::Glb,
-    ];
-
-    /// Its CLI name and file extension.
-    pub fn name(self) -> &'static str {
-        match self {
-            Format::Stl => "stl",
-            Format::Obj => "obj",
-            Format::Gltf => "gltf",
-            Format::Glb => "glb",
-            Format::ThreeMf => "3mf",
-        }
-    }
-
-    /// The writer for this format.
-    pub fn writer(self) -> &'static dyn MeshWriter {
-        match self {
-            Format::Stl => &stl::StlWriter,
-            Format::Obj => &obj::ObjWriter,
-            Format::Gltf => &gltf::GltfWriter { binary: false },
-            Format::Glb => &gltf::GltfWriter { binary: true },
-            Format::ThreeMf => &threemf::ThreeMfWriter,
-        }
-    }
-}
-
-impl fmt::Display for Format {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(self.name())
-    }
-}
-
-impl FromStr for Format {
-    type Err = ExportError;
-    fn from_str(text: &str) -> Result<Format, ExportError> {
-        let lower = text.trim().to_ascii_lowercase();
-        Format::ALL
-            .iter()
-            .copied()
-            .find(|f| f.name() == lower)
-            .ok_or_else(|| ExportError::UnknownFormat(text.to_string()))
+/// The writer of `format`.
+pub fn writer(format: Format) -> &'static dyn MeshWriter {
+    match format {
+        Format::Stl => &stl::StlWriter,
+        Format::Obj => &obj::ObjWriter,
+        Format::Gltf => &gltf::GltfWriter { binary: false },
+        Format::Glb => &gltf::GltfWriter { binary: true },
+        Format::ThreeMf => &threemf::ThreeMfWriter,
     }
 }
 
@@ -333,19 +218,6 @@ pub fn resolution_for(marker: &Marker, asked_mm: Option<f64>) -> Result<f64, Exp
         }),
         Some(r) => Ok(r),
     }
-}
-
-/// The supports `export` would build for `layout` with `options`, routed
-/// to clear the views of `range`, as occluders for the visibility model
-/// (no mesh is made).
-pub fn supports_for_range(
-    layout: &Layout,
-    options: &MarkerOptions,
-    range: &WorkingRange,
-) -> Result<Supports, GeometryError> {
-    let mut options = options.clone();
-    options.working_views = range.clear_views(&layout.positions(), layout.sphere_diameter_mm);
-    Ok(Supports::new(Marker::design(layout, &options)?.occluders()))
 }
 
 /// Designs and meshes the marker for `layout`, and checks the mesh.
@@ -544,7 +416,7 @@ fn export_observed(
     formats.dedup();
     for format in formats {
         let start = Instant::now();
-        let written = format.writer().write(&solid, &staging)?;
+        let written = writer(format).write(&solid, &staging)?;
         let seconds = start.elapsed().as_secs_f64();
         for path in written {
             files.push(WrittenFile {

@@ -23,7 +23,6 @@ pub use config::{Appearance, Blur, Lighting, Noise, Optics, RenderConfig, Sensor
 pub use scene::Scene;
 pub use sensor::{expose, Digital};
 pub use truth::{frame_truth, FrameTruth, Hidden, SphereTruth};
-pub use workflow::{run, FramePose, RenderJob, RenderReport};
 
 use crate::pose::Pose;
 use nalgebra::{Matrix3, Rotation3, Vector3};

@@ -8,29 +8,9 @@ pub mod plots;
 use std::fmt::Write as _;
 use std::path::Path;
 
-/// Errors while writing a report.
-#[derive(Debug, thiserror::Error)]
-#[non_exhaustive]
-pub enum ReportError {
-    /// A file could not be written.
-    #[error("cannot write {path}: {message}")]
-    Write {
-        /// The file.
-        path: String,
-        /// What went wrong.
-        message: String,
-    },
-}
+pub mod number;
 
-impl ReportError {
-    /// Wraps any displayable error for `path`.
-    pub fn write(path: &Path, error: impl std::fmt::Display) -> Self {
-        ReportError::Write {
-            path: path.display().to_string(),
-            message: error.to_string(),
-        }
-    }
-}
+pub use crate::files::ReportError;
 
 /// A markdown table under construction.
 #[derive(Debug, Clone, Default)]
@@ -115,21 +95,7 @@ impl Table {
     }
 }
 
-/// Formats a number with `digits` significant digits, or "—" when absent or
-/// not finite.
-pub fn significant(value: Option<f64>, digits: usize) -> String {
-    match value {
-        Some(v) if v.is_finite() => {
-            if v == 0.0 {
-                return "0".into();
-            }
-            let magnitude = v.abs().log10().floor() as i32;
-            let decimals = (digits as i32 - 1 - magnitude).max(0) as usize;
-            format!("{v:.decimals$}")
-        }
-        _ => "—".into(),
-    }
-}
+pub use number::significant;
 
 /// A reduction in percent (positive when the new value is lower) in words:
 /// "40.2% lower" or "7.7% higher", never "−7.7% lower"; "not measurable"

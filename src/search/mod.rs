@@ -114,7 +114,6 @@ pub use optimise::{
     Candidate, OptimiseError, OptimiseOutcome, Optimiser, SearchSettings, FINAL_POLISH_STARTS,
 };
 pub use summary::{HeldOutCheck, IdentifyBooks, SearchHeader, SearchSummary, Verdicts};
-pub use workflow::{SearchOutcome, PHASE_EXPORT};
 
 use crate::camera::Camera;
 use crate::error_model::first_order::{pose_covariance, pose_covariance_and_bias};

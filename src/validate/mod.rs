@@ -47,4 +47,3 @@ pub use summary::{
     IdentifiabilitySummary, Overview, SolverRow, Systematic, ValidateSummary, VisibilityClass,
     VisibilityCounts,
 };
-pub use workflow::{ValidateOutcome, WorkflowConfig, WorkflowError};

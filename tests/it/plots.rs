@@ -18,7 +18,8 @@ use layout_opt::reproduce::pipeline::ReproduceConfig;
 use layout_opt::reproduce::{Config, Experiment};
 use layout_opt::scenario::{Range, ScenarioGrid};
 use layout_opt::search::SearchConfig;
-use layout_opt::validate::{ValidateConfig, WorkflowConfig};
+use layout_opt::validate::workflow::WorkflowConfig;
+use layout_opt::validate::ValidateConfig;
 use std::path::{Path, PathBuf};
 
 const WIDTH_EM: f64 = 0.6;

@@ -225,6 +225,7 @@ mod solid;
 pub use frames::{gltf_rotation, print_rotation};
 pub use options::{Axis, Bed, MarkerOptions, MountHoles, Structure};
 pub use parts::{Foot, Hole, Node, Plate, SphereFeature, Strut, StrutKind};
+pub use router::supports_for_range;
 use router::Router;
 pub use solid::Marker;
 
