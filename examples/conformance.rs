@@ -1,10 +1,10 @@
 //! Solver conformance sweep: every PnP solver on seeded problems across the
-//! PnP problem space, plus five named regimes.
+//! PnP problem space, plus six named regimes.
 //!
 //! ```text
 //! cargo run --release --example conformance                 # full sweep + regimes
 //! cargo run --release --example conformance -- --quick      # 20 problems per cell (300 by default)
-//! cargo run --release --example conformance -- --regimes    # the five regimes only
+//! cargo run --release --example conformance -- --regimes    # the six regimes only
 //!   [--seed N] [--problems N] [--regime-problems N] [--threads N] [--out DIR]
 //! ```
 //!
@@ -74,6 +74,11 @@
 //! 5. the 7-point layout of the DLS failure report on `validate`'s default
 //!    grid with tilt step 30° (depth 200–1000 × offset-x 0, 50, 100 × tilt
 //!    −90..90: 105 scenarios), ⌈300/105⌉ = 3 noise draws each (315 problems).
+//! 6. far field, random sets: the cell recipe above with n uniform in 6–12,
+//!    depth/size uniform in 20–50 (100 mm at 2–5 m), cube, centroid uniform
+//!    in the image (`conformance::far_field_cell`; the DLS far-field unit test
+//!    draws its cells the same way at depth/size 20–30): where DLS once had
+//!    gross failures while `sqpnp`, `opnp` and `ml` had none.
 
 use clap::Parser;
 use layout_opt::camera::Camera;
@@ -144,7 +149,7 @@ struct Args {
     /// A much smaller sweep (20 problems per cell).
     #[arg(long)]
     quick: bool,
-    /// Run only the five named regimes.
+    /// Run only the six named regimes.
     #[arg(long)]
     regimes: bool,
     /// Problems per sweep cell (default 300, or 20 with --quick).
@@ -623,6 +628,18 @@ fn regimes(seed: u64, count: usize) -> Vec<Regime> {
         })
         .collect();
 
+    // 6. Far field, random sets: n 6–12, 100 mm at 2–5 m (depth/size 20–50).
+    let far_random: Vec<Case> = (0..count)
+        .into_par_iter()
+        .map(|k| {
+            let mut rng = rng_for(6, k);
+            let cell =
+                conformance::far_field_cell(&mut rng, conformance::FAR_FIELD_DEPTH_RATIO, sigma);
+            let generated = conformance::generate_with(&mut rng, &cell).expect("a problem");
+            case_from(generated.problem, &camera, sigma)
+        })
+        .collect();
+
     vec![
         Regime {
             key: "far-field",
@@ -653,6 +670,12 @@ fn regimes(seed: u64, count: usize) -> Vec<Regime> {
             name: "5 7-point layout, validate grid (tilt step 30°)",
             sigma_px: sigma,
             cases: seven,
+        },
+        Regime {
+            key: "far-field-random",
+            name: "6 far field: n 6–12, 100 mm at 2–5 m",
+            sigma_px: sigma,
+            cases: far_random,
         },
     ]
 }

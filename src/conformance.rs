@@ -130,6 +130,32 @@ impl Cell {
     }
 }
 
+/// Depth/size of the far-field regime: a 100 mm object at 2–5 m, where DLS
+/// once failed (depth/size ≥ 20).
+pub const FAR_FIELD_DEPTH_RATIO: std::ops::Range<f64> = 20.0..50.0;
+/// Point counts of the far-field regime.
+pub const FAR_FIELD_POINTS: std::ops::RangeInclusive<usize> = 6..=12;
+
+/// One far-field problem's cell, drawn from `rng`: depth/size uniform in
+/// `depth_ratio`, n uniform in [`FAR_FIELD_POINTS`], a cube (t = 1), the
+/// centroid anywhere in the image, no distortion, noise σ. The sweep's
+/// far-field regime draws it with [`FAR_FIELD_DEPTH_RATIO`], then the
+/// problem with [`generate_with`] from the same stream.
+pub fn far_field_cell(
+    rng: &mut impl Rng,
+    depth_ratio: std::ops::Range<f64>,
+    sigma_px: f64,
+) -> Cell {
+    Cell {
+        depth_ratio: rng.random_range(depth_ratio),
+        points: rng.random_range(FAR_FIELD_POINTS),
+        thickness: 1.0,
+        off_axis: OffAxis::Uniform,
+        distortion: false,
+        sigma_px,
+    }
+}
+
 /// A generated problem and the sampling box side it was drawn with.
 #[derive(Debug, Clone)]
 pub struct Generated {

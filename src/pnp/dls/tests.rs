@@ -682,20 +682,13 @@ const FAR_FIELD_PROBLEMS: u64 = 3000;
 /// gross failure 150° off and an RMS of 1.66× the limit.
 #[test]
 fn far_field_meets_the_limit_without_gross_failures() {
-    use crate::conformance::{generate_with, rotation_limit_deg, Cell, OffAxis};
+    use crate::conformance::{far_field_cell, generate_with, rotation_limit_deg};
     let solvers = [Solver::Dls, Solver::Sqpnp, Solver::Opnp, Solver::Ml];
     let mut gross = [0usize; 4];
     let (mut error_sq, mut limit_sq) = (0.0, 0.0);
     for case in 0..FAR_FIELD_PROBLEMS {
         let mut rng = stream_rng(SEED, 12, case);
-        let cell = Cell {
-            depth_ratio: rng.random_range(20.0..30.0),
-            points: rng.random_range(6..=12),
-            thickness: 1.0,
-            off_axis: OffAxis::Uniform,
-            distortion: false,
-            sigma_px: NOISY_SIGMA_PX,
-        };
+        let cell = far_field_cell(&mut rng, 20.0..30.0, NOISY_SIGMA_PX);
         let problem = generate_with(&mut rng, &cell).unwrap().problem;
         for (k, solver) in solvers.iter().enumerate() {
             let error = solver
