@@ -19,7 +19,8 @@
 //! use layout_opt::layout::Layout;
 //! use layout_opt::observer::Silent;
 //! use layout_opt::pnp::Solver;
-//! use layout_opt::validate::{self, ValidateConfig, WorkflowConfig};
+//! use layout_opt::validate::workflow::WorkflowConfig;
+//! use layout_opt::validate::{self, ValidateConfig};
 //!
 //! let config = ValidateConfig::new(Layout::paper_biprism(), vec![Solver::Ml]);
 //! // The numbers alone, no files:
