@@ -201,7 +201,7 @@ pub fn run(args: RenderArgs, global: &GlobalOptions) -> anyhow::Result<()> {
     bars.finish();
     if let Err(RenderError::Interrupted) = result {
         eprintln!("interrupted: none of the render's files were written");
-        std::process::exit(super::search::EXIT_INTERRUPTED);
+        std::process::exit(super::progress::EXIT_INTERRUPTED);
     }
     let report = result.with_context(|| format!("cannot render {}", job.layout.name))?;
     for frame in &report.frames {
