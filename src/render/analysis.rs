@@ -267,7 +267,6 @@ fn render_tile(
             (id_row[i], shade_row[i]) = shader.sample(u, v, candidates)?;
         }
     }
-    let step = 1.0 / supersampling as f64;
     for j in 0..TILE_PX.min(image.height - y0) {
         for i in 0..TILE_PX.min(image.width - x0) {
             let id = ids[j][i];
@@ -278,21 +277,33 @@ fn render_tile(
                     + shades[j + 2][i + 1]
                     + shades[j + 2][i + 2])
             } else {
-                let (u0, v0) = ((x0 + i) as f64 - 0.5, (y0 + j) as f64 - 0.5);
-                let mut sum = 0.0f64;
-                for b in 0..supersampling {
-                    for a in 0..supersampling {
-                        let u = u0 + (a as f64 + 0.5) * step;
-                        let v = v0 + (b as f64 + 0.5) * step;
-                        sum += f64::from(shader.sample(u, v, candidates)?.1);
-                    }
-                }
-                (sum / (supersampling * supersampling) as f64) as f32
+                supersample(shader, candidates, x0 + i, y0 + j, supersampling)?
             };
             image.values[(y0 + j) * image.width + x0 + i] = value;
         }
     }
     Ok(())
+}
+
+/// The mean radiance of pixel `(x, y)` over an n × n grid of samples.
+fn supersample(
+    shader: &Shader,
+    candidates: &[u32],
+    x: usize,
+    y: usize,
+    supersampling: usize,
+) -> Result<f32, RenderError> {
+    let step = 1.0 / supersampling as f64;
+    let (u0, v0) = (x as f64 - 0.5, y as f64 - 0.5);
+    let mut sum = 0.0f64;
+    for b in 0..supersampling {
+        for a in 0..supersampling {
+            let u = u0 + (a as f64 + 0.5) * step;
+            let v = v0 + (b as f64 + 0.5) * step;
+            sum += f64::from(shader.sample(u, v, candidates)?.1);
+        }
+    }
+    Ok((sum / (supersampling * supersampling) as f64) as f32)
 }
 
 /// Blurs the pixels of `region` (x0, y0, x1, y1) grown by the kernel's
@@ -318,34 +329,51 @@ pub fn gaussian_blur(image: &mut Radiance, sigma_px: f64, region: (usize, usize,
     let x1 = (region.2 + reach).min(width);
     let y1 = (region.3 + reach).min(height);
     let clamp = |value: isize, size: usize| value.clamp(0, size as isize - 1) as usize;
-    let mut row = vec![0f32; x1 - x0];
+    // Along rows: the source row padded with its edge pixels, so that every
+    // tap reads without a bounds clamp.
+    let mut padded = vec![0f32; x1 - x0 + 2 * reach];
     for y in y0..y1 {
         let line = &image.values[y * width..(y + 1) * width];
-        for (x, out) in (x0..x1).zip(row.iter_mut()) {
-            *out = kernel
-                .iter()
-                .enumerate()
-                .map(|(k, w)| w * line[clamp(x as isize + k as isize - reach as isize, width)])
-                .sum();
+        for (k, value) in padded.iter_mut().enumerate() {
+            *value = line[clamp(x0 as isize + k as isize - reach as isize, width)];
         }
-        image.values[y * width + x0..y * width + x1].copy_from_slice(&row);
-    }
-    let mut column = vec![0f32; y1 - y0];
-    for x in x0..x1 {
-        for (y, out) in (y0..y1).zip(column.iter_mut()) {
-            *out = kernel
-                .iter()
-                .enumerate()
-                .map(|(k, w)| {
-                    w * image.values
-                        [clamp(y as isize + k as isize - reach as isize, height) * width + x]
-                })
-                .sum();
-        }
-        for (y, value) in (y0..y1).zip(&column) {
-            image.values[y * width + x] = *value;
+        let out = &mut image.values[y * width + x0..y * width + x1];
+        for (x, value) in out.iter_mut().enumerate() {
+            *value = weighted(&kernel, |k| padded[x + k]);
         }
     }
+    // Along columns, a row at a time: each output row is the weighted sum
+    // of the source rows around it (the same taps in the same order as a
+    // pixel at a time, so the same sums), over a copy of the region grown
+    // by the kernel's reach and padded with the edge rows.
+    let span = x1 - x0;
+    let rows = y1 - y0 + 2 * reach;
+    let mut source = vec![0f32; span * rows];
+    for (r, chunk) in source.chunks_mut(span).enumerate() {
+        let y = clamp(y0 as isize + r as isize - reach as isize, height);
+        chunk.copy_from_slice(&image.values[y * width + x0..y * width + x1]);
+    }
+    let mut sums = vec![0f32; span];
+    for y in y0..y1 {
+        sums.fill(-0.0);
+        for (k, w) in kernel.iter().enumerate() {
+            let r = y - y0 + k;
+            for (sum, value) in sums.iter_mut().zip(&source[r * span..(r + 1) * span]) {
+                *sum += w * value;
+            }
+        }
+        image.values[y * width + x0..y * width + x1].copy_from_slice(&sums);
+    }
+}
+
+/// `Σ_k kernel[k] · value(k)`, summed in the order of the taps from −0.0
+/// (as [`Iterator::sum`] does).
+fn weighted(kernel: &[f32], value: impl Fn(usize) -> f32) -> f32 {
+    let mut sum = -0.0f32;
+    for (k, w) in kernel.iter().enumerate() {
+        sum += w * value(k);
+    }
+    sum
 }
 
 #[cfg(test)]

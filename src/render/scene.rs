@@ -83,6 +83,8 @@ pub struct Scene {
     marker: Option<Marker>,
     /// The flat cut: the solid keeps `p · down ≤ level`.
     bed: Option<(Vector3<f64>, f64)>,
+    /// For each primitive, a ball holding it: `(centre, radius)`.
+    enclosing: Vec<(Vector3<f64>, f64)>,
 }
 
 impl Scene {
@@ -110,11 +112,16 @@ impl Scene {
             .map(|s| (s.centre, s.radius))
             .collect();
         let bed = marker.bed_level.map(|level| (marker.down.vector(), level));
+        let enclosing = shapes
+            .iter()
+            .map(|shape| enclosing_ball(shape, &marker))
+            .collect();
         Scene {
             shapes,
             spheres,
             marker: Some(marker),
             bed,
+            enclosing,
         }
     }
 
@@ -133,6 +140,7 @@ impl Scene {
             spheres: spheres.to_vec(),
             marker: None,
             bed: None,
+            enclosing: spheres.to_vec(),
         }
     }
 
@@ -415,8 +423,14 @@ impl Scene {
             return hit;
         }
         let p = ray.at(hit.t);
+        // A primitive is at least as far from `p` as its enclosing ball,
+        // so only those whose ball lies within the blend radius are
+        // evaluated.
         let near_other = candidates.iter().any(|&j| {
-            j as usize != hit.shape && self.shape_distance(j as usize, &p).value < marker.blend_mm
+            let (centre, radius) = &self.enclosing[j as usize];
+            j as usize != hit.shape
+                && (p - centre).norm() - radius < marker.blend_mm
+                && self.shape_distance(j as usize, &p).value < marker.blend_mm
         });
         if !near_other {
             return hit;
@@ -437,6 +451,25 @@ impl Scene {
             sphere: self.sphere_at(&p),
             normal: sample.gradient,
         }
+    }
+}
+
+/// A ball holding one primitive of `marker`: `(centre, radius)`.
+fn enclosing_ball(shape: &Shape, marker: &Marker) -> (Vector3<f64>, f64) {
+    let segment = |a: &Vector3<f64>, b: &Vector3<f64>, radius: f64| {
+        (0.5 * (a + b), 0.5 * (b - a).norm() + radius)
+    };
+    match shape {
+        Shape::Sphere {
+            centre,
+            radius,
+            teardrop,
+        } => match teardrop {
+            Some((tip, tip_radius)) => segment(centre, tip, radius.max(*tip_radius)),
+            None => (*centre, *radius),
+        },
+        Shape::Capsule { a, b, radius } => segment(a, b, *radius),
+        Shape::Plate => (marker.plate.centre, marker.plate.half_extents.norm()),
     }
 }
 

@@ -455,12 +455,22 @@ impl Marker {
     /// at `p`: the exact minimum of every strut and of every junction's
     /// smooth union. 1-Lipschitz.
     pub fn sample(&self, p: &Vector3<f64>) -> Sample {
-        let mut best = self
-            .struts
-            .iter()
-            .map(|strut| sdf::capsule(p, &strut.a, &strut.b, strut.radius))
-            .reduce(sdf::min)
-            .expect("a marker has struts");
+        let mut best: Option<Sample> = None;
+        for strut in &self.struts {
+            // A strut's value is at least its distance to the ball around
+            // it, so struts that cannot be the minimum are skipped without
+            // changing the result.
+            if let Some(b) = &best {
+                let half = 0.5 * (strut.b - strut.a).norm();
+                let lower = (p - 0.5 * (strut.a + strut.b)).norm() - half - strut.radius;
+                if lower > b.value {
+                    continue;
+                }
+            }
+            let s = sdf::capsule(p, &strut.a, &strut.b, strut.radius);
+            best = Some(best.map_or(s, |b| sdf::min(b, s)));
+        }
+        let mut best = best.expect("a marker has struts");
         for junction in &self.junctions {
             // A junction's value is at least its distance to its bounding
             // ball minus the deepest blend, so junctions that cannot be the
