@@ -700,6 +700,11 @@ impl Run<'_, '_> {
             monte_carlo,
             identifiability: config.identifiability_check(),
             fabrication_sigma_mm: 0.0,
+            // The winner's validation keeps to the spheres alone, as the
+            // search's own figures do; the report's held-out check with
+            // supports says what the printed part loses.
+            structure: None,
+            max_hidden: crate::visibility::DEFAULT_MAX_HIDDEN,
             command: config.command.clone(),
         };
         let checked = validation_config
