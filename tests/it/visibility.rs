@@ -345,3 +345,45 @@ fn a_bad_max_hidden_is_refused_before_any_work() {
         }
     }
 }
+
+/// `export` without range flags routes the supports for the search's grid
+/// recorded in the layout's provenance, and without such a record builds
+/// for the view cone as before.
+#[test]
+fn export_defaults_to_the_searched_range_in_the_provenance() {
+    let dir = tempfile::tempdir().unwrap();
+    let shipped =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("layouts/biprism-paper.json");
+    let mut file: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(shipped).unwrap()).unwrap();
+    file["name"] = "searched".into();
+    file["provenance"] = serde_json::json!({"range": {
+        "depth": [400.0, 700.0], "offset-x": [0.0, 50.0], "offset-y": [0.0],
+        "tilt": [-20.0, 0.0, 20.0], "pan": [0.0], "roll": [0.0], "noise": [0.5]}});
+    let searched = dir.path().join("searched.json");
+    std::fs::write(&searched, file.to_string()).unwrap();
+    let export = |layout: &std::path::Path, out: &str| {
+        let out = dir.path().join(out);
+        assert_cmd::Command::cargo_bin("layout-opt")
+            .unwrap()
+            .args(["--quiet", "export", "--format", "stl", "--out"])
+            .arg(&out)
+            .arg(layout)
+            .assert()
+            .success();
+        let name = layout.file_stem().unwrap().to_string_lossy().to_string();
+        let summary = std::fs::read_to_string(out.join(format!("{name}-export.json"))).unwrap();
+        serde_json::from_str::<serde_json::Value>(&summary).unwrap()["working_range_scenarios"]
+            .clone()
+    };
+    assert_eq!(export(&searched, "a"), serde_json::json!(12));
+    file["provenance"] = serde_json::json!({"seed": 7});
+    let plain = dir.path().join("plain.json");
+    file["name"] = "plain".into();
+    std::fs::write(&plain, file.to_string()).unwrap();
+    let scenarios = export(&plain, "b");
+    assert!(
+        scenarios.is_null() || scenarios == serde_json::json!(0),
+        "{scenarios}"
+    );
+}
