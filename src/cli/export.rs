@@ -104,7 +104,8 @@ struct WorkingRangeArgs {
     /// Depths of the working range, mm (as in validate): when given, the
     /// supports are routed to hide no sphere from the range's views
     /// (--depth × --offset-x × --offset-y × --tilt × --pan, paper camera),
-    /// and the views they still lose are reported.
+    /// and the views they still lose are reported. Default: the search's
+    /// grid recorded in the layout's provenance, if there is one.
     #[arg(long, value_name = "RANGE", allow_hyphen_values = true, value_parser = boxed_range)]
     depth: Option<Box<Range>>,
     /// X offsets of the working range, mm (with --depth; default 0).
@@ -158,25 +159,46 @@ fn load_layout(args: &ExportArgs) -> anyhow::Result<(Layout, String)> {
     Ok((layout, path.display().to_string()))
 }
 
-/// The working range of `--depth` and the other grid flags, if given.
-fn working_range(args: &ExportArgs) -> anyhow::Result<Option<WorkingRange>> {
+/// The search's grid recorded in a layout's provenance (`range`: each
+/// axis's values by name), if there is one.
+fn searched_range(layout: &Layout, axis: &str) -> Option<Range> {
+    let values = layout.provenance.as_ref()?.get("range")?.get(axis)?;
+    let values: Vec<f64> = serde_json::from_value(values.clone()).ok()?;
+    (!values.is_empty()).then(|| Range::list(&values))
+}
+
+/// The working range of `--depth` and the other grid flags, if given;
+/// else the search's range recorded in the layout's provenance, if there
+/// is one (flags given override its axes).
+fn working_range(args: &ExportArgs, layout: &Layout) -> anyhow::Result<Option<WorkingRange>> {
     let (tilt, pan) = (args.tilt.clone(), args.pan.clone());
     let args = &args.range;
-    let Some(depth) = args.depth.as_deref() else {
-        anyhow::ensure!(
-            args.offset_x.is_none() && args.offset_y.is_none(),
-            "--offset-x and --offset-y set the working range: give --depth too"
-        );
-        return Ok(None);
+    let searched = |axis: &str| searched_range(layout, axis);
+    let depth = match args.depth.as_deref() {
+        Some(depth) => depth.clone(),
+        None => match searched("depth") {
+            Some(depth) => depth,
+            None => {
+                anyhow::ensure!(
+                    args.offset_x.is_none() && args.offset_y.is_none(),
+                    "--offset-x and --offset-y set the working range: give --depth too"
+                );
+                return Ok(None);
+            }
+        },
     };
-    let zero = Range::single(0.0);
-    let range = |r: &Option<Box<Range>>| r.as_deref().unwrap_or(&zero).clone();
+    let axis = |given: Option<&Range>, name: &str| {
+        given
+            .cloned()
+            .or_else(|| searched(name))
+            .unwrap_or(Range::single(0.0))
+    };
     let grid = ScenarioGrid::new(
-        depth.clone(),
-        range(&args.offset_x),
-        range(&args.offset_y),
-        range(&tilt),
-        range(&pan),
+        depth,
+        axis(args.offset_x.as_deref(), "offset-x"),
+        axis(args.offset_y.as_deref(), "offset-y"),
+        axis(tilt.as_deref(), "tilt"),
+        axis(pan.as_deref(), "pan"),
         Range::single(0.0),
         Range::single(0.5),
     )?;
@@ -194,7 +216,7 @@ pub fn run(args: ExportArgs, global: &GlobalOptions) -> anyhow::Result<()> {
         args.view_cone.is_some() || view_cone < 80.0,
         "--tilt and --pan reach {view_cone:.1}° from the main view; the view cone must stay below 80°: narrow the ranges or give --view-cone"
     );
-    let working_range = working_range(&args)?;
+    let working_range = working_range(&args, &layout)?;
     let options = ExportOptions {
         formats: args.format.clone(),
         marker: MarkerOptions {

@@ -7,6 +7,7 @@ use clap::Args;
 use layout_opt::config::ConfigError;
 use layout_opt::error_model::fabrication::FabricationError;
 use layout_opt::layout::Layout;
+use layout_opt::mesh::MarkerOptions;
 use layout_opt::montecarlo::{MonteCarloConfig, MonteCarloError, DEFAULT_GROSS_THRESHOLD_DEG};
 use layout_opt::noise::NoiseModel;
 use layout_opt::scenario::ScenarioGrid;
@@ -64,6 +65,14 @@ pub struct ValidateArgs {
     /// with the fabrication term. 0 (the default) runs nothing more.
     #[arg(long, value_name = "MM", default_value_t = 0.0)]
     fabrication_sigma: f64,
+    /// The largest fraction (0–1) of a sphere's silhouette that the part's
+    /// own supports may hide while the sphere still counts as seen.
+    #[arg(long, value_name = "FRACTION", default_value_t = layout_opt::visibility::DEFAULT_MAX_HIDDEN)]
+    max_hidden: f64,
+    /// Leave the part's supports out: only the spheres hide each other (the
+    /// behaviour before the supports were modelled).
+    #[arg(long)]
+    no_supports: bool,
 }
 
 /// A probability strictly between 0 and 1, as `0.999` or `99.9%`.
@@ -119,6 +128,8 @@ pub fn run(args: ValidateArgs, global: &GlobalOptions) -> anyhow::Result<()> {
                 trials: args.identify_trials,
             },
             fabrication_sigma_mm: args.fabrication_sigma,
+            structure: (!args.no_supports).then(MarkerOptions::default),
+            max_hidden: args.max_hidden,
             command: command_line(),
         },
         grid_note,
@@ -170,6 +181,7 @@ fn flag_error(error: ConfigError, layout: &str) -> anyhow::Error {
         "gross_threshold_deg" => "--gross-threshold",
         "min_correct" => "--identify-criterion",
         "fabrication_sigma_mm" => "--fabrication-sigma",
+        "max_hidden" => "--max-hidden",
         other => other,
     };
     anyhow::anyhow!("{flag} {}", error.reason)

@@ -244,10 +244,19 @@ impl<'c> Analysis<'c> {
     }
 
     /// The provenance every layout of the run carries: the command, seed,
-    /// objective and version.
+    /// objective, version and the search's grid (`range`: every axis's
+    /// values, by name), which `export` routes the supports for when no
+    /// range is given.
     pub fn provenance(&self) -> serde_json::Value {
         let config = self.config;
+        let range: serde_json::Map<String, serde_json::Value> = config
+            .grid
+            .named_ranges()
+            .iter()
+            .map(|(name, range)| (name.to_string(), serde_json::json!(range.values)))
+            .collect();
         serde_json::json!({
+            "range": range,
             "command": config.command,
             "seed": config.search.seed,
             "objective": config.objective.objective.to_string(),
@@ -700,6 +709,11 @@ impl Run<'_, '_> {
             monte_carlo,
             identifiability: config.identifiability_check(),
             fabrication_sigma_mm: 0.0,
+            // The winner's validation keeps to the spheres alone, as the
+            // search's own figures do; the report's held-out check with
+            // supports says what the printed part loses.
+            structure: None,
+            max_hidden: crate::visibility::DEFAULT_MAX_HIDDEN,
             command: config.command.clone(),
         };
         let checked = validation_config

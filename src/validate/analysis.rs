@@ -30,6 +30,7 @@ use crate::observer::{relay, watch, Observer};
 use crate::pnp::parallel::reference_index;
 use crate::report::significant;
 use crate::scenario::ScenarioGrid;
+use crate::visibility::{hidden_fractions, MaxHidden, Supports, WorkingRange};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 
 /// Why a validation's analysis could not run.
@@ -45,6 +46,9 @@ pub enum ValidateError {
     /// The fabrication run failed or was interrupted.
     #[error(transparent)]
     Fabrication(#[from] FabricationError),
+    /// The part's supports cannot be built for the layout.
+    #[error("the part's supports cannot be built: {0}")]
+    Supports(#[from] crate::mesh::GeometryError),
 }
 
 /// Progress phase of the Monte-Carlo runs: one step per scenario for the
@@ -118,13 +122,28 @@ pub fn monte_carlo_until(config: Checked, hooks: Hooks) -> Result<ValidateSummar
         point_sigma_px: &sigmas,
     };
     let scenarios = grid.scenarios();
-    let outcomes = montecarlo::run_until(
+    let max_hidden = config.max_hidden()?;
+    let supports = match &config.structure {
+        Some(options) => {
+            let range = WorkingRange {
+                camera: config.camera,
+                scenarios: scenarios.clone(),
+                max_hidden,
+            };
+            Some(crate::mesh::supports_for_range(layout, options, &range)?)
+        }
+        None => None,
+    };
+    let mut outcomes = montecarlo::run_until(
         &target,
         &scenarios,
         monte_carlo,
         hooks.on_scenario_done,
         hooks.stop,
     )?;
+    if let Some(supports) = &supports {
+        count_supports(&mut outcomes, &config, supports, max_hidden);
+    }
     let settings = IdentifiabilitySettings {
         min_correct: config.identifiability.min_correct,
         trials: config.identifiability.trials,
@@ -144,7 +163,12 @@ pub fn monte_carlo_until(config: Checked, hooks: Hooks) -> Result<ValidateSummar
     .ok_or(MonteCarloError::Interrupted)?;
     let overview = Overview {
         header: header(&config, &object),
-        visibility: visibility_counts(layout, grid, &outcomes),
+        visibility: visibility_counts(
+            supports.is_some().then_some(max_hidden.fraction()),
+            layout,
+            grid,
+            &outcomes,
+        ),
         solvers: solver_rows(&outcomes, monte_carlo.solvers.len()),
         curves: curves(grid, &outcomes, monte_carlo),
         systematic: systematic(&outcomes, monte_carlo),
@@ -157,6 +181,42 @@ pub fn monte_carlo_until(config: Checked, hooks: Hooks) -> Result<ValidateSummar
         identifiability: identified,
         fabrication: None,
     })
+}
+
+/// Marks, in every scenario that is otherwise visible, the spheres that
+/// `supports` hide beyond `max_hidden` ([`Visibility::hidden_by_support`]),
+/// so that such a scenario counts as not seen, as one with a sphere behind
+/// another does. In parallel; the result does not depend on the thread
+/// count.
+///
+/// [`Visibility::hidden_by_support`]: crate::scenario::Visibility::hidden_by_support
+fn count_supports(
+    outcomes: &mut [ScenarioOutcome],
+    config: &ValidateConfig,
+    supports: &Supports,
+    max_hidden: MaxHidden,
+) {
+    use rayon::prelude::*;
+    let centres = config.layout.positions();
+    let radius_mm = 0.5 * config.layout.sphere_diameter_mm;
+    outcomes
+        .par_iter_mut()
+        .filter(|o| o.visibility.is_visible())
+        .for_each(|o| {
+            let fractions = hidden_fractions(
+                &config.camera,
+                &o.scenario.pose(),
+                &centres,
+                radius_mm,
+                supports,
+            );
+            o.visibility.hidden_by_support = fractions
+                .iter()
+                .enumerate()
+                .filter(|(_, f)| f.is_some_and(|f| f.support > max_hidden.fraction()))
+                .map(|(k, _)| k)
+                .collect();
+        });
 }
 
 /// The fabrication check (None when σ_fab is 0): in every visible scenario
@@ -401,11 +461,12 @@ fn class_index(class: VisibilityClass) -> usize {
         VisibilityClass::Occluded => 1,
         VisibilityClass::OutsideImage => 2,
         VisibilityClass::BehindCamera => 3,
+        VisibilityClass::HiddenBySupport => 4,
     }
 }
 
-fn count_classes<'a>(outcomes: impl Iterator<Item = &'a ScenarioOutcome>) -> [usize; 4] {
-    let mut counts = [0; 4];
+fn count_classes<'a>(outcomes: impl Iterator<Item = &'a ScenarioOutcome>) -> [usize; 5] {
+    let mut counts = [0; 5];
     for o in outcomes {
         counts[class_index(VisibilityClass::of(&o.visibility))] += 1;
     }
@@ -413,6 +474,7 @@ fn count_classes<'a>(outcomes: impl Iterator<Item = &'a ScenarioOutcome>) -> [us
 }
 
 fn visibility_counts(
+    max_hidden: Option<f64>,
     layout: &Layout,
     grid: &ScenarioGrid,
     outcomes: &[ScenarioOutcome],
@@ -454,13 +516,16 @@ fn visibility_counts(
                 .collect(),
         })
         .collect();
-    let [visible, occluded, outside_image, behind_camera] = count_classes(outcomes.iter());
+    let [visible, occluded, outside_image, behind_camera, hidden_by_support] =
+        count_classes(outcomes.iter());
     VisibilityCounts {
         scenarios: outcomes.len(),
         visible,
         occluded,
         outside_image,
         behind_camera,
+        hidden_by_support,
+        max_hidden,
         availability: visible as f64 / outcomes.len().max(1) as f64,
         with_occlusion: with_occlusion.len(),
         occlusion_examples,

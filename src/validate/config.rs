@@ -9,9 +9,11 @@ use crate::camera::Camera;
 use crate::config::ConfigError;
 use crate::identifiability;
 use crate::layout::Layout;
+use crate::mesh::MarkerOptions;
 use crate::montecarlo::MonteCarloConfig;
 use crate::pnp::Solver;
 use crate::scenario::ScenarioGrid;
+use crate::visibility::{MaxHidden, DEFAULT_MAX_HIDDEN};
 use serde::Serialize;
 
 /// Default Monte-Carlo trials of the unlabelled solver per visible scenario.
@@ -79,6 +81,13 @@ pub struct ValidateConfig {
     /// [`crate::error_model::fabrication::FABRICATION_SEED_OFFSET`]); 0
     /// runs nothing more.
     pub fabrication_sigma_mm: f64,
+    /// The part's structure: the supports that `export` builds with these
+    /// options, routed for this grid ([`crate::mesh::supports_for_range`]),
+    /// hide spheres as any occluder does; `None`: the spheres alone.
+    pub structure: Option<MarkerOptions>,
+    /// The largest fraction of a sphere's silhouette the supports may hide
+    /// while the sphere still counts as seen, 0…1.
+    pub max_hidden: f64,
     /// The command that asked for the run, for the report header.
     pub command: String,
 }
@@ -102,13 +111,21 @@ impl ValidateConfig {
             },
             identifiability: IdentifiabilityCheck::default(),
             fabrication_sigma_mm: 0.0,
+            structure: Some(MarkerOptions::default()),
+            max_hidden: DEFAULT_MAX_HIDDEN,
             command: String::new(),
         }
     }
 
+    /// [`Self::max_hidden`], checked.
+    pub fn max_hidden(&self) -> Result<MaxHidden, ConfigError> {
+        MaxHidden::new(self.max_hidden)
+    }
+
     /// Checks every value once, naming the first bad field: `layout` (its
     /// [`Layout::validate`] reason), `solvers`, `trials`,
-    /// `gross_threshold_deg`, `min_correct` and `fabrication_sigma_mm`.
+    /// `gross_threshold_deg`, `min_correct`, `fabrication_sigma_mm` and
+    /// `max_hidden`.
     ///
     /// ```
     /// use layout_opt::layout::Layout;
@@ -151,6 +168,7 @@ impl ValidateConfig {
                 format!("must be a finite number of millimetres ≥ 0, got {sigma}"),
             ));
         }
+        self.max_hidden()?;
         Ok(Checked(self))
     }
 }
@@ -190,7 +208,7 @@ mod tests {
     #[test]
     fn every_bad_value_names_its_field() {
         type Spoil = fn(&mut ValidateConfig);
-        let bad: [(&str, Spoil); 7] = [
+        let bad: [(&str, Spoil); 9] = [
             ("layout", |c| c.layout.points.truncate(3)),
             ("solvers", |c| c.monte_carlo.solvers.clear()),
             ("trials", |c| c.monte_carlo.trials = 0),
@@ -202,6 +220,8 @@ mod tests {
             }),
             ("min_correct", |c| c.identifiability.min_correct = 1.0),
             ("fabrication_sigma_mm", |c| c.fabrication_sigma_mm = -0.1),
+            ("max_hidden", |c| c.max_hidden = 1.5),
+            ("max_hidden", |c| c.max_hidden = f64::NAN),
         ];
         for (field, spoil) in bad {
             let mut config = config();

@@ -22,8 +22,9 @@ pub fn console(validation: &ValidateSummary, out: &Path) -> String {
     let mut text = String::new();
     let _ = writeln!(
         text,
-        "{}: {} scenarios × {} trials, seed {}: {} visible, {} occluded, {} outside the image, {} behind the camera (each scenario counted once, in the order behind, outside, occluded)",
-        h.layout, v.scenarios, h.trials_per_scenario, h.seed, v.visible, v.occluded, v.outside_image, v.behind_camera
+        "{}: {} scenarios × {} trials, seed {}: {} visible, {} occluded, {} outside the image, {} behind the camera{} (each scenario counted once, in the order behind, outside, occluded{})",
+        h.layout, v.scenarios, h.trials_per_scenario, h.seed, v.visible, v.occluded, v.outside_image, v.behind_camera,
+        support_count(v), if v.max_hidden.is_some() { ", hidden by a support" } else { "" }
     );
     if v.visible == 0 {
         let _ = writeln!(text, "no scenario is visible, so no error is measurable; see {} for why each scenario is hidden", out.join("scenarios.csv").display());
@@ -137,16 +138,31 @@ fn range_text(values: &[f64]) -> String {
     }
 }
 
+/// ", 3 hidden by a support" when the supports were counted, else nothing.
+fn support_count(v: &super::summary::VisibilityCounts) -> String {
+    match v.max_hidden {
+        Some(_) => format!(", {} hidden by a support", v.hidden_by_support),
+        None => String::new(),
+    }
+}
+
 /// One axis's visibility counts as a table, consecutive values with the
-/// same counts merged into one row ("−90 … −60").
+/// same counts merged into one row ("−90 … −60"). The column of scenarios
+/// hidden by a support appears when some value has one.
 fn axis_visibility_table(axis: &AxisVisibility) -> Table {
-    let mut table = Table::new([
-        format!("{} ({})", axis.axis, axis.unit),
-        "visible".to_string(),
-        "occluded".to_string(),
-        "outside image".to_string(),
-        "behind camera".to_string(),
-    ]);
+    let supports = axis.counts.iter().any(|c| c[4] > 0);
+    let columns = if supports { 5 } else { 4 };
+    let mut table = Table::new(
+        [
+            format!("{} ({})", axis.axis, axis.unit),
+            "visible".to_string(),
+            "occluded".to_string(),
+            "outside image".to_string(),
+            "behind camera".to_string(),
+        ]
+        .into_iter()
+        .chain(supports.then(|| "hidden by a support".to_string())),
+    );
     let mut start = 0;
     while start < axis.values.len() {
         let mut end = start;
@@ -158,7 +174,7 @@ fn axis_visibility_table(axis: &AxisVisibility) -> Table {
         } else {
             format!("{} … {}", axis.values[start], axis.values[end])
         };
-        let counts = axis.counts[start];
+        let counts = &axis.counts[start][..columns];
         table.row(std::iter::once(values).chain(counts.iter().map(|c| c.to_string())));
         start = end + 1;
     }
@@ -217,11 +233,15 @@ pub(super) fn markdown(summary: &Overview) -> String {
     out.push_str(&grid.markdown());
     let _ = writeln!(
         out,
-        "\n{} scenarios: **{} visible** (availability {:.1}%), {} occluded, {} with a sphere outside the image (margin 5 px), {} with a sphere behind the camera (no trials); {} + {} + {} + {} = {}.",
-        v.scenarios, v.visible, 100.0 * v.availability, v.occluded, v.outside_image, v.behind_camera,
-        v.visible, v.occluded, v.outside_image, v.behind_camera, v.scenarios
+        "\n{} scenarios: **{} visible** (availability {:.1}%), {} occluded, {} with a sphere outside the image (margin 5 px), {} with a sphere behind the camera (no trials), {} with a sphere hidden by the part's supports; {} + {} + {} + {} + {} = {}.",
+        v.scenarios, v.visible, 100.0 * v.availability, v.occluded, v.outside_image, v.behind_camera, v.hidden_by_support,
+        v.visible, v.occluded, v.outside_image, v.behind_camera, v.hidden_by_support, v.scenarios
     );
-    let _ = writeln!(out, "Each scenario is counted once, under the first rule it breaks in the order behind the camera, outside the image, occluded. A sphere is occluded when its image disc overlaps the disc of a nearer sphere; {} scenarios have an occluded sphere, {} of them also breaking an earlier rule. Statistics below pool the visible scenarios; `scenarios.csv` has every scenario, visible or not, with its class, and `occlusions.csv` every scenario with an occluded sphere and which sphere hides which.\n", v.with_occlusion, v.with_occlusion - v.occluded);
+    let _ = writeln!(out, "{}", match v.max_hidden {
+        Some(max) => format!("The part's supports (those `export` builds with its default structure, routed for this grid) count as occluders: a sphere of which they hide more than {:.1}% of the silhouette counts as not seen, as one behind another sphere does (`--no-supports`: the spheres alone).", 100.0 * max),
+        None => "The part's supports are not counted (`--no-supports`): only the spheres hide each other.".to_string(),
+    });
+    let _ = writeln!(out, "Each scenario is counted once, under the first rule it breaks in the order behind the camera, outside the image, occluded, hidden by a support. A sphere is occluded when its image disc overlaps the disc of a nearer sphere; {} scenarios have an occluded sphere, {} of them also breaking an earlier rule. Statistics below pool the visible scenarios; `scenarios.csv` has every scenario, visible or not, with its class, and `occlusions.csv` every scenario with an occluded sphere and which sphere hides which.\n", v.with_occlusion, v.with_occlusion - v.occluded);
     for axis in &v.by_axis {
         let _ = writeln!(out, "Visibility by {} ({}): scenarios at each value; a row \"A … B\" stands for consecutive values with the same counts.\n", axis.axis, axis.unit);
         out.push_str(&axis_visibility_table(axis).markdown());
@@ -449,7 +469,12 @@ mod tests {
             axis: "tilt".into(),
             unit: "deg".into(),
             values: vec![-20.0, -10.0, 0.0, 10.0],
-            counts: vec![[3, 0, 0, 0], [3, 0, 0, 0], [1, 2, 0, 0], [3, 0, 0, 0]],
+            counts: vec![
+                [3, 0, 0, 0, 0],
+                [3, 0, 0, 0, 0],
+                [1, 2, 0, 0, 0],
+                [3, 0, 0, 0, 0],
+            ],
         };
         assert_eq!(
             axis_visibility_table(&axis).markdown(),

@@ -93,6 +93,10 @@ pub enum VisibilityClass {
     OutsideImage,
     /// Some sphere behind the camera (no trials run).
     BehindCamera,
+    /// Every sphere in front, inside the image and clear of the others,
+    /// but the part's own supports hide more than the allowed fraction of
+    /// some sphere.
+    HiddenBySupport,
 }
 
 impl VisibilityClass {
@@ -104,6 +108,8 @@ impl VisibilityClass {
             Self::OutsideImage
         } else if !visibility.occluded.is_empty() {
             Self::Occluded
+        } else if !visibility.hidden_by_support.is_empty() {
+            Self::HiddenBySupport
         } else {
             Self::Visible
         }
@@ -116,12 +122,13 @@ impl VisibilityClass {
             Self::Occluded => "occluded",
             Self::OutsideImage => "outside-image",
             Self::BehindCamera => "behind-camera",
+            Self::HiddenBySupport => "hidden-by-support",
         }
     }
 }
 
 /// Scenario counts by visibility: `visible + occluded + outside_image +
-/// behind_camera = scenarios`, each scenario counted once by the precedence
+/// behind_camera + hidden_by_support = scenarios`, each scenario counted once by the precedence
 /// of [`VisibilityClass`].
 #[derive(Debug, Clone, Serialize)]
 pub struct VisibilityCounts {
@@ -137,6 +144,13 @@ pub struct VisibilityCounts {
     pub outside_image: usize,
     /// Scenarios in which some sphere is behind the camera (no trials run).
     pub behind_camera: usize,
+    /// Scenarios that break no other rule, in which the part's supports
+    /// hide more than the allowed fraction of some sphere (0 when the
+    /// supports are not counted).
+    pub hidden_by_support: usize,
+    /// Whether the supports were counted, and the largest hidden fraction
+    /// that still counted as seen.
+    pub max_hidden: Option<f64>,
     /// Fraction of scenarios that are visible.
     pub availability: f64,
     /// Scenarios with an occluded sphere, whatever their class (a superset
@@ -158,8 +172,9 @@ pub struct AxisVisibility {
     pub unit: String,
     /// The axis values.
     pub values: Vec<f64>,
-    /// Per value: visible, occluded, outside the image, behind the camera.
-    pub counts: Vec<[usize; 4]>,
+    /// Per value: visible, occluded, outside the image, behind the camera,
+    /// hidden by a support.
+    pub counts: Vec<[usize; 5]>,
 }
 
 /// One solver pooled over the visible scenarios, with model agreement.

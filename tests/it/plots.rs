@@ -241,6 +241,8 @@ fn write_reports(dir: &Path) {
             ..Default::default()
         },
         fabrication_sigma_mm: 0.0,
+        structure: Some(Default::default()),
+        max_hidden: layout_opt::visibility::DEFAULT_MAX_HIDDEN,
         command: "plots test".into(),
     };
     let sensitivity = WorkflowConfig::new(validate, dir.join("sensitivity"));

@@ -228,3 +228,162 @@ fn hidden_fractions_do_not_depend_on_the_thread_count() {
         .flatten()
         .any(|f| f.is_some_and(|f| f.support > 0.0)));
 }
+
+/// `validate` with the supports counted, on a range too wide for the
+/// paper biprism's supports to clear (as above): exactly the scenarios in
+/// which they hide a sphere move from visible to hidden by a support,
+/// nothing else changes class, and `--no-supports` (`structure: None`)
+/// gives the spheres-alone counts.
+#[test]
+fn validate_counts_the_scenarios_the_supports_hide() {
+    use layout_opt::montecarlo::{MonteCarloConfig, DEFAULT_GROSS_THRESHOLD_DEG};
+    use layout_opt::pnp::Solver;
+    use layout_opt::validate::{IdentifiabilityCheck, ValidateConfig};
+    let layout = Layout::paper_biprism();
+    let grid = ScenarioGrid::new(
+        "300".parse().unwrap(),
+        Range::single(0.0),
+        Range::single(0.0),
+        "-80..80:10".parse().unwrap(),
+        "-60..60:30".parse().unwrap(),
+        Range::single(0.0),
+        Range::single(0.5),
+    )
+    .unwrap();
+    let range = WorkingRange {
+        camera: Camera::paper(),
+        scenarios: grid.scenarios(),
+        max_hidden: MaxHidden::default(),
+    };
+    let supports =
+        layout_opt::mesh::supports_for_range(&layout, &MarkerOptions::default(), &range).unwrap();
+    let lost: std::collections::BTreeSet<usize> = range
+        .lost_views(&layout.positions(), layout.sphere_diameter_mm, &supports)
+        .iter()
+        .map(|l| l.scenario.index)
+        .collect();
+    assert!(!lost.is_empty());
+    let run = |structure: Option<MarkerOptions>| {
+        let config = ValidateConfig {
+            layout: layout.clone(),
+            camera: Camera::paper(),
+            grid: grid.clone(),
+            monte_carlo: MonteCarloConfig {
+                trials: 2,
+                seed: 3,
+                solvers: vec![Solver::Ml],
+                noise: Default::default(),
+                gross_threshold_deg: DEFAULT_GROSS_THRESHOLD_DEG,
+                observation: Default::default(),
+            },
+            identifiability: IdentifiabilityCheck {
+                trials: 0,
+                ..Default::default()
+            },
+            fabrication_sigma_mm: 0.0,
+            structure,
+            max_hidden: 0.01,
+            command: String::new(),
+        };
+        layout_opt::validate::analysis::analyse(&config, &mut layout_opt::observer::Silent).unwrap()
+    };
+    let with = run(Some(MarkerOptions::default()));
+    let without = run(None);
+    let (v, w) = (&with.overview.visibility, &without.overview.visibility);
+    assert_eq!(w.hidden_by_support, 0);
+    assert_eq!(v.hidden_by_support, lost.len(), "{v:?}");
+    for outcome in &with.outcomes {
+        assert_eq!(
+            !outcome.visibility.hidden_by_support.is_empty(),
+            lost.contains(&outcome.scenario.index)
+        );
+    }
+    assert_eq!(v.visible + v.hidden_by_support, w.visible);
+    assert_eq!(
+        (v.occluded, v.outside_image, v.behind_camera),
+        (w.occluded, w.outside_image, w.behind_camera)
+    );
+    // A scenario hidden by a support is left out of identifiability as an
+    // occluded one is.
+    for (outcome, identified) in with.outcomes.iter().zip(&with.identifiability) {
+        if !outcome.visibility.hidden_by_support.is_empty() {
+            assert!(identified.is_none(), "{:?}", outcome.scenario);
+        }
+    }
+}
+
+/// A `--max-hidden` outside 0–1 is refused by `validate` and `export`
+/// before any work, naming the flag, and nothing is written.
+#[test]
+fn a_bad_max_hidden_is_refused_before_any_work() {
+    for bad in ["1.5", "NaN", "-0.1"] {
+        for command in ["validate", "export"] {
+            let dir = tempfile::tempdir().unwrap();
+            let max_hidden = format!("--max-hidden={bad}");
+            let args: Vec<&str> = match command {
+                "validate" => vec!["validate", "--trials", "1", &max_hidden],
+                _ => vec!["export", "--depth", "600", &max_hidden],
+            };
+            let output = assert_cmd::Command::cargo_bin("layout-opt")
+                .unwrap()
+                .args(args)
+                .arg("--out")
+                .arg(dir.path())
+                .output()
+                .unwrap();
+            let stderr = String::from_utf8_lossy(&output.stderr);
+            assert!(!output.status.success(), "{command} {bad}");
+            assert!(
+                stderr.contains("max-hidden") && stderr.contains("from 0 to 1"),
+                "{command} --max-hidden {bad}: {stderr}"
+            );
+            assert_eq!(
+                std::fs::read_dir(dir.path()).unwrap().count(),
+                0,
+                "{command} --max-hidden {bad} wrote something"
+            );
+        }
+    }
+}
+
+/// `export` without range flags routes the supports for the search's grid
+/// recorded in the layout's provenance, and without such a record builds
+/// for the view cone as before.
+#[test]
+fn export_defaults_to_the_searched_range_in_the_provenance() {
+    let dir = tempfile::tempdir().unwrap();
+    let shipped =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("layouts/biprism-paper.json");
+    let mut file: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(shipped).unwrap()).unwrap();
+    file["name"] = "searched".into();
+    file["provenance"] = serde_json::json!({"range": {
+        "depth": [400.0, 700.0], "offset-x": [0.0, 50.0], "offset-y": [0.0],
+        "tilt": [-20.0, 0.0, 20.0], "pan": [0.0], "roll": [0.0], "noise": [0.5]}});
+    let searched = dir.path().join("searched.json");
+    std::fs::write(&searched, file.to_string()).unwrap();
+    let export = |layout: &std::path::Path, out: &str| {
+        let out = dir.path().join(out);
+        assert_cmd::Command::cargo_bin("layout-opt")
+            .unwrap()
+            .args(["--quiet", "export", "--format", "stl", "--out"])
+            .arg(&out)
+            .arg(layout)
+            .assert()
+            .success();
+        let name = layout.file_stem().unwrap().to_string_lossy().to_string();
+        let summary = std::fs::read_to_string(out.join(format!("{name}-export.json"))).unwrap();
+        serde_json::from_str::<serde_json::Value>(&summary).unwrap()["working_range_scenarios"]
+            .clone()
+    };
+    assert_eq!(export(&searched, "a"), serde_json::json!(12));
+    file["provenance"] = serde_json::json!({"seed": 7});
+    let plain = dir.path().join("plain.json");
+    file["name"] = "plain".into();
+    std::fs::write(&plain, file.to_string()).unwrap();
+    let scenarios = export(&plain, "b");
+    assert!(
+        scenarios.is_null() || scenarios == serde_json::json!(0),
+        "{scenarios}"
+    );
+}
