@@ -13,8 +13,8 @@ use layout_opt::mesh::pipeline::{self, ExportConfig};
 use layout_opt::mesh::summary::summary;
 use layout_opt::mesh::view_cone::view_cone_deg;
 use layout_opt::mesh::{Axis, ExportError, ExportOptions, Format, MarkerOptions, MountHoles};
-use layout_opt::scenario::{Range, ScenarioGrid};
-use layout_opt::visibility::{MaxHidden, WorkingRange};
+use layout_opt::scenario::Range;
+use layout_opt::visibility::{MaxHidden, RangeAxes, WorkingRange};
 use std::path::PathBuf;
 
 /// Flags of `export`.
@@ -159,53 +159,27 @@ fn load_layout(args: &ExportArgs) -> anyhow::Result<(Layout, String)> {
     Ok((layout, path.display().to_string()))
 }
 
-/// The search's grid recorded in a layout's provenance (`range`: each
-/// axis's values by name), if there is one.
-fn searched_range(layout: &Layout, axis: &str) -> Option<Range> {
-    let values = layout.provenance.as_ref()?.get("range")?.get(axis)?;
-    let values: Vec<f64> = serde_json::from_value(values.clone()).ok()?;
-    (!values.is_empty()).then(|| Range::list(&values))
-}
-
 /// The working range of `--depth` and the other grid flags, if given;
-/// else the search's range recorded in the layout's provenance, if there
-/// is one (flags given override its axes).
+/// else the search's range recorded in the layout's provenance.
 fn working_range(args: &ExportArgs, layout: &Layout) -> anyhow::Result<Option<WorkingRange>> {
-    let (tilt, pan) = (args.tilt.clone(), args.pan.clone());
-    let args = &args.range;
-    let searched = |axis: &str| searched_range(layout, axis);
-    let depth = match args.depth.as_deref() {
-        Some(depth) => depth.clone(),
-        None => match searched("depth") {
-            Some(depth) => depth,
-            None => {
-                anyhow::ensure!(
-                    args.offset_x.is_none() && args.offset_y.is_none(),
-                    "--offset-x and --offset-y set the working range: give --depth too"
-                );
-                return Ok(None);
-            }
-        },
+    let given = RangeAxes {
+        depth: args.range.depth.as_deref().cloned(),
+        offset_x: args.range.offset_x.as_deref().cloned(),
+        offset_y: args.range.offset_y.as_deref().cloned(),
+        tilt: args.tilt.as_deref().cloned(),
+        pan: args.pan.as_deref().cloned(),
     };
-    let axis = |given: Option<&Range>, name: &str| {
-        given
-            .cloned()
-            .or_else(|| searched(name))
-            .unwrap_or(Range::single(0.0))
+    let Some(grid) = given.grid_for(layout)? else {
+        anyhow::ensure!(
+            given.offset_x.is_none() && given.offset_y.is_none(),
+            "--offset-x and --offset-y set the working range: give --depth too"
+        );
+        return Ok(None);
     };
-    let grid = ScenarioGrid::new(
-        depth,
-        axis(args.offset_x.as_deref(), "offset-x"),
-        axis(args.offset_y.as_deref(), "offset-y"),
-        axis(tilt.as_deref(), "tilt"),
-        axis(pan.as_deref(), "pan"),
-        Range::single(0.0),
-        Range::single(0.5),
-    )?;
     Ok(Some(WorkingRange {
         camera: layout_opt::camera::Camera::paper(),
         scenarios: grid.scenarios(),
-        max_hidden: args.max_hidden,
+        max_hidden: args.range.max_hidden,
     }))
 }
 

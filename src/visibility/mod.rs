@@ -24,8 +24,11 @@ pub mod occluders;
 
 use crate::camera::Camera;
 use crate::config::ConfigError;
+use crate::layout::Layout;
 use crate::pose::Pose;
-use crate::scenario::{sphere_images, visibility, Scenario, Visibility};
+use crate::scenario::{
+    sphere_images, visibility, Range, Scenario, ScenarioError, ScenarioGrid, Visibility,
+};
 use nalgebra::{Vector2, Vector3};
 pub use occluders::Occluder;
 use serde::Serialize;
@@ -319,6 +322,53 @@ pub fn clear_views(
                 .then(|| -(pose.rotation.matrix().transpose() * pose.translation))
         })
         .collect()
+}
+
+/// The axes of a working range as a user gives them; each missing one is
+/// taken from the search's grid recorded in a layout's provenance
+/// (`provenance.range`: each axis's values by name), else 0.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct RangeAxes {
+    /// Depths, mm.
+    pub depth: Option<Range>,
+    /// X offsets, mm.
+    pub offset_x: Option<Range>,
+    /// Y offsets, mm.
+    pub offset_y: Option<Range>,
+    /// Tilts about X, degrees.
+    pub tilt: Option<Range>,
+    /// Pans about Y, degrees.
+    pub pan: Option<Range>,
+}
+
+impl RangeAxes {
+    /// The grid of these axes for `layout` (σ 0.5 px, no roll), or `None`
+    /// when neither a depth is given nor the layout records one.
+    pub fn grid_for(&self, layout: &Layout) -> Result<Option<ScenarioGrid>, ScenarioError> {
+        let searched = |axis: &str| -> Option<Range> {
+            let values = layout.provenance.as_ref()?.get("range")?.get(axis)?;
+            let values: Vec<f64> = serde_json::from_value(values.clone()).ok()?;
+            (!values.is_empty()).then(|| Range::list(&values))
+        };
+        let Some(depth) = self.depth.clone().or_else(|| searched("depth")) else {
+            return Ok(None);
+        };
+        let axis = |given: &Option<Range>, name: &str| {
+            given
+                .clone()
+                .or_else(|| searched(name))
+                .unwrap_or(Range::single(0.0))
+        };
+        Ok(Some(ScenarioGrid::new(
+            depth,
+            axis(&self.offset_x, "offset-x"),
+            axis(&self.offset_y, "offset-y"),
+            axis(&self.tilt, "tilt"),
+            axis(&self.pan, "pan"),
+            Range::single(0.0),
+            Range::single(0.5),
+        )?))
+    }
 }
 
 /// The working range a part is designed for: the camera, the scenarios
