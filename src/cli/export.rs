@@ -9,9 +9,9 @@ use layout_opt::layout::{Layout, ObjImport};
 use layout_opt::mesh::geometry::{
     Bed, Structure, DEFAULT_MIN_FEATURE_MM, DEFAULT_STRUT_DIAMETER_MM,
 };
-use layout_opt::mesh::pipeline::{self, ExportConfig};
 use layout_opt::mesh::summary::summary;
 use layout_opt::mesh::view_cone::view_cone_deg;
+use layout_opt::mesh::workflow::{self, ExportConfig};
 use layout_opt::mesh::{Axis, ExportError, ExportOptions, Format, MarkerOptions, MountHoles};
 use layout_opt::scenario::Range;
 use layout_opt::visibility::{MaxHidden, RangeAxes, WorkingRange};
@@ -215,7 +215,7 @@ pub fn run(args: ExportArgs, global: &GlobalOptions) -> anyhow::Result<()> {
     };
     progress::catch_ctrl_c();
     let mut bars = progress::Bars::new(global.quiet);
-    let result = pipeline::run(&config, &mut bars);
+    let result = workflow::run(&config, &mut bars);
     bars.finish();
     if let Err(ExportError::Interrupted) = result {
         eprintln!("interrupted: none of the export's files were written");

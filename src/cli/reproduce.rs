@@ -5,7 +5,7 @@ use super::common::{command_line, duration_text, SLOW_RUN_SECONDS};
 use super::{progress, GlobalOptions};
 use clap::Args;
 use layout_opt::report::Table;
-use layout_opt::reproduce::pipeline::{self, ReproduceConfig, ReproduceOutcome};
+use layout_opt::reproduce::workflow::{self, ReproduceConfig, ReproduceOutcome};
 use layout_opt::reproduce::{self, Config, Experiment, Verdict, REFERENCE_THREADS};
 use std::path::PathBuf;
 
@@ -57,7 +57,7 @@ pub fn run(args: ReproduceArgs, global: &GlobalOptions) -> anyhow::Result<()> {
     };
     progress::catch_ctrl_c();
     let mut bars = progress::Bars::new(global.quiet);
-    let result = pipeline::run(&config, &mut bars);
+    let result = workflow::run(&config, &mut bars);
     bars.finish();
     if let Err(reproduce::ReproduceError::Interrupted) = result {
         eprintln!(

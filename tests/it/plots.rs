@@ -14,7 +14,7 @@ use layout_opt::layout::Layout;
 use layout_opt::montecarlo::{MonteCarloConfig, DEFAULT_GROSS_THRESHOLD_DEG};
 use layout_opt::observer::Silent;
 use layout_opt::pnp::Solver;
-use layout_opt::reproduce::pipeline::ReproduceConfig;
+use layout_opt::reproduce::workflow::ReproduceConfig;
 use layout_opt::reproduce::{Config, Experiment};
 use layout_opt::scenario::{Range, ScenarioGrid};
 use layout_opt::search::SearchConfig;
@@ -258,7 +258,7 @@ fn write_reports(dir: &Path) {
         command: "plots test".into(),
         out_dir: dir.join("paper"),
     };
-    layout_opt::reproduce::pipeline::run(&reproduce, &mut Silent).unwrap();
+    layout_opt::reproduce::workflow::run(&reproduce, &mut Silent).unwrap();
 
     let mut search = SearchConfig::new("tiny", &dir.join("search"));
     search.grid = ScenarioGrid::new(
