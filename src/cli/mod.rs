@@ -54,7 +54,7 @@ enum Command {
     /// The seed paper's simulation experiments, regenerated on our solvers
     /// and checked claim by claim.
     Reproduce(reproduce::ReproduceArgs),
-    /// Printable watertight marker mesh (STL, OBJ, glTF, GLB) and a
+    /// Printable watertight marker mesh (STL, 3MF, OBJ, glTF, GLB) and a
     /// fabrication sheet.
     Export(export::ExportArgs),
     /// Grey PNG images of the part export builds, as the camera sees it,
