@@ -6,7 +6,8 @@
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use layout_opt::layout::Layout;
-use layout_opt::mesh::{build, export, ExportOptions, Format};
+use layout_opt::mesh::workflow::{export, writer};
+use layout_opt::mesh::{build, ExportOptions, Format};
 use std::time::Duration;
 
 fn bench_export(c: &mut Criterion) {
@@ -23,11 +24,7 @@ fn bench_export(c: &mut Criterion) {
     let solid = build(&layout, &options).expect("the biprism builds");
     for &format in Format::ALL {
         group.bench_function(format!("write {format}"), |b| {
-            b.iter(|| {
-                layout_opt::mesh::writer(format)
-                    .write(&solid, dir.path())
-                    .expect("writes")
-            })
+            b.iter(|| writer(format).write(&solid, dir.path()).expect("writes"))
         });
     }
     group.bench_function("export all formats + sheet", |b| {

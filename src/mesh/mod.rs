@@ -8,7 +8,8 @@
 //! viewing directions ([`quality::view_coverage`]) and for overhangs
 //! ([`quality::overhang`]).
 //!
-//! The pipeline ([`build`], then [`export`]):
+//! The pipeline ([`build`], [`analysis::analyse`], then
+//! [`workflow::export`]):
 //! 1. [`geometry::Marker::design`] routes the struts and checks every
 //!    clearance; the solid is the zero sublevel set of an analytic signed
 //!    distance ([`geometry`], [`sdf`]).
@@ -46,6 +47,7 @@
 //! # Ok::<(), layout_opt::mesh::ExportError>(())
 //! ```
 
+pub mod analysis;
 pub mod error;
 pub(crate) mod extract;
 pub mod format;
@@ -55,10 +57,11 @@ pub(crate) mod obj;
 pub mod quality;
 pub(crate) mod repair;
 pub(crate) mod sdf;
-pub(crate) mod sheet;
+pub mod sheet;
 pub(crate) mod stl;
 pub mod summary;
 pub(crate) mod threemf;
+pub mod tolerance;
 pub mod trimesh;
 pub mod view_cone;
 pub mod workflow;
@@ -66,11 +69,11 @@ pub mod workflow;
 pub use error::ExportError;
 pub use format::Format;
 pub use geometry::{supports_for_range, Axis, GeometryError, Marker, MarkerOptions, MountHoles};
-pub use sheet::{datum_positions, Datum, DatumPosition, Tolerances, CSV_HEADER};
+pub use tolerance::{datum_positions, Datum, DatumPosition, Tolerances};
 pub use trimesh::{Topology, TriangleMesh};
 
 use crate::layout::Layout;
-use crate::visibility::{LostView, Supports, WorkingRange};
+use crate::visibility::WorkingRange;
 use nalgebra::Vector3;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
@@ -81,17 +84,6 @@ pub const DEFAULT_RESOLUTION_MM: f64 = 0.5;
 /// The grid spacing may be at most this fraction of the finest feature
 /// (strut radius, fillet radius, hole radius, minimum feature).
 pub const RESOLUTION_PER_FEATURE: f64 = 0.5;
-
-/// The writer of `format`.
-pub fn writer(format: Format) -> &'static dyn MeshWriter {
-    match format {
-        Format::Stl => &stl::StlWriter,
-        Format::Obj => &obj::ObjWriter,
-        Format::Gltf => &gltf::GltfWriter { binary: false },
-        Format::Glb => &gltf::GltfWriter { binary: true },
-        Format::ThreeMf => &threemf::ThreeMfWriter,
-    }
-}
 
 /// A writer of one mesh format.
 pub trait MeshWriter: Sync {
@@ -117,7 +109,7 @@ pub struct ExportOptions {
     pub allow_occlusion: bool,
     /// The working range the supports are routed for
     /// ([`MarkerOptions::working_views`]); its views that the supports
-    /// still lose are reported ([`ExportReport::lost_views`]) instead of
+    /// still lose are reported ([`analysis::ExportReport::lost_views`]) instead of
     /// checking the view cone.
     pub working_range: Option<WorkingRange>,
 }
@@ -289,484 +281,10 @@ pub fn build(layout: &Layout, options: &ExportOptions) -> Result<Solid, ExportEr
     })
 }
 
-/// One file written.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct WrittenFile {
-    /// Its format, or `None` for the fabrication sheet.
-    pub format: Option<Format>,
-    /// Where.
-    pub path: PathBuf,
-    /// Size, bytes.
-    pub bytes: u64,
-    /// Wall time to write it (with its companions), seconds.
-    pub seconds: f64,
-}
-
-/// What [`export`] did, for the CLI summary and `<name>-export.json`.
-#[derive(Debug, Clone, Serialize)]
-pub struct ExportReport {
-    /// The layout's name.
-    pub name: String,
-    /// The mesh's figures.
-    pub mesh: MeshReport,
-    /// Every file written.
-    pub files: Vec<WrittenFile>,
-    /// The smallest difference between two pairwise sphere distances, mm.
-    pub identification_margin_mm: f64,
-    /// How much the marker hides each sphere, in the main view and over
-    /// the view cone.
-    pub main_view_coverage: Vec<quality::Coverage>,
-    /// Half-angle of the view cone, degrees.
-    pub view_cone_deg: f64,
-    /// Whether a strut covering a sphere was allowed (`--allow-occlusion`).
-    pub occlusion_allowed: bool,
-    /// Scenarios of the working range, if one was given.
-    pub working_range_scenarios: Option<usize>,
-    /// The views of the working range that the spheres alone leave
-    /// visible but in which the supports hide more than the allowed
-    /// fraction of a sphere (empty when no routing had to give one up).
-    pub lost_views: Vec<LostView>,
-    /// Overhangs as printed.
-    pub overhang: quality::Overhang,
-    /// How the spheres are held.
-    pub structure: geometry::Structure,
-    /// The mesh's extents in the print frame, mm.
-    pub print_size_mm: [f64; 3],
-    /// The build volume it was checked against, mm.
-    pub bed_mm: [f64; 3],
-    /// Strut diameter, mm.
-    pub strut_diameter_mm: f64,
-    /// Minimum feature size, mm.
-    pub min_feature_mm: f64,
-    /// Main viewing direction.
-    pub view: Axis,
-    /// Mount axis.
-    pub mount: Axis,
-    /// Screw holes, if any.
-    pub mount_holes: Option<MountHoles>,
-    /// Sphere centres and hole axes from the datum on the base plate
-    /// ([`Datum`]), mm.
-    pub datum: Vec<DatumPosition>,
-    /// Sphere-centre tolerance from the error model and the workshop
-    /// tolerances of the sheet.
-    pub tolerances: Tolerances,
-}
-
-/// Builds the marker for `layout` and writes every requested format, the
-/// fabrication sheet (`<name>-fabrication.md`, `.csv`, `<name>-views.svg`)
-/// and this report as `<name>-export.json` into `out_dir` (created if
-/// missing), as a set: every file is first written into a staging
-/// directory inside `out_dir` and then renamed into place, so that a
-/// failure part-way leaves none of the new files (see [`FileSet`]).
-pub fn export(
-    layout: &Layout,
-    options: &ExportOptions,
-    out_dir: &Path,
-) -> Result<ExportReport, ExportError> {
-    export_observed(layout, options, out_dir, &|| false)
-}
-
-/// [`export`], asking `interrupted` between the steps: once it says yes,
-/// the export stops with [`ExportError::Interrupted`] and leaves none of
-/// its files.
-fn export_observed(
-    layout: &Layout,
-    options: &ExportOptions,
-    out_dir: &Path,
-    interrupted: &dyn Fn() -> bool,
-) -> Result<ExportReport, ExportError> {
-    if options.formats.is_empty() {
-        return Err(ExportError::NoFormat);
-    }
-    let solid = build(layout, options)?;
-    let coverage = quality::view_coverage(&solid.marker, options.marker.view_cone_deg);
-    let lost_views = match &options.working_range {
-        Some(range) => range.lost_views(
-            &layout.positions(),
-            layout.sphere_diameter_mm,
-            &Supports::new(solid.marker.occluders()),
-        ),
-        None => {
-            if !options.allow_occlusion {
-                check_occlusion(&solid.marker, &coverage)?;
-            }
-            Vec::new()
-        }
-    };
-    let (rotation, shift) = solid.print_transform();
-    let overhang = quality::overhang(
-        &solid.marker,
-        &solid.mesh,
-        &rotation,
-        &shift,
-        geometry::MAX_OVERHANG_DEG,
-    );
-    let tolerances = sheet::Tolerances::for_marker(&solid.marker);
-    if interrupted() {
-        return Err(ExportError::Interrupted);
-    }
-    std::fs::create_dir_all(out_dir).map_err(|source| ExportError::Io {
-        path: out_dir.to_path_buf(),
-        source,
-    })?;
-    let mut set = FileSet::stage(out_dir, &solid.name())?;
-    let staging = set.staging.clone();
-    let mut files = Vec::new();
-    let mut formats = options.formats.clone();
-    formats.sort();
-    formats.dedup();
-    for format in formats {
-        let start = Instant::now();
-        let written = writer(format).write(&solid, &staging)?;
-        let seconds = start.elapsed().as_secs_f64();
-        for path in written {
-            files.push(WrittenFile {
-                format: Some(format),
-                bytes: file_size(&path),
-                path,
-                seconds,
-            });
-            set.wrote()?;
-        }
-        if interrupted() {
-            return Err(ExportError::Interrupted);
-        }
-    }
-    let start = Instant::now();
-    let sheet_files = sheet::write(&solid, &coverage, &tolerances, &staging)?;
-    let seconds = start.elapsed().as_secs_f64();
-    for path in sheet_files {
-        files.push(WrittenFile {
-            format: None,
-            bytes: file_size(&path),
-            path,
-            seconds,
-        });
-        set.wrote()?;
-    }
-    if interrupted() {
-        return Err(ExportError::Interrupted);
-    }
-    // The report names the files where they will be.
-    for file in &mut files {
-        if let Some(name) = file.path.file_name() {
-            file.path = out_dir.join(name);
-        }
-    }
-    let mut report = ExportReport {
-        name: solid.marker.name.clone(),
-        mesh: solid.report.clone(),
-        files,
-        identification_margin_mm: sheet::identification_margin(&solid.marker).0,
-        main_view_coverage: coverage,
-        view_cone_deg: options.marker.view_cone_deg,
-        occlusion_allowed: options.allow_occlusion,
-        working_range_scenarios: options.working_range.as_ref().map(|r| r.scenarios.len()),
-        lost_views,
-        overhang,
-        structure: solid.marker.structure,
-        print_size_mm: {
-            // The mesh's own extents (the design's bounds are padded by
-            // the most blending could add).
-            let [lo, hi] = solid.report.bounds_mm;
-            let size = rotation.abs() * (Vector3::from(hi) - Vector3::from(lo));
-            [size.x, size.y, size.z]
-        },
-        bed_mm: options.marker.bed.0,
-        strut_diameter_mm: options.marker.strut_diameter_mm,
-        min_feature_mm: options.marker.min_feature_mm,
-        view: options.marker.view,
-        mount: solid.marker.mount,
-        mount_holes: options.marker.mount_holes.clone(),
-        datum: sheet::datum_positions(&solid.marker),
-        tolerances,
-    };
-    let json_name = format!("{}-export.json", solid.name());
-    report.files.push(WrittenFile {
-        format: None,
-        path: out_dir.join(&json_name),
-        bytes: 0,
-        seconds: 0.0,
-    });
-    let json = serde_json::to_string_pretty(&report).expect("the report serialises") + "\n";
-    write_file(&staging.join(&json_name), json.as_bytes())?;
-    set.wrote()?;
-    set.commit()?;
-    if let Some(last) = report.files.last_mut() {
-        last.bytes = json.len() as u64;
-    }
-    Ok(report)
-}
-
-/// An export's files as a set: written into a staging directory inside the
-/// output directory (`.<name>.export.<pid>.<n>.tmp`), then renamed into
-/// place one by one by [`FileSet::commit`]. Dropped before the commit
-/// finished (an error, an interruption), it removes the staging directory
-/// and any file it had already moved into place, so that an export leaves
-/// all of its files or none of them. Files of an earlier export that a
-/// renamed file replaced are not restored.
-struct FileSet {
-    out_dir: PathBuf,
-    staging: PathBuf,
-    moved: Vec<PathBuf>,
-    committed: bool,
-    /// Files staged so far (for the test-only failure point).
-    #[cfg(test)]
-    written: usize,
-}
-
-#[cfg(test)]
-thread_local! {
-    /// Test-only failure point: fail once this many files are staged.
-    static FAIL_AFTER_FILES: std::cell::Cell<Option<usize>> = const { std::cell::Cell::new(None) };
-}
-
-impl FileSet {
-    fn stage(out_dir: &Path, name: &str) -> Result<FileSet, ExportError> {
-        static NEXT: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
-        let n = NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-        let staging = out_dir.join(format!(".{name}.export.{}.{n}.tmp", std::process::id()));
-        std::fs::create_dir(&staging).map_err(|source| ExportError::Io {
-            path: staging.clone(),
-            source,
-        })?;
-        Ok(FileSet {
-            out_dir: out_dir.to_path_buf(),
-            staging,
-            moved: Vec::new(),
-            committed: false,
-            #[cfg(test)]
-            written: 0,
-        })
-    }
-
-    /// One more file is staged.
-    fn wrote(&mut self) -> Result<(), ExportError> {
-        #[cfg(test)]
-        {
-            self.written += 1;
-            if FAIL_AFTER_FILES.with(|f| f.get()) == Some(self.written) {
-                return Err(ExportError::Io {
-                    path: self.staging.clone(),
-                    source: std::io::Error::other("injected failure"),
-                });
-            }
-        }
-        Ok(())
-    }
-
-    /// Moves every staged file into the output directory.
-    fn commit(mut self) -> Result<(), ExportError> {
-        let io = |path: &Path| {
-            let path = path.to_path_buf();
-            move |source| ExportError::Io { path, source }
-        };
-        let mut staged: Vec<PathBuf> = std::fs::read_dir(&self.staging)
-            .map_err(io(&self.staging))?
-            .map(|entry| entry.map(|e| e.path()))
-            .collect::<Result<_, _>>()
-            .map_err(io(&self.staging))?;
-        staged.sort();
-        for from in staged {
-            let Some(name) = from.file_name() else {
-                continue;
-            };
-            let to = self.out_dir.join(name);
-            std::fs::rename(&from, &to).map_err(io(&to))?;
-            self.moved.push(to);
-        }
-        self.committed = true;
-        let _ = std::fs::remove_dir(&self.staging);
-        Ok(())
-    }
-}
-
-impl Drop for FileSet {
-    fn drop(&mut self) {
-        if !self.committed {
-            for path in &self.moved {
-                let _ = std::fs::remove_file(path);
-            }
-            let _ = std::fs::remove_dir_all(&self.staging);
-        }
-    }
-}
-
-/// The sphere a strut covers most, in the main view or from the view cone,
-/// as an error. A sphere that another sphere covers from some direction of
-/// the cone is left out: every support of the sphere in front passes in
-/// front of it close to that direction (the paper's biprism seen along z
-/// hides O0 and P1 behind P3), so that is the layout's own occlusion,
-/// reported but not an error.
-fn check_occlusion(marker: &Marker, coverage: &[quality::Coverage]) -> Result<(), ExportError> {
-    let worst = coverage
-        .iter()
-        .filter(|c| c.cone_covered_by_spheres == 0.0)
-        .filter(|c| c.cone_covered_by_struts > 0.0)
-        .max_by(|a, b| {
-            a.cone_covered_by_struts
-                .total_cmp(&b.cone_covered_by_struts)
-        });
-    match worst {
-        None => Ok(()),
-        Some(c) => {
-            let main_view = c.covered_by_struts > 0.0;
-            let (fraction, angle_deg) = if main_view {
-                (c.covered_by_struts, 0.0)
-            } else {
-                (
-                    c.cone_covered_by_struts,
-                    quality::angle_from_view_deg(marker, &c.cone_worst_direction),
-                )
-            };
-            Err(ExportError::Occluded {
-                sphere: c.sphere.clone(),
-                fraction,
-                angle_deg,
-                view: marker.view,
-                main_view,
-            })
-        }
-    }
-}
-
-fn file_size(path: &Path) -> u64 {
-    std::fs::metadata(path).map(|m| m.len()).unwrap_or(0)
-}
-
 /// Writes a whole file atomically, mapping errors to [`ExportError::Io`].
 pub(crate) fn write_file(path: &Path, bytes: &[u8]) -> Result<(), ExportError> {
     crate::files::write_atomic(path, bytes).map_err(|source| ExportError::Io {
         path: path.to_path_buf(),
         source,
     })
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::layout::LayoutPoint;
-    use std::cell::Cell;
-
-    /// A small part that meshes in a fraction of a second.
-    fn small() -> Layout {
-        let points = [
-            [0.0, 0.0, 0.0],
-            [30.0, 0.0, -10.0],
-            [0.0, 26.0, -5.0],
-            [-12.0, -14.0, 15.0],
-        ];
-        Layout {
-            name: "small".into(),
-            points: points
-                .iter()
-                .enumerate()
-                .map(|(i, p)| LayoutPoint::new(format!("S{i}"), (*p).into()))
-                .collect(),
-            sphere_diameter_mm: 6.0,
-            family: None,
-            provenance: None,
-        }
-    }
-
-    fn options() -> ExportOptions {
-        ExportOptions {
-            formats: vec![Format::Stl, Format::Obj],
-            allow_occlusion: true,
-            ..Default::default()
-        }
-    }
-
-    /// Every entry of `dir`, sorted.
-    fn entries(dir: &Path) -> Vec<String> {
-        let mut names: Vec<String> = std::fs::read_dir(dir)
-            .unwrap()
-            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-            .collect();
-        names.sort();
-        names
-    }
-
-    #[test]
-    fn a_failure_part_way_leaves_none_of_the_files() {
-        let dir = tempfile::tempdir().unwrap();
-        std::fs::write(dir.path().join("keep.txt"), "not ours").unwrap();
-        let report = export(&small(), &options(), dir.path()).unwrap();
-        // stl, obj, the sheet's three files, the report.
-        assert_eq!(report.files.len(), 6);
-        assert!(report.files.iter().all(|f| f.path.exists()), "{report:?}");
-        assert_eq!(entries(dir.path()).len(), 7);
-        for fail_after in [1, 4, 6] {
-            let other = tempfile::tempdir().unwrap();
-            std::fs::write(other.path().join("keep.txt"), "not ours").unwrap();
-            FAIL_AFTER_FILES.with(|f| f.set(Some(fail_after)));
-            let result = export(&small(), &options(), other.path());
-            FAIL_AFTER_FILES.with(|f| f.set(None));
-            let error = result.unwrap_err();
-            assert!(error.to_string().contains("injected failure"), "{error}");
-            assert_eq!(
-                entries(other.path()),
-                ["keep.txt"],
-                "failing after {fail_after}"
-            );
-        }
-    }
-
-    #[test]
-    fn a_rename_that_fails_takes_back_the_files_already_moved() {
-        let dir = tempfile::tempdir().unwrap();
-        // The last file moved into place (names sorted) cannot replace a
-        // directory that holds a file.
-        std::fs::create_dir(dir.path().join("small.stl")).unwrap();
-        std::fs::write(dir.path().join("small.stl").join("x"), "x").unwrap();
-        let error = export(&small(), &options(), dir.path()).unwrap_err();
-        assert!(
-            matches!(&error, ExportError::Io { path, .. } if path.ends_with("small.stl")),
-            "{error}"
-        );
-        assert_eq!(entries(dir.path()), ["small.stl"]);
-    }
-
-    #[test]
-    fn an_interruption_part_way_leaves_none_of_the_files() {
-        for polls in [1, 2, 3] {
-            let dir = tempfile::tempdir().unwrap();
-            let asked = Cell::new(0);
-            let interrupted = || {
-                asked.set(asked.get() + 1);
-                asked.get() >= polls
-            };
-            let result = export_observed(&small(), &options(), dir.path(), &interrupted);
-            assert!(matches!(result, Err(ExportError::Interrupted)));
-            assert!(entries(dir.path()).is_empty(), "after {polls} polls");
-        }
-    }
-
-    /// The datum is the corner of the plate's bed face: the datum
-    /// coordinates of the plate's corners are 0 and its sizes, and Z is
-    /// the STL's z.
-    #[test]
-    fn datum_is_the_plates_bed_corner() {
-        let marker = Marker::design(&small(), &options().marker).unwrap();
-        let datum = Datum::of(&marker);
-        let (rotation, shift) = marker.print_transform();
-        let plate = &marker.plate;
-        let mut lo = Vector3::repeat(f64::INFINITY);
-        for sx in [-1.0, 1.0] {
-            for sy in [-1.0, 1.0] {
-                for sz in [-1.0, 1.0] {
-                    let corner =
-                        plate.centre + plate.half_extents.component_mul(&Vector3::new(sx, sy, sz));
-                    lo = lo.inf(&datum.coordinates(&corner));
-                }
-            }
-        }
-        assert!(lo.norm() < 1e-9, "{lo}");
-        for s in &marker.spheres {
-            let d = datum.coordinates(&s.centre);
-            let print = rotation * s.centre + shift;
-            assert!((d.z - print.z).abs() < 1e-9);
-            assert!(d.z > 0.0);
-        }
-    }
 }

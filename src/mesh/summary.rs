@@ -1,9 +1,9 @@
 //! The text summary of one export that `layout-opt export` prints: the
 //! mesh and its watertightness, the files written, what the struts cover,
 //! the sphere-centre tolerance and the print. It renders an
-//! [`ExportReport`] and computes nothing new.
+//! [`ExportReport`](super::analysis::ExportReport) and computes nothing new.
 
-use super::ExportReport;
+use super::analysis::ExportReport;
 use std::fmt::Write as _;
 
 /// Lost views printed on the summary line (all are in the export JSON).

@@ -488,13 +488,12 @@ fn export<O: Observer>(
         formats: export.formats.clone(),
         ..Default::default()
     };
-    let report =
-        crate::mesh::export(&finished.winner, &options, &export.dir).map_err(|source| {
-            SearchError::Export {
-                dir: export.dir.clone(),
-                source,
-            }
-        })?;
+    let report = crate::mesh::workflow::export(&finished.winner, &options, &export.dir).map_err(
+        |source| SearchError::Export {
+            dir: export.dir.clone(),
+            source,
+        },
+    )?;
     observer.progress(PHASE_EXPORT, 1, 1);
     context.exported = report.files.into_iter().map(|f| f.path).collect();
     Ok(Flow::Continue)

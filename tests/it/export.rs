@@ -10,9 +10,8 @@
 use crate::export_common::*;
 use layout_opt::layout::Layout;
 use layout_opt::mesh::geometry::{gltf_rotation, print_rotation};
-use layout_opt::mesh::{
-    export, quality, Axis, ExportOptions, Format, Marker, MarkerOptions, MountHoles,
-};
+use layout_opt::mesh::workflow::export;
+use layout_opt::mesh::{quality, Axis, ExportOptions, Format, Marker, MarkerOptions, MountHoles};
 use std::path::{Path, PathBuf};
 
 /// Largest relative difference between the mesh volume and the

@@ -7,7 +7,8 @@
 use crate::export_common::read_obj;
 use layout_opt::camera::Camera;
 use layout_opt::layout::Layout;
-use layout_opt::mesh::{export, ExportOptions, Format, Marker, MarkerOptions};
+use layout_opt::mesh::workflow::export;
+use layout_opt::mesh::{ExportOptions, Format, Marker, MarkerOptions};
 use layout_opt::scenario::{Range, Scenario, ScenarioGrid};
 use layout_opt::visibility::{
     hidden_fractions, silhouette_directions, MaxHidden, Supports, WorkingRange,
