@@ -204,6 +204,9 @@ fn mesh_chunk(marker: &Marker, grid: &Grid, chunk: [u32; 3]) -> Option<ChunkMesh
     if marker.signed_distance(&centre).abs() > half_diagonal + 2.0 * h {
         return None;
     }
+    // Every sample of the chunk lies within its half-diagonal of the
+    // centre: there the cut-down marker's field is the marker's, exactly.
+    let marker = &marker.near(&centre, half_diagonal);
 
     let outside = (4.0 * chunk_span * h) as f32;
     let mut sdf = vec![outside; ChunkShape::USIZE];

@@ -3,6 +3,10 @@
 
 use super::*;
 
+/// Slack of [`Marker::near`]'s test, mm: far above the rounding of a
+/// signed distance, far below any part's size.
+const NEAR_SLACK_MM: f64 = 1e-6;
+
 /// The designed marker: every primitive, how they join, and the signed
 /// distance of their blended union.
 #[derive(Debug, Clone, Serialize)]
@@ -470,21 +474,69 @@ impl Marker {
             let s = sdf::capsule(p, &strut.a, &strut.b, strut.radius);
             best = Some(best.map_or(s, |b| sdf::min(b, s)));
         }
-        let mut best = best.expect("a marker has struts");
         for junction in &self.junctions {
             // A junction's value is at least its distance to its bounding
             // ball minus the deepest blend, so junctions that cannot be the
             // minimum are skipped without changing the result.
-            let lower = (p - junction.centre).norm() - junction.radius - self.blend_depth(junction);
-            if lower > best.value {
-                continue;
+            if let Some(b) = &best {
+                let lower =
+                    (p - junction.centre).norm() - junction.radius - self.blend_depth(junction);
+                if lower > b.value {
+                    continue;
+                }
             }
-            best = sdf::min(best, self.junction_sample(junction, p));
+            let s = self.junction_sample(junction, p);
+            best = Some(best.map_or(s, |b| sdf::min(b, s)));
         }
+        let best = best.expect("a marker has a strut or a junction");
         match self.bed_level {
             Some(level) => sdf::max(best, sdf::half_space(p, &self.down.vector(), level)),
             None => best,
         }
+    }
+
+    /// The marker cut down to the struts and junctions that can be its
+    /// nearest part somewhere within `radius` of `centre`: there its
+    /// [`Marker::sample`] is exactly this marker's, at a fraction of the
+    /// cost. A part whose value at `centre`, less `radius`, exceeds the
+    /// smallest value at `centre` plus `radius` is larger than another
+    /// part everywhere in the ball (every part is 1-Lipschitz), so it is
+    /// never the minimum there and leaving it out changes nothing.
+    pub fn near(&self, centre: &Vector3<f64>, radius: f64) -> Marker {
+        let struts: Vec<f64> = self
+            .struts
+            .iter()
+            .map(|s| sdf::capsule(centre, &s.a, &s.b, s.radius).value)
+            .collect();
+        let junctions: Vec<f64> = self
+            .junctions
+            .iter()
+            .map(|j| self.junction_sample(j, centre).value)
+            .collect();
+        let upper = struts
+            .iter()
+            .chain(&junctions)
+            .fold(f64::INFINITY, |a, &b| a.min(b))
+            + radius;
+        // Rounding in the values at the centre must not drop a part that
+        // can be the minimum.
+        let keep = |value: &f64| value - radius <= upper + NEAR_SLACK_MM;
+        let mut near = self.clone();
+        near.struts = self
+            .struts
+            .iter()
+            .zip(&struts)
+            .filter(|(_, v)| keep(v))
+            .map(|(s, _)| s.clone())
+            .collect();
+        near.junctions = self
+            .junctions
+            .iter()
+            .zip(&junctions)
+            .filter(|(_, v)| keep(v))
+            .map(|(j, _)| j.clone())
+            .collect();
+        near
     }
 
     /// The signed distance alone.
