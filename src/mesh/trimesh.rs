@@ -5,7 +5,6 @@
 
 use nalgebra::Vector3;
 use serde::Serialize;
-use std::collections::HashMap;
 
 /// A face whose area is below this is degenerate, mm².
 pub const DEGENERATE_AREA_MM2: f64 = 1e-6;
@@ -126,94 +125,84 @@ impl TriangleMesh {
 
     /// Counts everything [`Topology`] reports.
     pub fn topology(&self) -> Topology {
-        // Directed edge → number of faces using it that way.
-        let mut directed: HashMap<(u32, u32), u32> =
-            HashMap::with_capacity(self.triangles.len() * 3);
-        for t in &self.triangles {
+        // Every half-edge under its undirected edge (smaller vertex in the
+        // high bits), with its face and whether it runs from the smaller
+        // vertex; sorted, each edge's half-edges lie together.
+        let mut half_edges: Vec<(u64, u32, bool)> = Vec::with_capacity(self.triangles.len() * 3);
+        for (f, t) in self.triangles.iter().enumerate() {
             for k in 0..3 {
-                *directed.entry((t[k], t[(k + 1) % 3])).or_insert(0) += 1;
+                let (a, b) = (t[k], t[(k + 1) % 3]);
+                let key = ((a.min(b) as u64) << 32) | a.max(b) as u64;
+                half_edges.push((key, f as u32, a < b));
             }
         }
+        half_edges.sort_unstable_by_key(|h| h.0);
         let mut edges = 0;
         let mut boundary_edges = 0;
         let mut non_manifold_edges = 0;
         let mut misoriented_edges = 0;
-        for (&(a, b), &forward) in &directed {
-            let backward = directed.get(&(b, a)).copied().unwrap_or(0);
-            if backward > 0 && (b, a) < (a, b) {
-                continue; // counted from the other direction
+        // Components through shared edges (union-find over faces).
+        let mut parent: Vec<u32> = (0..self.triangles.len() as u32).collect();
+        fn root(parent: &mut [u32], mut x: u32) -> u32 {
+            while parent[x as usize] != x {
+                parent[x as usize] = parent[parent[x as usize] as usize];
+                x = parent[x as usize];
             }
+            x
+        }
+        for run in half_edges.chunk_by(|a, b| a.0 == b.0) {
             edges += 1;
-            match (forward + backward, forward, backward) {
+            let forward = run.iter().filter(|h| h.2).count();
+            let backward = run.len() - forward;
+            match (run.len(), forward, backward) {
                 (1, _, _) => boundary_edges += 1,
                 (2, 1, 1) => {}
                 (2, _, _) => misoriented_edges += 1,
                 _ => non_manifold_edges += 1,
             }
-        }
-
-        // Components through shared edges (union-find over faces).
-        let mut parent: Vec<usize> = (0..self.triangles.len()).collect();
-        fn root(parent: &mut [usize], mut x: usize) -> usize {
-            while parent[x] != x {
-                parent[x] = parent[parent[x]];
-                x = parent[x];
-            }
-            x
-        }
-        let mut edge_face: HashMap<(u32, u32), usize> = HashMap::with_capacity(edges);
-        for (f, t) in self.triangles.iter().enumerate() {
-            for k in 0..3 {
-                let (a, b) = (t[k], t[(k + 1) % 3]);
-                let key = (a.min(b), a.max(b));
-                if let Some(&g) = edge_face.get(&key) {
-                    let (rf, rg) = (root(&mut parent, f), root(&mut parent, g));
-                    parent[rf] = rg;
-                } else {
-                    edge_face.insert(key, f);
-                }
+            let first = root(&mut parent, run[0].1);
+            for h in &run[1..] {
+                let r = root(&mut parent, h.1);
+                parent[r as usize] = first;
             }
         }
-        let components = (0..self.triangles.len())
+        let components = (0..self.triangles.len() as u32)
             .filter(|&f| root(&mut parent, f) == f)
             .count();
 
         // Vertex fans: at a manifold vertex of a closed surface, the faces
         // around it link into a single cycle through their opposite edges.
-        let mut used = vec![false; self.positions.len()];
-        let mut ring: HashMap<u32, Vec<(u32, u32)>> = HashMap::new();
+        // Each vertex's links (next, previous corner), grouped by vertex.
+        let mut start = vec![0usize; self.positions.len() + 1];
         for t in &self.triangles {
-            for k in 0..3 {
-                used[t[k] as usize] = true;
-                ring.entry(t[k])
-                    .or_default()
-                    .push((t[(k + 1) % 3], t[(k + 2) % 3]));
+            for &v in t {
+                start[v as usize + 1] += 1;
             }
         }
-        let non_manifold_vertices = ring
-            .values()
-            .filter(|links| {
-                // Follow next[a] = b from one link; a single fan visits all.
-                let next: HashMap<u32, u32> = links.iter().copied().collect();
-                if next.len() != links.len() {
-                    return true;
-                }
-                let start = links[0].0;
-                let mut at = start;
-                let mut steps = 0;
-                loop {
-                    match next.get(&at) {
-                        Some(&n) => at = n,
-                        None => return true,
-                    }
-                    steps += 1;
-                    if at == start || steps > links.len() {
-                        break;
-                    }
-                }
-                at != start || steps != links.len()
-            })
-            .count();
+        for v in 0..self.positions.len() {
+            start[v + 1] += start[v];
+        }
+        let mut filled = start.clone();
+        let mut links = vec![(0u32, 0u32); self.triangles.len() * 3];
+        for t in &self.triangles {
+            for k in 0..3 {
+                let v = t[k] as usize;
+                links[filled[v]] = (t[(k + 1) % 3], t[(k + 2) % 3]);
+                filled[v] += 1;
+            }
+        }
+        let mut vertices = 0;
+        let mut non_manifold_vertices = 0;
+        for v in 0..self.positions.len() {
+            let fan = &mut links[start[v]..start[v + 1]];
+            if fan.is_empty() {
+                continue;
+            }
+            vertices += 1;
+            if !is_single_fan(fan) {
+                non_manifold_vertices += 1;
+            }
+        }
 
         let mut degenerate_faces = 0;
         let mut area = 0.0;
@@ -241,7 +230,6 @@ impl TriangleMesh {
                 degenerate_faces += 1;
             }
         }
-        let vertices = used.iter().filter(|&&u| u).count();
         Topology {
             vertices,
             edges,
@@ -259,6 +247,28 @@ impl TriangleMesh {
             min_edge_mm: min_edge,
         }
     }
+}
+
+/// Whether a vertex's links (next, previous corner of each face around
+/// it) form one cycle: following `next[a] = b` from any link visits every
+/// link once and comes back. Sorts `links`.
+fn is_single_fan(links: &mut [(u32, u32)]) -> bool {
+    links.sort_unstable();
+    if links.windows(2).any(|w| w[0].0 == w[1].0) {
+        return false; // two faces leave the vertex by the same edge
+    }
+    let start = links[0].0;
+    let mut at = start;
+    for step in 1..=links.len() {
+        match links.binary_search_by_key(&at, |l| l.0) {
+            Ok(i) => at = links[i].1,
+            Err(_) => return false,
+        }
+        if at == start {
+            return step == links.len();
+        }
+    }
+    false
 }
 
 #[cfg(test)]
