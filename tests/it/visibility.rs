@@ -52,6 +52,23 @@ fn mesh_support_fraction(
     let eye = -(pose.rotation.matrix().transpose() * pose.translation);
     let directions = silhouette_directions(&eye, &centres[k], radius);
     let tolerance = layout_opt::visibility::SURFACE_TOLERANCE_MM;
+    // Only triangles inside the cone from the eye round the sphere can
+    // meet one of its sight lines: each triangle's bounding ball, seen
+    // from the eye, against the cone's half-angle.
+    let axis = (centres[k] - eye).normalize();
+    let cone = (radius / (centres[k] - eye).norm()).asin();
+    let triangles: Vec<&[Vector3<f64>; 3]> = triangles
+        .iter()
+        .filter(|t| {
+            let middle = (t[0] + t[1] + t[2]) / 3.0;
+            let reach = t.iter().map(|v| (v - middle).norm()).fold(0.0, f64::max);
+            let to = middle - eye;
+            let distance = to.norm();
+            distance <= reach
+                || (to.dot(&axis) / distance).clamp(-1.0, 1.0).acos()
+                    <= cone + (reach / distance).asin() + 1e-6
+        })
+        .collect();
     let hidden = directions
         .iter()
         .filter(|d| {
