@@ -274,6 +274,7 @@ fn write_reports(dir: &Path) {
     search.search.starts = 2;
     search.search.iterations = 40;
     search.compare_trials = 3;
+    search.identify_trials = 2;
     search.validate_solvers = vec![Solver::ParallelWeighted, Solver::Ml];
     search.command = "plots test".into();
     layout_opt::search::workflow::run(&search, &mut Silent).unwrap();

@@ -43,6 +43,13 @@ fn run_search(dir: &Path, threads: &str, extra: &[&str]) -> assert_cmd::assert::
         } else {
             &["--iterations", "150"][..]
         })
+        // The winner's identifiability Monte-Carlo at the fewest trials,
+        // unless the test asserts on it.
+        .args(if extra.contains(&"--identify-trials") {
+            &[][..]
+        } else {
+            &["--identify-trials", "2"][..]
+        })
         .assert()
 }
 
