@@ -65,7 +65,9 @@ pub mod workflow;
 
 pub use error::ExportError;
 pub use format::Format;
-pub use geometry::{supports_for_range, Axis, GeometryError, Marker, MarkerOptions, MountHoles};
+pub use geometry::{
+    straight_supports, supports_for_range, Axis, GeometryError, Marker, MarkerOptions, MountHoles,
+};
 pub use sheet::{datum_positions, Datum, DatumPosition, Tolerances, CSV_HEADER};
 pub use trimesh::{Topology, TriangleMesh};
 
