@@ -1,28 +1,34 @@
 //! An independent check of how much a printed part hides its own spheres:
 //! a ray cast of the exported mesh (`layout-opt export … --format obj`),
-//! triangle by triangle, over the scenarios that the spheres alone leave
-//! visible ([`layout_opt::scenario::visibility`], as `validate` counts
-//! them). It shares nothing with the visibility model but the scenario
-//! poses and the camera.
+//! triangle by triangle. The mesh side shares nothing with the visibility
+//! model but the scenario poses and the camera.
 //!
 //! ```text
 //! cargo run --release --example raycast_check -- LAYOUT.json PART.obj \
 //!     [--depth 400..1000:200] [--offset-x 0..100:50] [--offset-y=-50,0] \
-//!     [--tilt=-60..60:10] [--pan=-20..20:20] [--grid 24]
+//!     [--tilt=-60..60:10] [--pan=-20..20:20] [--grid 24] [--max-hidden 0.01]
 //! ```
 //!
-//! For every visible scenario and sphere, sight lines from the camera
-//! centre through a square grid of points over the sphere's silhouette
-//! (`--grid` per diameter) are followed to the first triangle they meet
-//! (Möller–Trumbore). A line that meets the mesh well before the sphere,
-//! at a point that is on no sphere, is hidden by a support. It prints the
-//! visible scenarios, those in which a support hides at least 1 % (and
-//! 10 %) of some sphere, the worst case, and the clean views (visible, no
-//! sphere hidden by 1 % or more).
+//! For every scenario that the spheres alone leave visible
+//! ([`layout_opt::scenario::visibility`]) and every sphere, sight lines from
+//! the camera centre through a square grid of points over the sphere's
+//! silhouette (`--grid` per diameter) are followed to the first triangle
+//! they meet (Möller–Trumbore). A line that meets the mesh well before the
+//! sphere, at a point that is on no sphere, is hidden by a support.
+//!
+//! It prints two sets of figures. Over the views the spheres alone leave
+//! visible: how many the mesh's supports hide at least 1 % (and 10 %) of a
+//! sphere in, and the clean views. Over `validate`'s visible scenarios (the
+//! supports counted: the model's supports for the default structure, routed
+//! for this grid, hide no more than `--max-hidden` of any sphere): the same
+//! counts, which the visibility model promises to be 0, and each view in
+//! which the mesh and the model disagree.
 
 use layout_opt::camera::Camera;
 use layout_opt::layout::Layout;
+use layout_opt::mesh::{supports_for_range, MarkerOptions};
 use layout_opt::scenario::{sphere_images, visibility, Range, Scenario, ScenarioGrid};
+use layout_opt::visibility::{hidden_fractions, MaxHidden, WorkingRange};
 use nalgebra::Vector3;
 use rayon::prelude::*;
 
@@ -218,6 +224,31 @@ fn flag(args: &[String], name: &str, default: &str) -> String {
         .unwrap_or_else(|| default.to_string())
 }
 
+/// One visible view: the scenario, the mesh's support-hidden fraction per
+/// sphere, and the model's.
+struct View {
+    scenario: Scenario,
+    mesh: Vec<f64>,
+    model: Vec<f64>,
+}
+
+fn worst_of(h: &[f64]) -> f64 {
+    h.iter().copied().fold(0.0, f64::max)
+}
+
+/// Prints the counts over `views` under `title`.
+fn summarise(title: &str, views: &[&View]) {
+    let at_least = |share: f64| views.iter().filter(|v| worst_of(&v.mesh) >= share).count();
+    let hidden_1 = at_least(0.01);
+    println!(
+        "{title}: {} visible; a support hides >= 1 % of a sphere in {}, >= 10 % in {}; clean views {}",
+        views.len(),
+        hidden_1,
+        at_least(0.10),
+        views.len() - hidden_1
+    );
+}
+
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let [layout_path, obj_path] = [&args[0], &args[1]];
@@ -237,51 +268,89 @@ fn main() {
     )
     .expect("a grid");
     let rays: usize = flag(&args, "--grid", "24").parse().expect("a count");
+    let max_hidden: MaxHidden = flag(&args, "--max-hidden", "0.01")
+        .parse()
+        .expect("a fraction");
     let camera = Camera::paper();
     let centres = layout.positions();
     let radius = 0.5 * layout.sphere_diameter_mm;
-    let results: Vec<(Scenario, Vec<f64>)> = grid
+    let working = WorkingRange {
+        camera,
+        scenarios: grid.scenarios(),
+        max_hidden,
+    };
+    let supports =
+        supports_for_range(&layout, &MarkerOptions::default(), &working).expect("supports");
+    let views: Vec<View> = grid
         .scenarios()
         .par_iter()
         .filter(|s| {
             let images = sphere_images(&camera, &s.pose(), &centres, layout.sphere_diameter_mm);
             visibility(&images, &camera).is_visible()
         })
-        .map(|s| (*s, support_hidden(&mesh, s, &centres, radius, rays)))
+        .map(|s| View {
+            scenario: *s,
+            mesh: support_hidden(&mesh, s, &centres, radius, rays),
+            model: hidden_fractions(&camera, &s.pose(), &centres, radius, &supports)
+                .iter()
+                .map(|f| f.map_or(0.0, |f| f.support))
+                .collect(),
+        })
         .collect();
-    let worst_of = |h: &[f64]| h.iter().copied().fold(0.0, f64::max);
-    let at_least = |share: f64| results.iter().filter(|(_, h)| worst_of(h) >= share).count();
-    let visible = results.len();
-    let hidden_1 = at_least(0.01);
     println!(
-        "{}: {} triangles; {} scenarios, {} visible; a support hides >= 1 % of a sphere in {}, >= 10 % in {}; clean views {}",
+        "{}: {} triangles; {} scenarios",
         layout.name,
         mesh.triangles.len(),
-        grid.len(),
-        visible,
-        hidden_1,
-        at_least(0.10),
-        visible - hidden_1
+        grid.len()
     );
-    if let Some((s, h)) = results
+    let all: Vec<&View> = views.iter().collect();
+    summarise("spheres alone", &all);
+    let counted: Vec<&View> = views
         .iter()
-        .max_by(|a, b| worst_of(&a.1).total_cmp(&worst_of(&b.1)))
-        .filter(|(_, h)| worst_of(h) > 0.0)
+        .filter(|v| worst_of(&v.model) <= max_hidden.fraction())
+        .collect();
+    summarise("supports counted (validate)", &counted);
+    let where_ = |s: &Scenario| {
+        format!(
+            "depth {} x {} y {} tilt {} pan {}",
+            s.depth_mm, s.offset_x_mm, s.offset_y_mm, s.tilt_deg, s.pan_deg
+        )
+    };
+    if let Some(v) = views
+        .iter()
+        .max_by(|a, b| worst_of(&a.mesh).total_cmp(&worst_of(&b.mesh)))
+        .filter(|v| worst_of(&v.mesh) > 0.0)
     {
-        let (k, f) = h
+        let (k, f) = v
+            .mesh
             .iter()
             .enumerate()
             .max_by(|a, b| a.1.total_cmp(b.1))
             .expect("spheres");
         println!(
-            "worst: {} {:.1} % hidden at depth {} x {} y {} tilt {} pan {}",
+            "worst: {} {:.1} % hidden at {}",
             layout.points[k].name,
             100.0 * f,
-            s.depth_mm,
-            s.offset_x_mm,
-            s.offset_y_mm,
-            s.tilt_deg,
-            s.pan_deg
+            where_(&v.scenario)
         );
     }
+    let mut gap = 0.0f64;
+    for v in &views {
+        for (k, (mesh, model)) in v.mesh.iter().zip(&v.model).enumerate() {
+            gap = gap.max((mesh - model).abs());
+            if *mesh >= 0.01 && *model <= max_hidden.fraction() {
+                println!(
+                    "model counts it seen, mesh hides it: {} mesh {:.2} % model {:.2} % at {}",
+                    layout.points[k].name,
+                    100.0 * mesh,
+                    100.0 * model,
+                    where_(&v.scenario)
+                );
+            }
+        }
+    }
+    println!(
+        "largest |mesh - model| of a sphere: {:.2} points",
+        100.0 * gap
+    );
 }

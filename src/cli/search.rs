@@ -144,6 +144,7 @@ fn config(args: SearchArgs, global: &GlobalOptions) -> anyhow::Result<SearchConf
         name,
         min_identifiability,
         identify_trials: args.identify_trials,
+        count_supports: args.count_supports,
     })
 }
 

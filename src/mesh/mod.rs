@@ -68,7 +68,9 @@ pub mod workflow;
 
 pub use error::ExportError;
 pub use format::Format;
-pub use geometry::{supports_for_range, Axis, GeometryError, Marker, MarkerOptions, MountHoles};
+pub use geometry::{
+    straight_supports, supports_for_range, Axis, GeometryError, Marker, MarkerOptions, MountHoles,
+};
 pub use tolerance::{datum_positions, Datum, DatumPosition, Tolerances};
 pub use trimesh::{Topology, TriangleMesh};
 

@@ -269,7 +269,7 @@ impl<'c> Analysis<'c> {
     /// the key of its checkpoints.
     pub fn checkpoint_key(&self) -> serde_json::Value {
         let config = self.config;
-        serde_json::json!({
+        let mut key = serde_json::json!({
             "version": env!("CARGO_PKG_VERSION"),
             "family": self.description,
             "start_layout": match self.family.kind() {
@@ -283,7 +283,12 @@ impl<'c> Analysis<'c> {
             "grid": config.grid,
             "objective": config.objective,
             "search": config.search,
-        })
+        });
+        // Only when asked for, so that earlier checkpoints keep their key.
+        if let Some(max_hidden) = config.count_supports {
+            key["count_supports"] = serde_json::json!(max_hidden.fraction());
+        }
+        key
     }
 
     /// The objective's evaluator, its reference the paper's biprism scaled
@@ -293,13 +298,21 @@ impl<'c> Analysis<'c> {
         let constraints = config.constraints;
         let paper =
             hand_designs(&constraints.envelope, constraints.sphere_diameter_mm).swap_remove(0);
-        Evaluator::new(
+        let evaluator = Evaluator::new(
             config.camera,
             config.grid.scenarios(),
             config.objective.clone(),
             constraints,
             &paper.positions(),
-        )
+        );
+        match config.count_supports {
+            Some(max_hidden) => evaluator.with_candidate_supports(
+                crate::mesh::MarkerOptions::default(),
+                max_hidden,
+                &paper.positions(),
+            ),
+            None => evaluator,
+        }
     }
 
     /// Runs the phases in order: optimisation, identifiability, comparison,
@@ -611,6 +624,7 @@ impl Run<'_, '_> {
         let grid = held_out_grid(&self.config().grid);
         let first_order = self
             .evaluator
+            .without_supports(&paper.positions())
             .on_scenarios(grid.scenarios(), &paper.positions())
             .first_order(&paper.positions());
         HeldOutCheck::new(

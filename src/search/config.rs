@@ -139,6 +139,12 @@ pub struct SearchConfig {
     /// Monte-Carlo trials of the unlabelled solver per visible scenario in
     /// the winner's validation (0: the prediction alone).
     pub identify_trials: usize,
+    /// Count every candidate's own supports as occluders in the optimiser's
+    /// loop, with this largest hidden fraction
+    /// ([`crate::search::Evaluator::with_candidate_supports`]); `None`
+    /// (the default): the spheres alone. It multiplies an evaluation's
+    /// cost many times over (see docs/commands.md).
+    pub count_supports: Option<crate::visibility::MaxHidden>,
 }
 
 impl SearchConfig {
@@ -202,6 +208,7 @@ impl SearchConfig {
             front: None,
             min_identifiability: Some(IdentifiabilityFloor::DEFAULT),
             identify_trials: WINNER_IDENTIFY_TRIALS,
+            count_supports: None,
         }
     }
 

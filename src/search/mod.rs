@@ -126,7 +126,7 @@ use crate::noise::NoiseModel;
 use crate::pnp::{parallel::reference_index, Solver};
 use crate::scenario::{sphere_images, visibility, visibility_margin_px, Scenario};
 use crate::sphere_image::{ellipse_centre_bias_px_into, Observation};
-use crate::visibility::{hidden_fractions, MaxHidden, Supports};
+use crate::visibility::{support_fractions, MaxHidden, Supports};
 use nalgebra::Vector3;
 use serde::Serialize;
 use std::str::FromStr;
@@ -534,9 +534,22 @@ pub struct Evaluator {
     identify_floor: Option<IdentifiabilityFloor>,
     /// The scenarios checked for identifiability.
     identify_scope: IdentifyScope,
-    /// The supports of the one layout this evaluator scores, counted as
-    /// occluders ([`Evaluator::with_supports`]); `None`: spheres alone.
-    supports: Option<std::sync::Arc<(Supports, MaxHidden)>>,
+    /// Which supports hide spheres ([`SupportRule`]).
+    supports: SupportRule,
+}
+
+/// Which supports an [`Evaluator`] counts as occluders.
+#[derive(Debug, Clone)]
+enum SupportRule {
+    /// None: the spheres alone hide each other.
+    None,
+    /// The supports of the one layout this evaluator scores
+    /// ([`Evaluator::with_supports`]).
+    Fixed(std::sync::Arc<Supports>, MaxHidden),
+    /// Every candidate's own straight supports
+    /// ([`crate::mesh::straight_supports`] with these options,
+    /// [`Evaluator::with_candidate_supports`]).
+    Candidate(std::sync::Arc<crate::mesh::MarkerOptions>, MaxHidden),
 }
 
 /// [`HeldOutCheck`] of `winner` and `paper` on `grid`, first order, with
@@ -644,7 +657,7 @@ impl Evaluator {
             floor: None,
             identify_floor: None,
             identify_scope: IdentifyScope::Off,
-            supports: None,
+            supports: SupportRule::None,
             settings,
             constraints,
             penalised,
@@ -732,6 +745,10 @@ impl Evaluator {
             reference,
         );
         evaluator.floor = self.floor;
+        if let SupportRule::Candidate(..) = &self.supports {
+            evaluator.supports = self.supports.clone();
+            evaluator.reference_availability = self.reference_availability;
+        }
         evaluator
     }
 
@@ -759,8 +776,40 @@ impl Evaluator {
     /// supports were designed for (e.g. a winner against its printed part).
     pub fn with_supports(&self, supports: Supports, max_hidden: MaxHidden) -> Self {
         let mut evaluator = self.clone();
-        evaluator.supports = Some(std::sync::Arc::new((supports, max_hidden)));
+        evaluator.supports = SupportRule::Fixed(std::sync::Arc::new(supports), max_hidden);
         evaluator
+    }
+
+    /// The same evaluator counting every candidate's own supports: those
+    /// that `export`'s pillars would try first for it
+    /// ([`crate::mesh::straight_supports`] with `options`), so that the
+    /// optimiser sees what a layout's supports cost and may move its
+    /// spheres out of their way. The reference layout's availability (and
+    /// the availability floor taken from it) is recounted with its own
+    /// supports; the accuracy references do not change (accuracy is pooled
+    /// over the scenarios in front, whatever hides what).
+    pub fn with_candidate_supports(
+        &self,
+        options: crate::mesh::MarkerOptions,
+        max_hidden: MaxHidden,
+        reference: &[Vector3<f64>],
+    ) -> Self {
+        let mut evaluator = self.clone();
+        evaluator.supports = SupportRule::Candidate(std::sync::Arc::new(options), max_hidden);
+        let visible = evaluator
+            .values(reference, &vec![None; reference.len()])
+            .visible;
+        evaluator.reference_availability = visible as f64 / evaluator.scenarios.len().max(1) as f64;
+        if evaluator.settings.min_availability == AvailabilityFloor::Reference {
+            evaluator.floor = Some(evaluator.reference_availability);
+        }
+        evaluator
+    }
+
+    /// Whether candidates' own supports are counted
+    /// ([`Evaluator::with_candidate_supports`]).
+    pub fn counts_candidate_supports(&self) -> bool {
+        matches!(self.supports, SupportRule::Candidate(..))
     }
 
     /// The identifiability floor in force.
@@ -778,14 +827,38 @@ impl Evaluator {
 
     /// The same evaluator on another scenario grid (a held-out grid), with
     /// the same reference layout's aggregates recomputed there.
+    /// Candidates' own supports stay counted when they were.
     pub fn on_scenarios(&self, scenarios: Vec<Scenario>, reference: &[Vector3<f64>]) -> Self {
-        Evaluator::new(
+        let evaluator = Evaluator::new(
             self.camera,
             scenarios,
             self.settings.clone(),
             self.constraints,
             reference,
-        )
+        );
+        match &self.supports {
+            SupportRule::Candidate(options, max_hidden) => {
+                evaluator.with_candidate_supports((**options).clone(), *max_hidden, reference)
+            }
+            _ => evaluator,
+        }
+    }
+
+    /// The same evaluator with no supports counted: the spheres alone.
+    pub fn without_supports(&self, reference: &[Vector3<f64>]) -> Self {
+        let mut evaluator = self.clone();
+        evaluator.supports = SupportRule::None;
+        if matches!(self.supports, SupportRule::Candidate(..)) {
+            let visible = evaluator
+                .values(reference, &vec![None; reference.len()])
+                .visible;
+            evaluator.reference_availability =
+                visible as f64 / evaluator.scenarios.len().max(1) as f64;
+            if evaluator.settings.min_availability == AvailabilityFloor::Reference {
+                evaluator.floor = Some(evaluator.reference_availability);
+            }
+        }
+        evaluator
     }
 
     fn values(&self, points: &[Vector3<f64>], point_sigma: &[Option<f64>]) -> ScenarioValues {
@@ -809,6 +882,19 @@ impl Evaluator {
             .any(|(t, _)| matches!(t, Term::Crlb | Term::Transfer));
         let reference = reference_index(points);
         let mut image_bias = Vec::with_capacity(points.len());
+        let own;
+        let supports = match &self.supports {
+            SupportRule::None => None,
+            SupportRule::Fixed(supports, max_hidden) => Some((&**supports, *max_hidden)),
+            SupportRule::Candidate(options, max_hidden) => {
+                own = crate::mesh::straight_supports(
+                    points,
+                    self.constraints.sphere_diameter_mm,
+                    options,
+                );
+                Some((&own, *max_hidden))
+            }
+        };
         for (s, scenario) in self.scenarios.iter().enumerate() {
             let pose = scenario.pose();
             let images = sphere_images(
@@ -818,15 +904,13 @@ impl Evaluator {
                 self.constraints.sphere_diameter_mm,
             );
             let mut v = visibility(&images, &self.camera);
-            if let Some((supports, max_hidden)) = self.supports.as_deref() {
+            if let Some((supports, max_hidden)) = supports {
                 if v.is_visible() {
                     let radius_mm = 0.5 * self.constraints.sphere_diameter_mm;
                     let fractions =
-                        hidden_fractions(&self.camera, &pose, points, radius_mm, supports);
+                        support_fractions(&self.camera, &pose, points, radius_mm, supports);
                     v.hidden_by_support = (0..points.len())
-                        .filter(|&k| {
-                            fractions[k].is_some_and(|f| f.support > max_hidden.fraction())
-                        })
+                        .filter(|&k| fractions[k] > max_hidden.fraction())
                         .collect();
                 }
             }

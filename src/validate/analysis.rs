@@ -30,7 +30,7 @@ use crate::observer::{relay, watch, Observer};
 use crate::pnp::parallel::reference_index;
 use crate::report::significant;
 use crate::scenario::ScenarioGrid;
-use crate::visibility::{hidden_fractions, MaxHidden, Supports, WorkingRange};
+use crate::visibility::{support_fractions, MaxHidden, Supports, WorkingRange};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 
 /// Why a validation's analysis could not run.
@@ -203,7 +203,7 @@ fn count_supports(
         .par_iter_mut()
         .filter(|o| o.visibility.is_visible())
         .for_each(|o| {
-            let fractions = hidden_fractions(
+            let fractions = support_fractions(
                 &config.camera,
                 &o.scenario.pose(),
                 &centres,
@@ -213,7 +213,7 @@ fn count_supports(
             o.visibility.hidden_by_support = fractions
                 .iter()
                 .enumerate()
-                .filter(|(_, f)| f.is_some_and(|f| f.support > max_hidden.fraction()))
+                .filter(|(_, f)| **f > max_hidden.fraction())
                 .map(|(k, _)| k)
                 .collect();
         });

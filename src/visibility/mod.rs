@@ -148,7 +148,7 @@ pub fn hidden_fractions(
     let rotation = pose.rotation.matrix();
     let eye = -(rotation.transpose() * pose.translation);
     (0..centres.len())
-        .map(|k| sphere_hidden(camera, pose, &eye, centres, k, radius_mm, supports))
+        .map(|k| sphere_hidden(camera, pose, &eye, centres, k, radius_mm, supports, false))
         .collect()
 }
 
@@ -176,6 +176,197 @@ fn may_cover(
     angle < half_angle + (other_radius / distance).asin()
 }
 
+/// The supports that may hide part of the sphere (`centre`, `radius_mm`)
+/// whose cone of sight lines from `eye` has `axis` and `half_angle`, and
+/// whose silhouette rim lies `front` away: culled by bounding ball, a
+/// capsule by its axis seen through the cone, and the sphere's own cone
+/// (a round cone that starts with the sphere's ball) when the camera sees
+/// none of the sphere on the cone's side of the circle where its flank
+/// leaves the ball. Conservative: a part left out hides nothing.
+fn parts_in_cone(
+    eye: &Vector3<f64>,
+    axis: &Vector3<f64>,
+    half_angle: f64,
+    front: f64,
+    centre: &Vector3<f64>,
+    radius_mm: f64,
+    supports: &Supports,
+) -> Vec<usize> {
+    (0..supports.occluders.len())
+        .filter(|&p| {
+            let (c, r) = supports.bounds[p];
+            if !may_cover(eye, axis, half_angle, front, &c, r) {
+                return false;
+            }
+            match &supports.occluders[p] {
+                Occluder::Capsule { a, b, radius } => {
+                    capsule_may_cover(eye, axis, half_angle, front, a, b, *radius)
+                }
+                Occluder::RoundCone {
+                    a,
+                    radius_a,
+                    b,
+                    radius_b,
+                } => {
+                    // The hull of two balls lies in the capsule of the
+                    // larger radius between their centres.
+                    let own = (a - centre).norm() < 1e-9 && (radius_a - radius_mm).abs() < 1e-9;
+                    capsule_may_cover(eye, axis, half_angle, front, a, b, radius_a.max(*radius_b))
+                        && (!own || own_cone_may_cover(eye, a, *radius_a, b, *radius_b))
+                }
+                Occluder::Box { .. } => true,
+            }
+        })
+        .collect()
+}
+
+/// Whether the capsule `a`–`b` of `radius` can meet the cone of sight
+/// lines (apex `eye`, `axis`, `half_angle`) nearer than `front`: its axis,
+/// seen on the plane one unit along the cone's axis (where a straight line
+/// stays straight and the cone is a disc), comes within the disc grown by
+/// the capsule's largest angular radius.
+fn capsule_may_cover(
+    eye: &Vector3<f64>,
+    axis: &Vector3<f64>,
+    half_angle: f64,
+    front: f64,
+    a: &Vector3<f64>,
+    b: &Vector3<f64>,
+    radius: f64,
+) -> bool {
+    let (pa, pb) = (a - eye, b - eye);
+    let nearest = (eye - occluders::closest_on_segment(eye, a, b)).norm();
+    if nearest <= radius {
+        return true;
+    }
+    if nearest - radius >= front {
+        return false;
+    }
+    let (za, zb) = (pa.dot(axis), pb.dot(axis));
+    if za <= radius || zb <= radius {
+        // An end beside or behind the camera: no plane to see it on.
+        return true;
+    }
+    let grown = half_angle + (radius / nearest).asin();
+    if grown >= std::f64::consts::FRAC_PI_2 {
+        return true;
+    }
+    let on_plane = |p: &Vector3<f64>, z: f64| (p - axis * z) / z;
+    let (qa, qb) = (on_plane(&pa, za), on_plane(&pb, zb));
+    let ab = qb - qa;
+    let t = if ab.norm_squared() > 0.0 {
+        (-qa.dot(&ab) / ab.norm_squared()).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    (qa + ab * t).norm() < grown.tan()
+}
+
+/// Whether a sphere's own cone (the hull of its ball (`a`, `radius_a`) and
+/// the ball (`b`, `radius_b`) behind it) can hide any of the sphere from
+/// `eye`. What the cone adds to the ball lies beyond the plane of the
+/// circle where its flank leaves the ball; the camera sees the ball's cap
+/// within the angle acos(radius/distance) of its own direction, and when
+/// that cap stays on the near side of the plane, every sight line to it
+/// does too.
+fn own_cone_may_cover(
+    eye: &Vector3<f64>,
+    a: &Vector3<f64>,
+    radius_a: f64,
+    b: &Vector3<f64>,
+    radius_b: f64,
+) -> bool {
+    let along = b - a;
+    let length = along.norm();
+    if length <= radius_a - radius_b || length == 0.0 {
+        return false;
+    }
+    let u = along / length;
+    let w = eye - a;
+    let distance = w.norm();
+    if distance <= radius_a {
+        return true;
+    }
+    let sine = (radius_a - radius_b) / length;
+    let psi = (w.dot(&u) / distance).clamp(-1.0, 1.0).acos();
+    let cap = (radius_a / distance).acos();
+    // The farthest seen point of the ball along u is at angle psi − cap.
+    let reach = if psi - cap <= 0.0 {
+        1.0
+    } else {
+        (psi - cap).cos()
+    };
+    reach > sine - 1e-12 || w.dot(&u) > radius_a * sine
+}
+
+/// For the round cone under the sphere (`centre`, `radius_mm`) (one that
+/// starts with the sphere's own ball): the unit axis `u` from the sphere to
+/// the cone's tip and the level along it before which the cone adds
+/// nothing to the ball. The flank leaves the ball on the circle at
+/// `radius·sine` along `u` (sine = (r_a − r_b)/length) and runs on; the
+/// tip's ball starts at `length − r_b`. `None` for any other part.
+fn own_cone_plane(
+    occluder: &Occluder,
+    centre: &Vector3<f64>,
+    radius_mm: f64,
+) -> Option<(Vector3<f64>, f64)> {
+    let Occluder::RoundCone {
+        a,
+        radius_a,
+        b,
+        radius_b,
+    } = occluder
+    else {
+        return None;
+    };
+    let length = (b - a).norm();
+    if (a - centre).norm() > 1e-9
+        || (radius_a - radius_mm).abs() > 1e-9
+        || length <= (radius_a - radius_b).abs()
+    {
+        return None;
+    }
+    let sine = (radius_a - radius_b) / length;
+    Some(((b - a) / length, (radius_a * sine).min(length - radius_b)))
+}
+
+/// Per sphere, the fraction of its silhouette that the supports hide under
+/// `pose`, for a scenario in which every sphere is in front, inside the
+/// image and clear of the others (the only scenarios in which the rule of
+/// [`MaxHidden`] is asked): the same sight lines as [`hidden_fractions`],
+/// but a sphere that no support can reach costs no sight line at all.
+/// Equals `hidden_fractions(…)[k].support` in such a scenario.
+pub fn support_fractions(
+    camera: &Camera,
+    pose: &Pose,
+    centres: &[Vector3<f64>],
+    radius_mm: f64,
+    supports: &Supports,
+) -> Vec<f64> {
+    let rotation = pose.rotation.matrix();
+    let eye = -(rotation.transpose() * pose.translation);
+    (0..centres.len())
+        .map(|k| {
+            let centre = centres[k];
+            let to_centre = centre - eye;
+            let distance = to_centre.norm();
+            if distance <= radius_mm {
+                return 0.0;
+            }
+            let axis = to_centre / distance;
+            let half_angle = (radius_mm / distance).asin();
+            let front = (distance * distance - radius_mm * radius_mm).sqrt();
+            let parts = parts_in_cone(&eye, &axis, half_angle, front, &centre, radius_mm, supports);
+            if parts.is_empty() {
+                return 0.0;
+            }
+            sphere_hidden(camera, pose, &eye, centres, k, radius_mm, supports, true)
+                .map_or(0.0, |f| f.support)
+        })
+        .collect()
+}
+
+#[allow(clippy::too_many_arguments)]
 fn sphere_hidden(
     camera: &Camera,
     pose: &Pose,
@@ -184,6 +375,7 @@ fn sphere_hidden(
     k: usize,
     radius_mm: f64,
     supports: &Supports,
+    visible: bool,
 ) -> Option<HiddenFractions> {
     let centre = centres[k];
     if pose.transform(&centre).z <= 0.0 {
@@ -201,10 +393,16 @@ fn sphere_hidden(
     let spheres: Vec<usize> = (0..centres.len())
         .filter(|&j| j != k && may_cover(eye, &axis, half_angle, front, &centres[j], radius_mm))
         .collect();
-    let parts: Vec<usize> = (0..supports.occluders.len())
-        .filter(|&p| {
-            let (c, r) = supports.bounds[p];
-            may_cover(eye, &axis, half_angle, front, &c, r)
+    let parts = parts_in_cone(eye, &axis, half_angle, front, &centre, radius_mm, supports);
+    // The sphere's own cone adds to its ball only beyond a plane across
+    // the cone's axis (`own_cone_plane`): a sight line whose both ends, the
+    // camera and its point on the sphere, lie before that plane cannot
+    // meet the cone before the sphere, and is not traced.
+    let planes: Vec<Option<(Vector3<f64>, f64)>> = parts
+        .iter()
+        .map(|&p| {
+            own_cone_plane(&supports.occluders[p], &centre, radius_mm)
+                .filter(|(u, level)| (eye - centre).dot(u) <= *level)
         })
         .collect();
     let rays = SILHOUETTE_RAYS;
@@ -213,19 +411,28 @@ fn sphere_hidden(
         let t_sphere = occluders::ray_ball(eye, &direction, &centre, radius_mm)
             .unwrap_or_else(|| (centre - eye).dot(&direction));
         let on_sphere = eye + direction * t_sphere;
-        let in_image = camera
-            .project(&pose.transform(&on_sphere))
-            .is_some_and(|px: Vector2<f64>| camera.contains(&px, 0.0));
+        // In a visible scenario (`visible`) every disc lies inside the
+        // image and clear of the nearer ones, so no sight line is outside
+        // or hidden by a sphere; those checks are skipped.
+        let in_image = visible
+            || camera
+                .project(&pose.transform(&on_sphere))
+                .is_some_and(|px: Vector2<f64>| camera.contains(&px, 0.0));
         if !in_image {
             outside += 1;
-        } else if spheres.iter().any(|&j| {
-            occluders::ray_ball(eye, &direction, &centres[j], radius_mm)
-                .is_some_and(|t| t < t_sphere)
-        }) {
+        } else if !visible
+            && spheres.iter().any(|&j| {
+                occluders::ray_ball(eye, &direction, &centres[j], radius_mm)
+                    .is_some_and(|t| t < t_sphere)
+            })
+        {
             by_sphere += 1;
-        } else if parts.iter().any(|&p| {
+        } else if parts.iter().zip(&planes).any(|(&p, plane)| {
+            if plane.is_some_and(|(u, level)| (on_sphere - centre).dot(&u) <= level) {
+                return false;
+            }
             supports.occluders[p]
-                .ray_hit(eye, &direction)
+                .ray_hit_before(eye, &direction, t_sphere - SURFACE_TOLERANCE_MM)
                 .is_some_and(|t| {
                     // A hit on a sphere's surface (the round cone under a
                     // sphere starts with the sphere's own ball) is the
@@ -268,13 +475,25 @@ pub fn silhouette_directions(
     };
     let e1 = axis.cross(&helper).normalize();
     let e2 = axis.cross(&e1);
-    (0..SILHOUETTE_RAYS)
-        .map(|i| {
-            let spread = tan_half * ((i as f64 + 0.5) / SILHOUETTE_RAYS as f64).sqrt();
-            let turn = i as f64 * GOLDEN_ANGLE;
-            (axis + (e1 * turn.cos() + e2 * turn.sin()) * spread).normalize()
-        })
+    sunflower()
+        .iter()
+        .map(|&(x, y)| (axis + (e1 * x + e2 * y) * tan_half).normalize())
         .collect()
+}
+
+/// The [`SILHOUETTE_RAYS`] points of the sunflower pattern on the unit
+/// disc, computed once.
+fn sunflower() -> &'static [(f64, f64)] {
+    static POINTS: std::sync::OnceLock<Vec<(f64, f64)>> = std::sync::OnceLock::new();
+    POINTS.get_or_init(|| {
+        (0..SILHOUETTE_RAYS)
+            .map(|i| {
+                let spread = ((i as f64 + 0.5) / SILHOUETTE_RAYS as f64).sqrt();
+                let turn = i as f64 * GOLDEN_ANGLE;
+                (spread * turn.cos(), spread * turn.sin())
+            })
+            .collect()
+    })
 }
 
 /// [`crate::scenario::visibility`] with the supports counted: a sphere that
@@ -290,12 +509,12 @@ pub fn visibility_with_supports(
 ) -> Visibility {
     let images = sphere_images(camera, pose, centres, sphere_diameter_mm);
     let mut result = visibility(&images, camera);
-    if supports.is_empty() || !result.all_in_front() {
+    if supports.is_empty() || !result.is_visible() {
         return result;
     }
-    let fractions = hidden_fractions(camera, pose, centres, 0.5 * sphere_diameter_mm, supports);
+    let fractions = support_fractions(camera, pose, centres, 0.5 * sphere_diameter_mm, supports);
     for (k, f) in fractions.iter().enumerate() {
-        if f.is_some_and(|f| f.support > max_hidden.fraction()) {
+        if *f > max_hidden.fraction() {
             result.hidden_by_support.push(k);
         }
     }
@@ -443,13 +662,13 @@ pub fn lost_views(
             continue;
         }
         let fractions =
-            hidden_fractions(camera, &pose, centres, 0.5 * sphere_diameter_mm, supports);
-        for (sphere, f) in fractions.iter().enumerate() {
-            if let Some(f) = f.filter(|f| f.support > max_hidden.fraction()) {
+            support_fractions(camera, &pose, centres, 0.5 * sphere_diameter_mm, supports);
+        for (sphere, &f) in fractions.iter().enumerate() {
+            if f > max_hidden.fraction() {
                 lost.push(LostView {
                     scenario: *scenario,
                     sphere,
-                    hidden_fraction: f.support,
+                    hidden_fraction: f,
                 });
             }
         }

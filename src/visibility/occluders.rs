@@ -119,6 +119,18 @@ impl Occluder {
     /// The entry distance of the ray `origin + t·direction` (unit
     /// direction, origin outside the part) into the part.
     pub fn ray_hit(&self, origin: &Vector3<f64>, direction: &Vector3<f64>) -> Option<f64> {
+        self.ray_hit_before(origin, direction, f64::INFINITY)
+    }
+
+    /// [`Occluder::ray_hit`], for a caller that asks only whether the ray
+    /// enters the part before `limit`: a hit at or beyond it may be
+    /// reported as none (a round cone's tracing stops there).
+    pub fn ray_hit_before(
+        &self,
+        origin: &Vector3<f64>,
+        direction: &Vector3<f64>,
+        limit: f64,
+    ) -> Option<f64> {
         match self {
             Occluder::Capsule { a, b, radius } => ray_capsule(origin, direction, a, b, *radius),
             Occluder::RoundCone {
@@ -129,7 +141,7 @@ impl Occluder {
             } => {
                 let (centre, bound) = self.bounding_ball();
                 let start = ray_ball(origin, direction, &centre, bound)?;
-                let end = start + 2.0 * bound;
+                let end = (start + 2.0 * bound).min(limit);
                 let mut t = start;
                 for _ in 0..ROUND_CONE_STEPS {
                     let d =
@@ -169,7 +181,7 @@ impl Occluder {
 }
 
 /// The point of segment `ab` nearest to `p`.
-fn closest_on_segment(p: &Vector3<f64>, a: &Vector3<f64>, b: &Vector3<f64>) -> Vector3<f64> {
+pub fn closest_on_segment(p: &Vector3<f64>, a: &Vector3<f64>, b: &Vector3<f64>) -> Vector3<f64> {
     let ab = b - a;
     let length_squared = ab.norm_squared();
     if length_squared == 0.0 {

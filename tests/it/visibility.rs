@@ -8,10 +8,13 @@ use crate::export_common::read_obj;
 use layout_opt::camera::Camera;
 use layout_opt::layout::Layout;
 use layout_opt::mesh::workflow::export;
-use layout_opt::mesh::{ExportOptions, Format, Marker, MarkerOptions};
-use layout_opt::scenario::{Range, Scenario, ScenarioGrid};
+use layout_opt::mesh::{
+    straight_supports, supports_for_range, ExportOptions, Format, Marker, MarkerOptions,
+};
+use layout_opt::scenario::{sphere_images, visibility, Range, Scenario, ScenarioGrid};
+use layout_opt::search::{Evaluator, SearchConfig};
 use layout_opt::visibility::{
-    hidden_fractions, silhouette_directions, MaxHidden, Supports, WorkingRange,
+    hidden_fractions, silhouette_directions, support_fractions, MaxHidden, Supports, WorkingRange,
 };
 use nalgebra::Vector3;
 use rayon::prelude::*;
@@ -403,5 +406,86 @@ fn export_defaults_to_the_searched_range_in_the_provenance() {
     assert!(
         scenarios.is_null() || scenarios == serde_json::json!(0),
         "{scenarios}"
+    );
+}
+
+#[test]
+fn the_culled_support_fractions_equal_the_full_model_in_visible_scenarios() {
+    let layout = Layout::paper_biprism();
+    let camera = Camera::paper();
+    let centres = layout.positions();
+    let radius = 0.5 * layout.sphere_diameter_mm;
+    let scenarios = grid("400,800", "-60..60:20", "-20,20");
+    let range = WorkingRange {
+        camera,
+        scenarios: scenarios.clone(),
+        max_hidden: MaxHidden::default(),
+    };
+    let options = MarkerOptions::default();
+    let routed = supports_for_range(&layout, &options, &range).unwrap();
+    let straight = straight_supports(&centres, layout.sphere_diameter_mm, &options);
+    let (mut compared, mut hidden) = (0, 0);
+    for scenario in &scenarios {
+        let pose = scenario.pose();
+        let images = sphere_images(&camera, &pose, &centres, layout.sphere_diameter_mm);
+        if !visibility(&images, &camera).is_visible() {
+            continue;
+        }
+        for supports in [&routed, &straight] {
+            let full = hidden_fractions(&camera, &pose, &centres, radius, supports);
+            let fast = support_fractions(&camera, &pose, &centres, radius, supports);
+            for (f, s) in full.iter().zip(&fast) {
+                assert_eq!(f.expect("in front").support, *s, "{scenario:?}");
+                compared += 1;
+                hidden += usize::from(*s > 0.0);
+            }
+        }
+    }
+    assert!(compared > 0 && hidden > 0, "{compared} {hidden}");
+}
+
+#[test]
+fn the_search_can_price_each_candidate_with_its_own_supports() {
+    let config = SearchConfig::new("t", &std::env::temp_dir());
+    let paper = Layout::paper_biprism();
+    let (points, sigmas) = (paper.positions(), paper.point_sigmas());
+    let plain = Evaluator::new(
+        config.camera,
+        grid("400,800", "-60..60:20", "0"),
+        config.objective.clone(),
+        config.constraints,
+        &points,
+    );
+    let counted =
+        plain.with_candidate_supports(MarkerOptions::default(), MaxHidden::default(), &points);
+    assert!(counted.counts_candidate_supports());
+    let (a, b) = (
+        plain.evaluate(&points, &sigmas),
+        counted.evaluate(&points, &sigmas),
+    );
+    // The link from the front sphere onto the hub hides the hub when the
+    // marker tilts; accuracy is pooled over the scenarios in front either way.
+    assert!(
+        b.availability < a.availability,
+        "{} {}",
+        b.availability,
+        a.availability
+    );
+    assert_eq!(b.accuracy, a.accuracy);
+    assert_eq!(counted.reference_availability(), b.availability);
+    assert!(counted.reference_availability() < plain.reference_availability());
+    // Counting nothing as lost gives back the spheres-alone figures.
+    let lenient = plain.with_candidate_supports(
+        MarkerOptions::default(),
+        MaxHidden::new(1.0).unwrap(),
+        &points,
+    );
+    assert_eq!(
+        lenient.evaluate(&points, &sigmas).availability,
+        a.availability
+    );
+    assert_eq!(
+        counted.without_supports(&points).reference_availability(),
+        plain.reference_availability()
     );
 }

@@ -26,6 +26,12 @@ pub struct SearchArgs {
     /// Layout family.
     #[arg(long, value_enum, default_value = "biprism")]
     pub(super) family: FamilyName,
+    /// Count every candidate's own supports (the pillars export tries first)
+    /// in the optimiser's loop: a sphere they hide more than this fraction
+    /// (0–1) of counts as not seen. Off by default: it costs tens of times
+    /// an evaluation.
+    #[arg(long, value_name = "FRACTION")]
+    pub(super) count_supports: Option<layout_opt::visibility::MaxHidden>,
     /// Leave out the centre point (biprism: O0; tetrahedron: the centroid point).
     #[arg(long)]
     pub(super) no_centre: bool,

@@ -225,8 +225,8 @@ mod solid;
 pub use frames::{gltf_rotation, print_rotation};
 pub use options::{Axis, Bed, MarkerOptions, MountHoles, Structure};
 pub use parts::{Foot, Hole, Node, Plate, SphereFeature, Strut, StrutKind};
-pub use router::supports_for_range;
 use router::Router;
+pub use router::{straight_supports, supports_for_range};
 pub use solid::Marker;
 
 /// The main view `view` and rings of directions around it out to

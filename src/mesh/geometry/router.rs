@@ -759,3 +759,102 @@ pub fn supports_for_range(
         Marker::design(layout, &options)?.occluders(),
     ))
 }
+
+/// The supports the search prices a candidate layout with, in the time a
+/// search can afford per candidate: the pillars structure's routes for
+/// every sphere in the order `export`'s router tries them, the first that
+/// keeps clear of the other spheres and their cones taken without scoring
+/// views. Each sphere has the cone under it and a support straight back
+/// along the view to the base plate's inner face; where that would pass
+/// within the clearance of another sphere, the same support slanted
+/// 10–35° in 16 directions (towards the layout's middle first); failing
+/// those, a link onto the nearest sphere behind. Same constants and
+/// clearances as [`Router::pillars`]. The plate is left out: it lies behind
+/// every sphere along the view, so it hides none from a camera in front.
+/// No printability check is made (the search's constraints hold the gaps).
+/// `export`, scoring the views of a range, may still find a route that
+/// hides fewer of them, so a layout is priced no better than it prints.
+pub fn straight_supports(
+    centres: &[Vector3<f64>],
+    sphere_diameter_mm: f64,
+    options: &MarkerOptions,
+) -> crate::visibility::Supports {
+    let v = options.view.vector();
+    let radius = 0.5 * sphere_diameter_mm;
+    let strut_radius = 0.5 * options.strut_diameter_mm;
+    let clearance = options.min_feature_mm;
+    let blend = blend_radius(strut_radius, clearance);
+    let growth = junction_growth(blend);
+    let drop_length = (radius - strut_radius) / TEARDROP_HALF_ANGLE_DEG.to_radians().sin();
+    let tips: Vec<Vector3<f64>> = centres.iter().map(|c| c + v * drop_length).collect();
+    let depth = |p: &Vector3<f64>| p.dot(&v);
+    let inner = tips.iter().map(depth).fold(f64::NEG_INFINITY, f64::max)
+        + strut_radius
+        + 2.0 * blend
+        + clearance;
+    let steepest = SUPPORT_SLANTS_DEG
+        .iter()
+        .fold(0.0f64, |m, &s| m.max(s))
+        .to_radians();
+    let clear_of = |i: usize, end: &Vector3<f64>, onto: Option<usize>| {
+        (0..centres.len())
+            .filter(|&k| k != i && Some(k) != onto)
+            .all(|k| {
+                segment_distance(&tips[i], end, &centres[k], &tips[k]) - radius - strut_radius
+                    >= clearance + growth
+            })
+    };
+    let kv = v.iamax();
+    let unit = |k: usize| Vector3::from_fn(|r, _| if r == k { 1.0 } else { 0.0 });
+    let (e1, e2) = (unit((kv + 1) % 3), unit((kv + 2) % 3));
+    let centroid = centres.iter().sum::<Vector3<f64>>() / centres.len().max(1) as f64;
+    let mut occluders = Vec::with_capacity(2 * centres.len());
+    for (i, tip) in tips.iter().enumerate() {
+        let inward = centroid - centres[i];
+        let phi_inward = inward.dot(&e2).atan2(inward.dot(&e1));
+        let slanted = SUPPORT_SLANTS_DEG.iter().flat_map(|&slant_deg| {
+            let slant = slant_deg.to_radians();
+            let azimuths = if slant_deg == 0.0 {
+                1
+            } else {
+                SUPPORT_AZIMUTHS
+            };
+            (0..azimuths).map(move |a| {
+                let step = a.div_ceil(2) as f64 * if a % 2 == 1 { 1.0 } else { -1.0 };
+                let phi = phi_inward + std::f64::consts::TAU * step / azimuths as f64;
+                let direction = v * slant.cos() + (e1 * phi.cos() + e2 * phi.sin()) * slant.sin();
+                tip + direction * ((inner - depth(tip)) / slant.cos())
+            })
+        });
+        let straight = tip + v * (inner - depth(tip));
+        let end = if let Some(end) = slanted.into_iter().find(|end| clear_of(i, end, None)) {
+            end
+        } else {
+            (0..centres.len())
+                .filter(|&j| j != i)
+                .filter_map(|j| {
+                    let offset = centres[j] - tip;
+                    let along = offset.dot(&v);
+                    let across = (offset - v * along).norm();
+                    (along > radius + strut_radius + 2.0 * blend
+                        && across <= along * steepest.tan()
+                        && clear_of(i, &centres[j], Some(j)))
+                    .then_some((offset.norm(), centres[j]))
+                })
+                .min_by(|a, b| a.0.total_cmp(&b.0))
+                .map_or(straight, |(_, c)| c)
+        };
+        occluders.push(Occluder::RoundCone {
+            a: centres[i],
+            radius_a: radius,
+            b: *tip,
+            radius_b: strut_radius,
+        });
+        occluders.push(Occluder::Capsule {
+            a: *tip,
+            b: end,
+            radius: strut_radius,
+        });
+    }
+    crate::visibility::Supports::new(occluders)
+}
