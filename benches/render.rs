@@ -22,7 +22,10 @@ fn pose(depth_mm: f64, tilt_deg: f64) -> Pose {
 }
 
 fn bench(c: &mut Criterion) {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("layouts/biprism-search.json");
+    // The benches are a package of their own in benches/: the layouts are
+    // one folder up.
+    let path =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../layouts/biprism-search.json");
     let layout = Layout::load(&path).expect("the search winner loads");
     let scene = Scene::from_marker(
         Marker::design(&layout, &MarkerOptions::default()).expect("the part builds"),

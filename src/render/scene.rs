@@ -14,6 +14,7 @@
 
 use crate::mesh::sdf;
 use crate::mesh::Marker;
+use crate::visibility::Supports;
 use nalgebra::Vector3;
 
 /// A traced hit is accepted this close to the surface, mm.
@@ -85,6 +86,8 @@ pub struct Scene {
     bed: Option<(Vector3<f64>, f64)>,
     /// For each primitive, a ball holding it: `(centre, radius)`.
     enclosing: Vec<(Vector3<f64>, f64)>,
+    /// The supports as the visibility model sees them.
+    supports: Supports,
 }
 
 impl Scene {
@@ -119,6 +122,7 @@ impl Scene {
         Scene {
             shapes,
             spheres,
+            supports: Supports::new(marker.occluders()),
             marker: Some(marker),
             bed,
             enclosing,
@@ -141,12 +145,19 @@ impl Scene {
             marker: None,
             bed: None,
             enclosing: spheres.to_vec(),
+            supports: Supports::none(),
         }
     }
 
     /// The spheres: (centre, radius) in the marker frame, layout order.
     pub fn spheres(&self) -> &[(Vector3<f64>, f64)] {
         &self.spheres
+    }
+
+    /// The part's supports for the visibility model
+    /// ([`crate::visibility`]): none for free spheres.
+    pub fn supports(&self) -> &Supports {
+        &self.supports
     }
 
     /// How many primitives.
@@ -435,15 +446,7 @@ impl Scene {
         if !near_other {
             return hit;
         }
-        let mut t = hit.t;
-        let mut sample = marker.sample(&ray.at(t));
-        for _ in 0..MAX_TRACE_STEPS {
-            if sample.value > -SURFACE_EPSILON_MM {
-                break;
-            }
-            t += sample.value;
-            sample = marker.sample(&ray.at(t));
-        }
+        let (t, sample) = blended_surface(marker, ray, hit.t);
         let p = ray.at(t);
         Hit {
             t,
@@ -452,6 +455,52 @@ impl Scene {
             normal: sample.gradient,
         }
     }
+}
+
+/// The front of the blended solid on the ray before `t_inside`, a point
+/// on the ray at which the marker is solid or on its surface: where the
+/// marker's signed distance crosses zero between the camera and
+/// `t_inside`, to within [`SURFACE_EPSILON_MM`], with the signed distance
+/// there. A Newton step along the ray (the signed distance's slope is its
+/// gradient along the ray) inside a bracket that keeps a solid point
+/// behind and, once one is seen, a free point in front; a step that leaves
+/// the bracket is halved back into it. A plain backward march (steps of
+/// the signed distance, which never cross the surface) needs several
+/// times as many samples where the ray meets a fillet obliquely.
+fn blended_surface(marker: &Marker, ray: &Ray, t_inside: f64) -> (f64, sdf::Sample) {
+    let mut t = t_inside;
+    let mut sample = marker.sample(&ray.at(t));
+    if sample.value > -SURFACE_EPSILON_MM {
+        return (t, sample);
+    }
+    // `solid`: a ray distance where the marker is solid; `free`: one in
+    // front of it where it is not (the camera, until a sample lands there).
+    let (mut solid, mut free) = (t, 0.0);
+    for _ in 0..MAX_TRACE_STEPS {
+        if sample.value.abs() < SURFACE_EPSILON_MM {
+            break;
+        }
+        if sample.value < 0.0 {
+            solid = t;
+        } else {
+            free = t;
+        }
+        let slope = sample.gradient.dot(&ray.direction);
+        // |slope| ≤ 1, so a Newton step is never shorter than the safe
+        // step of the signed distance itself.
+        let newton = if slope < -1e-3 {
+            t - sample.value / slope
+        } else {
+            t + sample.value
+        };
+        t = if newton > free && newton < solid {
+            newton
+        } else {
+            0.5 * (free + solid)
+        };
+        sample = marker.sample(&ray.at(t));
+    }
+    (t, sample)
 }
 
 /// A ball holding one primitive of `marker`: `(centre, radius)`.
@@ -494,6 +543,20 @@ fn capsule_interval(
     b: &Vector3<f64>,
     radius: f64,
 ) -> Option<(f64, f64)> {
+    let axis = b - a;
+    let length = axis.norm();
+    if length > 0.0 {
+        // The capsule lies within the infinite cylinder of its radius
+        // about its axis: a ray whose line passes farther from the axis
+        // line misses it (the common case, and a cheap one).
+        let normal = ray.direction.cross(&axis);
+        let normal_norm = normal.norm();
+        if normal_norm > 1e-12 * length
+            && (ray.origin - a).dot(&normal).abs() > radius * (1.0 + 1e-9) * normal_norm
+        {
+            return None;
+        }
+    }
     let mut result: Option<(f64, f64)> = None;
     let mut merge = |interval: (f64, f64)| {
         result = Some(match result {
@@ -507,8 +570,6 @@ fn capsule_interval(
     if let Some(i) = ball_interval(ray, b, radius) {
         merge(i);
     }
-    let axis = b - a;
-    let length = axis.norm();
     if length > 0.0 {
         let u = axis / length;
         let oa = ray.origin - a;
