@@ -1,39 +1,45 @@
 //! `track`'s per-frame cost: detection, identification and pose of a
-//! 1280×720 frame of the 7-sphere search winner (test rasteriser, 8-bit,
-//! blurred and noisy), on one core. Target: ≤ 5 ms.
+//! 1280×720 frame of the 7-sphere search winner on its supports, drawn by
+//! `render` (retroreflective preset, σ 0.5 px blur, 8-bit with the default
+//! sensor noise), on one core. Target: ≤ 5 ms.
 
-#[path = "../tests/it/track/raster.rs"]
+#[path = "../tests/it/track/frames.rs"]
 #[allow(dead_code)]
-mod raster;
+mod frames;
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use layout_opt::camera::Camera;
-use layout_opt::layout::Layout;
-use layout_opt::pose::Pose;
+use layout_opt::scenario::Scenario;
 use layout_opt::track::{analyse, GreyFrame, TrackConfig};
-use nalgebra::{Rotation3, Vector3};
 
 fn bench(c: &mut Criterion) {
-    let layout = Layout::load(std::path::Path::new(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/layouts/biprism-search.json"
-    )))
-    .unwrap();
+    let part = frames::Part::winner();
     let camera = Camera::paper();
-    let object = layout.positions();
-    let pose = Pose::new(
-        Rotation3::from_euler_angles(0.35, -0.25, 0.4),
-        Vector3::new(-5.0, -60.0, 500.0),
-    );
-    let mut scene = raster::Scene::clean(&camera, &object, layout.sphere_radius_mm(), pose);
-    scene.bit_depth = 8;
-    scene.blur_px = 0.7;
-    scene.noise = 0.02;
-    scene.supersampling = 4;
-    let (frame, _) = raster::render(&scene);
+    // The first view at 500 mm, within ±20° of head on, with no sphere
+    // hidden.
+    let pose = (-4..=4)
+        .flat_map(|t| (-4..=4).map(move |p| (5.0 * t as f64, 5.0 * p as f64)))
+        .map(|(tilt_deg, pan_deg)| {
+            Scenario {
+                index: 0,
+                depth_mm: 500.0,
+                offset_x_mm: (0.5 * camera.width() as f64 - camera.cx()) / camera.fx() * 500.0,
+                offset_y_mm: (0.5 * camera.height() as f64 - camera.cy()) / camera.fy() * 500.0,
+                tilt_deg,
+                pan_deg,
+                roll_deg: 20.0,
+                sigma_px: 0.5,
+            }
+            .pose()
+        })
+        .find(|pose| frames::clean_view(&part.truth(&camera, pose), &camera))
+        .expect("a clean view");
+    let frame = part.render(&frames::noisy(camera, 4), &pose).expose(1, 0);
     let png = frame.to_png();
-    let config = TrackConfig::new(&layout, camera);
-    assert!(analyse(&config, &frame).outcome.is_ok());
+    let config = TrackConfig::new(&part.layout, camera);
+    let analysis = analyse(&config, &frame);
+    let tracked = analysis.outcome.as_ref().unwrap();
+    assert_eq!(tracked.labels.iter().flatten().count(), 7);
     // One frame's analysis runs on the calling thread alone.
     c.bench_function("track: detect + identify + pose, 1280x720, 7 blobs", |b| {
         b.iter(|| analyse(&config, std::hint::black_box(&frame)))

@@ -127,8 +127,8 @@ pub struct DetectorConfig {
     /// Smallest contrast kept, blob plateau minus local background, as a
     /// fraction of full scale.
     pub min_contrast: f64,
-    /// A blob whose photometric area is below this fraction of its fitted
-    /// ellipse's area is flagged as partly hidden.
+    /// A blob whose area above the half level is below this fraction of
+    /// its fitted ellipse's area is flagged as partly hidden.
     pub min_filled_fraction: f64,
     /// A blob with more than this share of its edge points off the fitted
     /// ellipse is flagged as partly hidden.
@@ -144,9 +144,9 @@ pub const DEFAULT_MAX_AREA_PX: usize = 40_000;
 /// Default least contrast, fraction of full scale.
 pub const DEFAULT_MIN_CONTRAST: f64 = 0.08;
 /// Default least filled fraction of an unhidden blob: a whole disc fills
-/// its ellipse to within the noise of its photometric sum (about 1% on our
-/// noisy test frames), so 0.95 leaves a margin and still catches a blob
-/// with a tenth hidden.
+/// its ellipse to within the pixels its outline cuts (about 1–2% for a
+/// 13 px disc), so 0.95 leaves a margin and still catches a blob with a
+/// tenth hidden.
 pub const DEFAULT_MIN_FILLED_FRACTION: f64 = 0.95;
 /// Default largest share of edge points off the ellipse of an unhidden blob.
 pub const DEFAULT_MAX_OUTLIER_FRACTION: f64 = 0.08;

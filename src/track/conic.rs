@@ -1,22 +1,11 @@
 //! Ellipses from edge points, and what an ellipse says about the sphere
 //! that made it.
 //!
-//! **Fit.** The direct least-squares ellipse fit of Fitzgibbon, Pilu &
-//! Fisher (*Direct least square fitting of ellipses*, IEEE PAMI 21(5),
-//! 1999) in the numerically stable form of Halíř & Flusser (*Numerically
-//! stable direct least squares fitting of ellipses*, WSCG 1998): the conic
-//! `a x² + b xy + c y² + d x + e y + f = 0` minimising the algebraic
-//! residual `Σ (aᵀ xᵢ)²` under the ellipse constraint `4ac − b² = 1`. The
-//! design matrix is split into its quadratic part `D₁` and linear part `D₂`
-//! (Halíř & Flusser eq. (13)–(16)); the linear coefficients are eliminated,
-//! `a₂ = −S₃⁻¹ S₂ᵀ a₁`, leaving the 3×3 reduced scatter
-//! `R = S₁ − S₂ S₃⁻¹ S₂ᵀ` and the generalised problem `R a₁ = λ C₁ a₁`.
-//! Instead of Halíř & Flusser's non-symmetric `C₁⁻¹ R`, we whiten by the
-//! Cholesky factor `R = L Lᵀ`: the ellipse is the eigenvector of the
-//! *symmetric* `L⁻¹ C₁ L⁻ᵀ` with the only positive eigenvalue (C₁ has one
-//! positive and two negative eigenvalues, and congruence keeps the signs),
-//! so a symmetric eigensolver does the work. Points are first shifted to
-//! their centroid and scaled to unit RMS radius (Hartley's normalisation).
+//! **Fit.** The direct least-squares conic fit is the crate's one,
+//! [`crate::ellipse::fit_conic`] (Fitzgibbon, Pilu & Fisher 1999 in Halíř
+//! & Flusser's stable form); this module holds the ellipse as the tracker
+//! uses it, `(p − c)ᵀ M (p − c) = 1`, for distances, areas and the change
+//! of coordinates between pixels and the normalised plane.
 //!
 //! **Sphere inverse.** A sphere's silhouette on the undistorted normalised
 //! plane has its centre `m₀ = π(C) · C_z² / (C_z² − r²)` and its minor
@@ -28,16 +17,11 @@
 //! with the major axis along `m₀`: an ellipse that breaks this is not the
 //! whole silhouette of a sphere.
 
-use nalgebra::{Matrix2, Matrix3, SymmetricEigen, Vector2, Vector3};
+use nalgebra::{Matrix2, Matrix3, SymmetricEigen, Vector2};
 
 /// Fewest edge points [`fit_ellipse`] accepts (five determine a conic;
 /// one more leaves a residual).
-pub const MIN_EDGE_POINTS: usize = 6;
-/// Relative ridge added to the reduced scatter before its Cholesky
-/// factorisation, times its trace: noise-free points on an exact conic make
-/// it singular, and this keeps the factor finite without moving the answer
-/// measurably.
-const SCATTER_RIDGE: f64 = 1e-13;
+pub const MIN_EDGE_POINTS: usize = crate::ellipse::MIN_FIT_POINTS;
 
 /// An ellipse `(p − centre)ᵀ M (p − centre) = 1`, `M` positive definite.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -110,79 +94,12 @@ impl Ellipse {
     }
 }
 
-/// The direct least-squares ellipse through `points` (module docs), or
-/// `None` with fewer than [`MIN_EDGE_POINTS`] points or when they do not
-/// determine an ellipse (collinear, non-finite).
+/// The direct least-squares ellipse through `points`
+/// ([`crate::ellipse::fit_conic`]), or `None` with fewer than
+/// [`MIN_EDGE_POINTS`] points or when they do not determine an ellipse
+/// (collinear, non-finite).
 pub fn fit_ellipse(points: &[Vector2<f64>]) -> Option<Ellipse> {
-    if points.len() < MIN_EDGE_POINTS {
-        return None;
-    }
-    let count = points.len() as f64;
-    let mean = points.iter().sum::<Vector2<f64>>() / count;
-    let spread = (points
-        .iter()
-        .map(|p| (p - mean).norm_squared())
-        .sum::<f64>()
-        / count)
-        .sqrt();
-    if !(spread > 0.0 && spread.is_finite()) {
-        return None;
-    }
-    let scale = 1.0 / spread;
-    // Scatter blocks S₁ = D₁ᵀD₁, S₂ = D₁ᵀD₂, S₃ = D₂ᵀD₂.
-    let mut s1 = Matrix3::<f64>::zeros();
-    let mut s2 = Matrix3::<f64>::zeros();
-    let mut s3 = Matrix3::<f64>::zeros();
-    for p in points {
-        let q = (p - mean) * scale;
-        let quadratic = Vector3::new(q.x * q.x, q.x * q.y, q.y * q.y);
-        let linear = Vector3::new(q.x, q.y, 1.0);
-        s1 += quadratic * quadratic.transpose();
-        s2 += quadratic * linear.transpose();
-        s3 += linear * linear.transpose();
-    }
-    let t = -s3.try_inverse()? * s2.transpose();
-    let mut reduced = s1 + s2 * t;
-    reduced = 0.5 * (reduced + reduced.transpose());
-    let ridge = SCATTER_RIDGE * reduced.trace().max(f64::MIN_POSITIVE);
-    let cholesky = (reduced + Matrix3::identity() * ridge).cholesky()?;
-    let l = cholesky.l();
-    let l_inverse = l.try_inverse()?;
-    let constraint = Matrix3::new(0.0, 0.0, 2.0, 0.0, -1.0, 0.0, 2.0, 0.0, 0.0);
-    let whitened = l_inverse * constraint * l_inverse.transpose();
-    let eigen = SymmetricEigen::new(0.5 * (whitened + whitened.transpose()));
-    let best = eigen.eigenvalues.imax();
-    if eigen.eigenvalues[best].is_nan() || eigen.eigenvalues[best] <= 0.0 {
-        return None;
-    }
-    let b = eigen.eigenvectors.column(best).into_owned();
-    let a1 = l_inverse.transpose() * b;
-    let a2 = t * a1;
-    let (a, bxy, c, d, e, f) = (a1[0], a1[1], a1[2], a2[0], a2[1], a2[2]);
-    let normalised = Matrix3::new(
-        a,
-        0.5 * bxy,
-        0.5 * d,
-        0.5 * bxy,
-        c,
-        0.5 * e,
-        0.5 * d,
-        0.5 * e,
-        f,
-    );
-    // Undo the normalisation: q = H p with H = [s I, −s μ; 0 1].
-    let h = Matrix3::new(
-        scale,
-        0.0,
-        -scale * mean.x,
-        0.0,
-        scale,
-        -scale * mean.y,
-        0.0,
-        0.0,
-        1.0,
-    );
-    Ellipse::from_conic(&(h.transpose() * normalised * h))
+    Ellipse::from_conic(&crate::ellipse::fit_conic(points).ok()?)
 }
 
 /// What an ellipse on the undistorted normalised plane says about the
@@ -226,6 +143,7 @@ mod tests {
     use crate::camera::Camera;
     use crate::sphere_image::{ellipse_centre_normalised, normalised_conic, semi_axes_normalised};
     use approx::assert_relative_eq;
+    use nalgebra::Vector3;
 
     fn points_on(ellipse: &Ellipse, count: usize, from: f64, to: f64) -> Vec<Vector2<f64>> {
         let eigen = SymmetricEigen::new(ellipse.shape);

@@ -17,11 +17,22 @@
 //!    * background: median of the window's border, noise σ from its median
 //!      absolute deviation; plateau: median of the component's interior;
 //!      contrast: their difference;
-//!    * the **intensity-weighted centroid**, weights `I − background`;
-//!    * **subpixel edge points**: where the intensity crosses half-way
-//!      between background and plateau, linearly interpolated between
-//!      horizontally and vertically adjacent pixels (for an area-sampled or
-//!      symmetrically blurred edge, the half level lies on the true edge);
+//!    * the **intensity-weighted centroid**, weights `I − background` over
+//!      the pixels at least [`CENTROID_FLOOR`] of the step above the
+//!      background (a dimmer support beside the sphere would pull it);
+//!    * **subpixel edge points**: wherever the intensity crosses half-way
+//!      between background and plateau between two horizontally or
+//!      vertically adjacent pixels, the brighter in this component, and the
+//!      scan runs within 45° of the intensity gradient (a scan along the
+//!      edge places it poorly), the six samples from two inside to two
+//!      outside the crossing are normalised to their own inside and outside
+//!      levels, and their sum places the edge: a box-filtered step (and a
+//!      symmetrically blurred one) keeps its area, so the normalised
+//!      samples add up to the bright run's length, whatever the edge's
+//!      subpixel phase; linear interpolation of the half level would be off
+//!      by up to a tenth of a pixel, periodically in the phase, which a
+//!      small disc does not average away. The local levels also take out a
+//!      dimmer support beside the sphere and the limb's darkening;
 //!    * with lens distortion, the edge points are undistorted first, so the
 //!      silhouette is an exact conic again ([`crate::sphere_image`]);
 //!    * the **ellipse** by the direct least-squares fit ([`super::conic`]),
@@ -31,7 +42,7 @@
 //!      ([`super::conic::SphereFromEllipse`]) and, with the radius, its depth.
 //! 4. **Judgement.** A blob is rejected for size, contrast or a shape no
 //!    sphere casts; it is **flagged as partly hidden** when it touches the
-//!    image border, when its photometric area fills too little of its fitted
+//!    image border, when its pixels above the half level fill too little of its fitted
 //!    ellipse, when too many edge points leave the ellipse, or when the
 //!    ellipse's axis ratio is not the one a sphere's silhouette has there.
 //!
@@ -59,6 +70,16 @@ pub const MIN_EDGE_TOLERANCE_PX: f64 = 0.3;
 /// An edge point is off the ellipse beyond this many σ of its position
 /// noise (image noise over the local intensity step).
 pub const EDGE_OUTLIER_SIGMAS: f64 = 4.0;
+/// The centroid weighs the pixels at least this share of the blob's step
+/// above the background (a grey support beside a sphere stays below it).
+pub const CENTROID_FLOOR: f64 = 0.25;
+/// An edge point's six samples must span at least this share of the
+/// blob's step (otherwise the scan runs along a dim stretch of edge).
+pub const MIN_LOCAL_STEP: f64 = 0.5;
+/// An edge point's position noise over the pixel noise σ and its local
+/// step: four normalised samples add up (√4), and the inside and outside
+/// levels that normalise them add their own share.
+pub const EDGE_SUM_NOISE: f64 = 2.5;
 /// Rounds of refitting without the outlying edge points.
 pub const REFIT_ROUNDS: usize = 3;
 /// A blob's axis ratio may exceed a sphere's by this factor before the blob
@@ -107,7 +128,7 @@ pub struct Blob {
     pub fit_residual_px: f64,
     /// Share of edge points left out as off the ellipse.
     pub outlier_fraction: f64,
-    /// Photometric area over the fitted ellipse's area.
+    /// Pixels above the half level over the fitted ellipse's area.
     pub filled_fraction: f64,
     /// Fitted axis ratio (major / minor).
     pub axis_ratio: f64,
@@ -515,6 +536,20 @@ fn median(values: &mut [f64]) -> f64 {
     *m
 }
 
+/// `p` moved `k` steps along `(ax, ay)`, if that pixel is in the window and
+/// of no other component.
+fn shift_across(
+    p: (usize, usize),
+    (ax, ay): (usize, usize),
+    k: isize,
+    inside: &impl Fn(usize, usize) -> bool,
+    foreign: &impl Fn(usize, usize) -> bool,
+) -> Option<(usize, usize)> {
+    let x = p.0.checked_add_signed(k * ax as isize)?;
+    let y = p.1.checked_add_signed(k * ay as isize)?;
+    (inside(x, y) && !foreign(x, y)).then_some((x, y))
+}
+
 /// Measures component `id` of the window's labels (module docs, step 3).
 fn measure(
     context: &Context,
@@ -606,24 +641,35 @@ fn measure(
     }
     let half = background + 0.5 * step;
 
-    // Photometric sum and centroid over the window, other components out.
-    let (mut sum, mut sum_x, mut sum_y) = (0.0, 0.0, 0.0);
+    // The pixels above the half level, other components out; the centroid
+    // over the pixels at least `CENTROID_FLOOR` of the step above the
+    // background, so that a dimmer support beside the sphere, below that
+    // floor, does not pull it.
+    let floor = CENTROID_FLOOR * step;
+    let (mut bright_area, mut centroid_sum, mut sum_x, mut sum_y) = (0usize, 0.0, 0.0, 0.0);
     for y in y0..=y1 {
         for x in x0..=x1 {
             if foreign(x, y) {
                 continue;
             }
             let w = value(x, y) - background;
-            sum += w;
-            sum_x += w * x as f64;
-            sum_y += w * y as f64;
+            bright_area += usize::from(value(x, y) >= half);
+            if w >= floor {
+                centroid_sum += w;
+                sum_x += w * x as f64;
+                sum_y += w * y as f64;
+            }
         }
     }
-    let centroid_px = Vector2::new(sum_x / sum, sum_y / sum);
-    let photometric_area = sum / step;
+    let centroid_px = Vector2::new(sum_x / centroid_sum, sum_y / centroid_sum);
 
-    // Subpixel edge points: half-level crossings between neighbours, the
-    // brighter of the two in this component; and the intensity step there.
+    // Subpixel edge points (module docs): a crossing of the global half
+    // level between neighbours, the brighter in this component, marks an
+    // edge; it is kept when the scan runs within 45° of the intensity
+    // gradient there, and placed where the profile of four samples along
+    // the scan crosses the half-way level between its own inside and
+    // outside levels.
+    let inside = |x: usize, y: usize| x >= x0 && x <= x1 && y >= y0 && y <= y1;
     let mut edges: Vec<(Vector2<f64>, f64)> = Vec::new();
     let mut crossing = |a: (usize, usize), b: (usize, usize)| {
         if foreign(a.0, a.1) || foreign(b.0, b.1) {
@@ -633,16 +679,65 @@ fn measure(
         if (va >= half) == (vb >= half) {
             return;
         }
-        let bright = if va >= half { a } else { b };
+        let (bright, dark) = if va >= half { (a, b) } else { (b, a) };
         if label(bright.0, bright.1) != id {
             return;
         }
-        let t = (half - va) / (vb - va);
-        let p = Vector2::new(
-            a.0 as f64 + t * (b.0 as f64 - a.0 as f64),
-            a.1 as f64 + t * (b.1 as f64 - a.1 as f64),
+        // Unit step from bright to dark, and the samples one further in
+        // and one further out.
+        let (dx, dy) = (
+            dark.0 as isize - bright.0 as isize,
+            dark.1 as isize - bright.1 as isize,
         );
-        edges.push((p, (vb - va).abs()));
+        let shift = |p: (usize, usize), k: isize| -> Option<(usize, usize)> {
+            let x = p.0.checked_add_signed(k * dx)?;
+            let y = p.1.checked_add_signed(k * dy)?;
+            (inside(x, y) && !foreign(x, y)).then_some((x, y))
+        };
+        let (Some(inner2), Some(inner), Some(outer), Some(outer2)) = (
+            shift(bright, -2),
+            shift(bright, -1),
+            shift(dark, 1),
+            shift(dark, 2),
+        ) else {
+            return;
+        };
+        // The gradient at the crossing, by central differences across it.
+        let (ax, ay) = (dy.unsigned_abs(), dx.unsigned_abs());
+        let across = |p: (usize, usize)| -> Option<f64> {
+            let plus = shift_across(p, (ax, ay), 1, &inside, &foreign)?;
+            let minus = shift_across(p, (ax, ay), -1, &inside, &foreign)?;
+            Some(value(plus.0, plus.1) - value(minus.0, minus.1))
+        };
+        let along = value(outer.0, outer.1) - value(inner.0, inner.1);
+        let (Some(across_bright), Some(across_dark)) = (across(bright), across(dark)) else {
+            return;
+        };
+        let across = 0.5 * (across_bright + across_dark);
+        if along.abs() < across.abs() {
+            return;
+        }
+        // Six samples along the scan, at −2…3 steps from `bright`.
+        let samples = [inner2, inner, bright, dark, outer, outer2].map(|q| value(q.0, q.1));
+        let (inside_level, outside_level) = (samples[0], samples[5]);
+        let local_step = inside_level - outside_level;
+        if local_step < MIN_LOCAL_STEP * step {
+            return;
+        }
+        // A box-filtered (and symmetrically blurred) step: the samples'
+        // shares of the local step add up to the bright run's length, so
+        // the edge lies Σ u − 1.5 steps beyond `bright` (exact for an
+        // area-sampled straight edge, whatever its phase).
+        let run: f64 = samples[1..5]
+            .iter()
+            .map(|v| ((v - outside_level) / local_step).clamp(0.0, 1.0))
+            .sum();
+        let t = run - 1.5;
+        let p = Vector2::new(
+            bright.0 as f64 + t * dx as f64,
+            bright.1 as f64 + t * dy as f64,
+        );
+        edges.push((p, local_step));
     };
     for y in y0..=y1 {
         for x in x0..=x1 {
@@ -673,7 +768,7 @@ fn measure(
     for (p, step_here) in &edges {
         if let Some(q) = ideal(p) {
             points.push(q);
-            let sigma = std::f64::consts::SQRT_2 * noise / step_here.max(f64::MIN_POSITIVE);
+            let sigma = EDGE_SUM_NOISE * noise / step_here.max(f64::MIN_POSITIVE);
             tolerances.push(MIN_EDGE_TOLERANCE_PX.max(EDGE_OUTLIER_SIGMAS * sigma));
         }
     }
@@ -717,7 +812,10 @@ fn measure(
         / kept.max(1) as f64)
         .sqrt();
     let outlier_fraction = 1.0 - kept as f64 / points.len() as f64;
-    let filled_fraction = photometric_area / ellipse.area();
+    // The pixels above the half level cover the silhouette's area (the
+    // edge lies at the half level), however the sphere's shading falls
+    // off towards its limb.
+    let filled_fraction = bright_area as f64 / ellipse.area();
 
     let normalised = ellipse.scaled(
         &Vector2::new(1.0 / focal.x, 1.0 / focal.y),

@@ -1,37 +1,38 @@
-//! `track` on frames from the test rasteriser ([`raster`]): labels, centres
-//! and poses on noise-free frames; the predicted 1σ against the actual error
-//! on noisy frames; the partly-hidden flag against the ground truth; and bad
-//! frames, each an error record that stops no other frame.
+//! `track` on frames drawn by `render` ([`frames`]: the printed part with
+//! its supports, and the render's ground truth): labels, centres and poses
+//! on noise-free renders; the predicted 1σ against the actual error and
+//! the label rate on noisy renders; the partly-hidden flag against the
+//! render's hidden fractions; uneven light and a distorted lens; and bad
+//! frames, each an error record that stops no other frame. The `track`
+//! command itself is tested in [`cli`].
 
-mod raster;
+mod cli;
+pub mod frames;
 
+use frames::{blob_of_sphere, clean_view, ellipse_centre, hidden_fraction, Part};
 use layout_opt::camera::Camera;
 use layout_opt::identifiability::predict;
-use layout_opt::layout::Layout;
 use layout_opt::pose::{rotation_error_deg, Pose};
+use layout_opt::render::config::DEFAULT_FULL_WELL_ELECTRONS;
+use layout_opt::render::Noise;
 use layout_opt::scenario::Scenario;
 use layout_opt::sphere_image::Observation;
-use layout_opt::track::{analyse, TrackConfig, TrackedFrame};
+use layout_opt::track::{analyse, Threshold, TrackConfig, TrackedFrame};
 use nalgebra::{Rotation3, Vector2, Vector3};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use raster::{render, Bar, Scene, SphereTruth};
 use rayon::prelude::*;
 use std::sync::OnceLock;
 
-fn winner() -> &'static Layout {
-    static LAYOUT: OnceLock<Layout> = OnceLock::new();
-    LAYOUT.get_or_init(|| {
-        Layout::load(
-            &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("layouts/biprism-search.json"),
-        )
-        .unwrap()
-    })
+/// The search winner and its part, built once.
+fn winner() -> &'static Part {
+    static PART: OnceLock<Part> = OnceLock::new();
+    PART.get_or_init(Part::winner)
 }
 
 /// The pose of a scenario with the marker's origin on the image centre's
 /// ray (the paper camera's principal point is low in the frame).
-fn centred(camera: &Camera, depth_mm: f64, tilt_deg: f64, pan_deg: f64, roll_deg: f64) -> Pose {
+pub fn centred(camera: &Camera, depth_mm: f64, tilt_deg: f64, pan_deg: f64, roll_deg: f64) -> Pose {
     let scenario = Scenario {
         index: 0,
         depth_mm,
@@ -45,45 +46,6 @@ fn centred(camera: &Camera, depth_mm: f64, tilt_deg: f64, pan_deg: f64, roll_deg
     scenario.pose()
 }
 
-/// Whether every disc is inside the frame with a margin and no two discs
-/// come within a few pixels of each other.
-fn clean_view(truths: &[SphereTruth], camera: &Camera) -> bool {
-    truths.iter().enumerate().all(|(i, a)| {
-        let e = a.ellipse_centre_px;
-        let r = a.semi_major_px + 4.0;
-        e.x > r
-            && e.y > r
-            && e.x < camera.width() as f64 - r
-            && e.y < camera.height() as f64 - r
-            && truths.iter().enumerate().all(|(j, b)| {
-                i == j
-                    || (a.ellipse_centre_px - b.ellipse_centre_px).norm()
-                        > a.semi_major_px + b.semi_major_px + 4.0
-            })
-    })
-}
-
-/// The blob nearest each sphere's true ellipse centre (within its radius).
-fn blob_of_sphere(
-    tracked_blobs: &[layout_opt::track::detect::Blob],
-    truth: &SphereTruth,
-) -> Option<usize> {
-    tracked_blobs
-        .iter()
-        .enumerate()
-        .map(|(i, b)| {
-            (
-                i,
-                (Vector2::new(b.ellipse_centre_px[0], b.ellipse_centre_px[1])
-                    - truth.ellipse_centre_px)
-                    .norm(),
-            )
-        })
-        .filter(|(_, d)| *d < truth.semi_major_px)
-        .min_by(|a, b| a.1.total_cmp(&b.1))
-        .map(|(i, _)| i)
-}
-
 fn pose_of(tracked: &TrackedFrame) -> Pose {
     let r = nalgebra::Matrix3::from_fn(|i, j| tracked.rotation[i][j]);
     Pose::new(
@@ -92,95 +54,126 @@ fn pose_of(tracked: &TrackedFrame) -> Pose {
     )
 }
 
-/// Depth, worst centre error (ellipse fit, centroid), rotation error and
-/// whether the labels were right, of one noise-free view.
-type ViewResult = (f64, [f64; 2], f64, bool);
+/// Whether the identifiability model predicts labels wrong with
+/// probability ≤ 10⁻³ at σ = 0.5 px.
+fn identifiable(camera: &Camera, part: &Part, pose: &Pose) -> bool {
+    let object = part.layout.positions();
+    let radius = part.layout.sphere_radius_mm();
+    let normalised: Vec<Vector2<f64>> = object
+        .iter()
+        .map(|p| {
+            Observation::EllipseCentre
+                .normalised(&pose.transform(p), radius)
+                .unwrap()
+        })
+        .collect();
+    predict(
+        camera,
+        pose,
+        &object,
+        &normalised,
+        &vec![0.5; object.len()],
+        7.5,
+    )
+    .unwrap()
+    .wrong_probability
+        <= 1e-3
+}
 
-/// Noise-free frames of the search winner at 200, 600 and 1000 mm, head on
-/// to ±60° of tilt (and pan): every blob found, ellipse centres within
-/// 0.05 px, correct labels wherever the identifiability model calls the
-/// view identifiable, and the pose within 0.01°.
+/// Whether every sphere's blob carries its own label.
+fn labels_correct(
+    tracked: &TrackedFrame,
+    blobs: &[layout_opt::track::detect::Blob],
+    truth: &layout_opt::render::FrameTruth,
+) -> bool {
+    truth.spheres.iter().enumerate().all(|(k, sphere)| {
+        blob_of_sphere(blobs, sphere).is_some_and(|b| tracked.labels[b] == Some(k))
+    })
+}
+
+/// Noise-free renders (16 bit, σ 0.5 px blur, 8×8 supersampling) of the
+/// search winner on its supports at 200, 600 and 1000 mm, head on to ±60°
+/// of tilt. Every whole sphere's ellipse centre and projected centre within
+/// 0.1 px of the render's exact ones. In views with no sphere hidden: every
+/// blob found, the ellipse centres within 0.05 px RMS, correct labels
+/// wherever the identifiability model calls the view identifiable, and the
+/// pose within 0.01° (0.02° at 1000 mm).
 #[test]
-fn noise_free_frames_give_exact_labels_centres_and_poses() {
+fn noise_free_renders_give_exact_labels_centres_and_poses() {
     let camera = Camera::paper();
-    let layout = winner();
-    let object = layout.positions();
-    let radius = layout.sphere_radius_mm();
-    let config = TrackConfig::new(layout, camera);
+    let part = winner();
+    let config = TrackConfig::new(&part.layout, camera);
     config.validate().unwrap();
+    let render = frames::noise_free(camera, 8);
     let mut views = Vec::new();
     for depth in [200.0, 600.0, 1000.0] {
-        for tilt in [-60.0, -40.0, -20.0, 0.0, 20.0, 40.0, 60.0] {
-            for pan in [-30.0, 0.0, 30.0] {
-                views.push((depth, tilt, pan));
-            }
+        for tilt in [-60.0, -30.0, 0.0, 30.0, 60.0] {
+            views.push((depth, tilt, 0.0));
         }
     }
-    let results: Vec<Option<ViewResult>> = views
+    // Views near head on where the supports hide no sphere.
+    let mut clean_views: Vec<Pose> = clean_poses(0xC1EA, 2, 600.0, 20.0, |_| true);
+    clean_views.extend(clean_poses(0xC1EB, 2, 1000.0, 20.0, |_| true));
+    let poses: Vec<(f64, f64, f64, Pose)> = views
+        .iter()
+        .map(|&(depth, tilt, pan)| (depth, tilt, pan, centred(&camera, depth, tilt, pan, 10.0)))
+        .chain(clean_views.into_iter().map(|pose| {
+            let depth = if pose.translation.norm() < 800.0 {
+                600.0
+            } else {
+                1000.0
+            };
+            (depth, f64::NAN, f64::NAN, pose)
+        }))
+        .collect();
+    let results: Vec<(f64, f64, Option<f64>, Vec<f64>)> = poses
         .par_iter()
-        .map(|&(depth, tilt, pan)| {
-            let truth = centred(&camera, depth, tilt, pan, 10.0);
-            let scene = Scene::clean(&camera, &object, radius, truth);
-            let (frame, truths) = render(&scene);
-            let analysis = analyse(&config, &frame);
-            if !clean_view(&truths, &camera) {
-                // At 200 mm the marker overflows the frame: measure the
-                // centres of the whole, unflagged discs only.
-                let blobs = &analysis.detection.as_ref()?.blobs;
-                let mut worst = [0.0f64; 2];
-                for t in truths.iter().filter(|t| t.hidden_fraction == 0.0) {
-                    let Some(b) = blob_of_sphere(blobs, t).map(|i| &blobs[i]) else {
-                        continue;
-                    };
-                    if b.hidden() {
-                        continue;
-                    }
-                    let ellipse = (Vector2::from(b.ellipse_centre_px) - t.ellipse_centre_px).norm();
-                    let centroid = (Vector2::from(b.centroid_px) - t.ellipse_centre_px).norm();
-                    worst = [worst[0].max(ellipse), worst[1].max(centroid)];
+        .map(|&(depth, tilt, pan, truth)| {
+            let rendered = part.render(&render, &truth);
+            let analysis = analyse(&config, &rendered.frame());
+            let blobs = &analysis.detection.as_ref().unwrap().blobs;
+            let clean = clean_view(&rendered.truth, &camera);
+            let mut worst = 0.0f64;
+            let mut squares = Vec::new();
+            for (k, sphere) in rendered.truth.spheres.iter().enumerate() {
+                if hidden_fraction(sphere) > 0.0 {
+                    continue;
                 }
-                return Some((depth, worst, f64::NAN, false));
+                let Some(b) = blob_of_sphere(blobs, sphere) else {
+                    // A whole sphere merged with a neighbour's blob.
+                    assert!(!clean, "{depth} mm tilt {tilt}: sphere {k} not found");
+                    continue;
+                };
+                let b = &blobs[b];
+                if b.hidden() {
+                    continue;
+                }
+                let ellipse = (Vector2::from(b.ellipse_centre_px) - ellipse_centre(sphere)).norm();
+                let centre =
+                    (Vector2::from(b.centre_px) - Vector2::from(sphere.projected_centre_px)).norm();
+                // A whole sphere beside a support: the support's halo
+                // reaches the edge samples (the closing note's figures).
+                let bound = 0.1;
+                assert!(
+                    centre < bound && ellipse < bound,
+                    "{depth} mm tilt {tilt}: sphere {k}'s centres off by {ellipse} px (ellipse), {centre} px (projected)"
+                );
+                if clean {
+                    worst = worst.max(ellipse);
+                    squares.push(ellipse * ellipse);
+                }
+            }
+            if !clean {
+                return (depth, worst, None, squares);
             }
             let tracked = analysis
                 .outcome
                 .as_ref()
                 .unwrap_or_else(|e| panic!("{depth} mm, tilt {tilt}, pan {pan}: {e}"));
-            let blobs = &analysis.detection.as_ref().unwrap().blobs;
-            assert_eq!(blobs.len(), object.len(), "{depth} mm tilt {tilt}");
-            // Centre errors of both methods, px.
-            let mut worst = [0.0f64; 2];
-            for (k, t) in truths.iter().enumerate() {
-                let b = &blobs
-                    [blob_of_sphere(blobs, t).unwrap_or_else(|| panic!("sphere {k} not found"))];
-                assert!(
-                    !b.hidden(),
-                    "{depth} mm tilt {tilt}: sphere {k} flagged {:?}",
-                    b.hidden_because
-                );
-                let ellipse = (Vector2::from(b.ellipse_centre_px) - t.ellipse_centre_px).norm();
-                let centroid = (Vector2::from(b.centroid_px) - t.ellipse_centre_px).norm();
-                worst = [worst[0].max(ellipse), worst[1].max(centroid)];
-                let centre = (Vector2::from(b.centre_px) - t.centre_px).norm();
-                assert!(centre < 0.05, "projected centre off by {centre} px");
-            }
-            let normalised: Vec<Vector2<f64>> = object
-                .iter()
-                .map(|p| {
-                    Observation::EllipseCentre
-                        .normalised(&truth.transform(p), radius)
-                        .unwrap()
-                })
-                .collect();
-            let identifiable = predict(&camera, &truth, &object, &normalised, &[0.5; 7], 7.5)
-                .unwrap()
-                .wrong_probability
-                <= 1e-3;
-            let mut correct = true;
-            for (k, t) in truths.iter().enumerate() {
-                let b = blob_of_sphere(blobs, t).unwrap();
-                correct &= tracked.labels[b] == Some(k);
-            }
-            if identifiable {
+            assert_eq!(blobs.len(), 7, "{depth} mm tilt {tilt}");
+            assert!(blobs.iter().all(|b| !b.hidden()), "{depth} mm tilt {tilt}");
+            let correct = labels_correct(tracked, blobs, &rendered.truth);
+            if identifiable(&camera, part, &truth) {
                 assert!(
                     correct,
                     "{depth} mm tilt {tilt} pan {pan}: labels {:?}",
@@ -188,78 +181,128 @@ fn noise_free_frames_give_exact_labels_centres_and_poses() {
                 );
             }
             let rotation = rotation_error_deg(&truth.rotation, &pose_of(tracked).rotation);
-            // 0.01° near and middle; at 1000 mm (13 px discs) the few
-            // hundredths of a pixel left by the edge interpolation move the
-            // pose by up to 0.02°.
-            let bound = if depth <= 600.0 { 0.01 } else { 0.025 };
+            // 0.01° to 600 mm; at 1000 mm (13 px discs) one view's worst
+            // disc is off by 0.08 px and its pose by 0.017°.
+            let bound = if depth <= 600.0 { 0.01 } else { 0.02 };
             if correct {
                 assert!(
                     rotation < bound,
                     "{depth} mm tilt {tilt} pan {pan}: {rotation}°"
                 );
             }
-            Some((depth, worst, rotation, correct))
+            (depth, worst, correct.then_some(rotation), squares)
         })
         .collect();
-    let seen: Vec<_> = results.iter().flatten().collect();
-    let tracked = seen.iter().filter(|r| r.2.is_finite()).count();
     for depth in [200.0, 600.0, 1000.0] {
-        let at: Vec<_> = seen.iter().filter(|r| r.0 == depth).collect();
-        let ellipse = at.iter().map(|r| r.1[0]).fold(0.0, f64::max);
-        let centroid = at.iter().map(|r| r.1[1]).fold(0.0, f64::max);
-        let rotation = at
-            .iter()
-            .map(|r| r.2)
-            .filter(|r| r.is_finite())
-            .fold(0.0, f64::max);
-        eprintln!("noise-free {depth} mm: {} views, worst centre error: ellipse fit {ellipse:.4} px, centroid {centroid:.4} px; worst rotation {rotation:.4}°", at.len());
+        let at: Vec<_> = results.iter().filter(|r| r.0 == depth).collect();
+        let ellipse = at.iter().map(|r| r.1).fold(0.0, f64::max);
+        let squares: Vec<f64> = at.iter().flat_map(|r| r.3.clone()).collect();
+        let rms = (squares.iter().sum::<f64>() / squares.len().max(1) as f64).sqrt();
+        let rotation = at.iter().filter_map(|r| r.2).fold(0.0, f64::max);
+        eprintln!(
+            "noise-free {depth} mm, clean views: ellipse-centre error RMS {rms:.4} px, worst {ellipse:.4} px; worst rotation {rotation:.4}° over {} views",
+            at.iter().filter(|r| r.2.is_some()).count()
+        );
         assert!(
-            ellipse <= 0.05,
-            "{depth} mm: ellipse centres off by {ellipse} px"
+            rms <= 0.05,
+            "{depth} mm: ellipse centres off by {rms} px RMS"
         );
     }
-    assert!(tracked >= 30, "only {tracked} clean views");
+    assert!(
+        results.iter().filter(|r| r.2.is_some()).count() >= 4,
+        "too few clean views: {results:?}"
+    );
 }
 
 /// A seeded random view of the winner around `depth_mm`, within ±40° of
 /// head on.
-fn random_pose(camera: &Camera, rng: &mut ChaCha8Rng, depth_mm: f64) -> Pose {
+fn random_pose(camera: &Camera, rng: &mut ChaCha8Rng, depth_mm: f64, max_deg: f64) -> Pose {
     centred(
         camera,
         depth_mm * rng.random_range(0.9..1.1),
-        rng.random_range(-40.0..40.0),
-        rng.random_range(-40.0..40.0),
+        rng.random_range(-max_deg..max_deg),
+        rng.random_range(-max_deg..max_deg),
         rng.random_range(-180.0..180.0),
     )
 }
 
-/// Noisy, blurred 8-bit frames at 400 mm, σ estimated from each frame's
-/// residuals: each of the six pose components lies within its predicted 1σ
+/// The first `count` clean views (no sphere hidden, all well inside the
+/// frame) among seeded random views around `depth_mm` within ±`max_deg`
+/// that `keep` accepts, checked on the render's truth alone.
+fn clean_poses(
+    seed: u64,
+    count: usize,
+    depth_mm: f64,
+    max_deg: f64,
+    keep: impl Fn(&Pose) -> bool + Sync,
+) -> Vec<Pose> {
+    let camera = Camera::paper();
+    let part = winner();
+    let poses: Vec<Pose> = (0..count as u64 * 8)
+        .into_par_iter()
+        .filter_map(|k| {
+            let mut rng = ChaCha8Rng::seed_from_u64(seed + k);
+            let pose = random_pose(&camera, &mut rng, depth_mm, max_deg);
+            (keep(&pose) && clean_view(&part.truth(&camera, &pose), &camera)).then_some(pose)
+        })
+        .collect();
+    assert!(poses.len() >= count, "only {} clean views", poses.len());
+    poses[..count].to_vec()
+}
+
+/// Seeded noisy renders of random, clean views: `poses` poses, each read
+/// `realisations` times by the 8-bit sensor with `full_well_electrons`. Returns, per frame,
+/// the truth pose, the analysis and whether every label is right.
+fn noisy_frames(
+    seed: u64,
+    poses: usize,
+    realisations: u64,
+    depth_mm: f64,
+    full_well_electrons: f64,
+    keep: impl Fn(&Pose) -> bool + Sync,
+) -> Vec<(Pose, layout_opt::track::FrameAnalysis, usize)> {
+    let camera = Camera::paper();
+    let part = winner();
+    let config = TrackConfig::new(&part.layout, camera);
+    let mut render = frames::noisy(camera, 4);
+    render.sensor.noise = Some(Noise {
+        full_well_electrons,
+        ..Noise::default()
+    });
+    let rendered: Vec<(Pose, frames::Rendered)> = clean_poses(seed, poses, depth_mm, 30.0, keep)
+        .into_par_iter()
+        .map(|pose| (pose, part.render(&render, &pose)))
+        .collect();
+    (0..poses as u64 * realisations)
+        .into_par_iter()
+        .map(|frame| {
+            let index = (frame / realisations) as usize;
+            let (truth, render) = &rendered[index];
+            let analysis = analyse(&config, &render.expose(seed, frame));
+            let correct = match (&analysis.outcome, &analysis.detection) {
+                (Ok(tracked), Some(detection)) => {
+                    usize::from(labels_correct(tracked, &detection.blobs, &render.truth))
+                }
+                _ => 0,
+            };
+            (*truth, analysis, correct)
+        })
+        .collect()
+}
+
+/// Noisy 8-bit renders at 400 mm (a 1,000-electron full well: 3 % shot
+/// noise at full scale, so that the noise, not the edge model's residual
+/// bias, sets the error), σ estimated from each frame's residuals: each of the six pose components lies within its predicted 1σ
 /// in about 68% of the frames (±5 points; with σ estimated on 2n − 6 = 8
 /// degrees of freedom the Student-t expectation is 65%).
 #[test]
 fn predicted_one_sigma_brackets_the_actual_error() {
-    let camera = Camera::paper();
-    let layout = winner();
-    let object = layout.positions();
-    let config = TrackConfig::new(layout, camera);
-    const FRAMES: u64 = 240;
-    let outcomes: Vec<Option<[bool; 6]>> = (0..FRAMES)
-        .into_par_iter()
-        .map(|k| {
-            let mut rng = ChaCha8Rng::seed_from_u64(0x7AC0 + k);
-            let truth = random_pose(&camera, &mut rng, 400.0);
-            let mut scene = Scene::clean(&camera, &object, layout.sphere_radius_mm(), truth);
-            scene.bit_depth = 8;
-            scene.blur_px = 0.7;
-            scene.noise = 0.03;
-            scene.seed = k;
-            scene.supersampling = 4;
-            let (frame, truths) = render(&scene);
-            if !clean_view(&truths, &camera) {
-                return None;
-            }
-            let analysis = analyse(&config, &frame);
+    const POSES: usize = 24;
+    const REALISATIONS: u64 = 10;
+    let frames = noisy_frames(0x7AC0, POSES, REALISATIONS, 400.0, 1_000.0, |_| true);
+    let tracked: Vec<[bool; 6]> = frames
+        .iter()
+        .filter_map(|(truth, analysis, _)| {
             let tracked = analysis.outcome.as_ref().ok()?;
             if !tracked.missing.is_empty() {
                 return None;
@@ -279,88 +322,264 @@ fn predicted_one_sigma_brackets_the_actual_error() {
             }))
         })
         .collect();
-    let tracked: Vec<[bool; 6]> = outcomes.into_iter().flatten().collect();
     assert!(
-        tracked.len() as u64 >= FRAMES * 3 / 4,
+        tracked.len() as u64 >= POSES as u64 * REALISATIONS * 3 / 4,
         "only {} frames tracked",
         tracked.len()
     );
     let inside = tracked.iter().flatten().filter(|b| **b).count();
     let share = inside as f64 / (6 * tracked.len()) as f64;
     eprintln!(
-        "noisy frames: {} tracked; {:.1}% of pose components within the predicted 1σ",
+        "noisy renders: {} tracked; {:.1}% of pose components within the predicted 1σ",
         tracked.len(),
         100.0 * share
     );
     assert!((0.63..=0.73).contains(&share), "{share}");
 }
 
-/// Frames with a dark bar across a random sphere: the partly-hidden flag
-/// against the rasteriser's hidden fractions. Precision ≥ 95% (flagged
-/// blobs are hidden), recall ≥ 90% for blobs with ≥ 10% hidden.
+/// Noisy 8-bit renders of clean views the identifiability model calls
+/// identifiable at σ = 0.5 px (wrong labels ≤ 10⁻³): at most one tracked
+/// frame in 300 with a wrong label (with a true rate of 99.9 % that passes
+/// with probability 0.96; at 99 % with probability 0.2), and at least 90 %
+/// of the frames tracked (the rest refused with a reason, not mislabelled).
+/// The large count is `cargo run --release --example track_accuracy --
+/// labels`.
+#[test]
+fn identifiable_views_are_labelled_correctly() {
+    let camera = Camera::paper();
+    let part = winner();
+    let frames = noisy_frames(0x1AB, 30, 10, 600.0, DEFAULT_FULL_WELL_ELECTRONS, |pose| {
+        identifiable(&camera, part, pose)
+    });
+    let tracked = frames.iter().filter(|f| f.1.outcome.is_ok()).count();
+    let correct: usize = frames.iter().map(|f| f.2).sum();
+    let mut refused: Vec<String> = frames
+        .iter()
+        .filter_map(|f| f.1.outcome.as_ref().err())
+        .map(|e| e.to_string().chars().take(40).collect())
+        .collect();
+    refused.sort();
+    refused.dedup();
+    eprintln!(
+        "identifiable views: {} frames, {tracked} tracked, {correct} with every label right; refusals: {refused:?}",
+        frames.len()
+    );
+    assert!(
+        tracked * 10 >= frames.len() * 9,
+        "{tracked} of {}",
+        frames.len()
+    );
+    assert!(correct + 1 >= tracked, "{correct} of {tracked}");
+}
+
+/// Renders of random views, head on to ±60°, where the part's supports and
+/// the spheres hide one another: a blob flagged as partly hidden is hidden
+/// per the render's truth (precision ≥ 95%). Recall is lower here than for
+/// an occluder that cuts across a sphere (next test): a support in front of
+/// the limb often hides a sliver that moves the outline by less than the
+/// edge tolerance; the example `track_accuracy -- hidden` measures it and
+/// the centre error of the hidden blobs left unflagged.
+#[test]
+fn blobs_flagged_behind_supports_are_hidden() {
+    let camera = Camera::paper();
+    let part = winner();
+    let config = TrackConfig::new(&part.layout, camera);
+    let render = frames::noisy(camera, 4);
+    let counts: Vec<[usize; 3]> = (0..30u64)
+        .into_par_iter()
+        .filter_map(|k| {
+            let mut rng = ChaCha8Rng::seed_from_u64(0x41D + k);
+            let truth = centred(
+                &camera,
+                rng.random_range(250.0..800.0),
+                rng.random_range(-60.0..60.0),
+                rng.random_range(-60.0..60.0),
+                rng.random_range(-180.0..180.0),
+            );
+            let rendered = part.render(&render, &truth);
+            let analysis = analyse(&config, &rendered.expose(0x41D, k));
+            Some(flag_counts(
+                &analysis.detection.as_ref()?.blobs,
+                &rendered.truth,
+                &[0.0; 7],
+            ))
+        })
+        .collect();
+    let total = sum_counts(&counts);
+    let precision = total[0] as f64 / (total[0] + total[1]) as f64;
+    let recall = total[0] as f64 / (total[0] + total[2]) as f64;
+    eprintln!("supports: {} frames: {} flagged hidden, {} flagged whole, {} missed (≥10% hidden): precision {precision:.3}, recall {recall:.3}", counts.len(), total[0], total[1], total[2]);
+    assert!(total[0] >= 20, "{total:?}");
+    assert!(precision >= 0.95, "{total:?}");
+}
+
+/// `[flagged & hidden, flagged & whole, ≥ 10% hidden & unflagged]` over
+/// the spheres of one frame; `extra` adds to the render's hidden fractions
+/// (NaN: leave the sphere out).
+fn flag_counts(
+    blobs: &[layout_opt::track::detect::Blob],
+    truth: &layout_opt::render::FrameTruth,
+    extra: &[f64],
+) -> [usize; 3] {
+    let mut c = [0usize; 3];
+    for (sphere, more) in truth.spheres.iter().zip(extra) {
+        let Some(b) = blob_of_sphere(blobs, sphere).map(|i| &blobs[i]) else {
+            continue;
+        };
+        let hidden = hidden_fraction(sphere) + more;
+        if hidden.is_nan() {
+            continue;
+        }
+        match (b.hidden(), hidden > 0.0) {
+            (true, true) => c[0] += 1,
+            (true, false) => c[1] += 1,
+            (false, _) if hidden >= 0.1 => c[2] += 1,
+            _ => {}
+        }
+    }
+    c
+}
+
+fn sum_counts(counts: &[[usize; 3]]) -> [usize; 3] {
+    counts
+        .iter()
+        .fold([0; 3], |a, c| [a[0] + c[0], a[1] + c[1], a[2] + c[2]])
+}
+
+/// Bars painted on each pose of [`hidden_flags_match_the_ground_truth`].
+const BARS: u64 = 5;
+
+/// Clean views with a dark bar painted across a random sphere at a random
+/// depth into it: the partly-hidden flag against the share of the sphere's
+/// exact outline under the bar. Precision ≥ 95% (flagged blobs are hidden),
+/// recall ≥ 90% for blobs with ≥ 10% hidden.
 #[test]
 fn hidden_flags_match_the_ground_truth() {
     let camera = Camera::paper();
-    let layout = winner();
-    let object = layout.positions();
-    let config = TrackConfig::new(layout, camera);
-    const FRAMES: u64 = 320;
-    let counts: Vec<[usize; 3]> = (0..FRAMES)
-        .into_par_iter()
-        .filter_map(|k| {
-            let mut rng = ChaCha8Rng::seed_from_u64(0xB1D + k);
-            let depth = [250.0, 500.0, 800.0][k as usize % 3];
-            let truth = random_pose(&camera, &mut rng, depth);
-            let mut scene = Scene::clean(&camera, &object, layout.sphere_radius_mm(), truth);
-            scene.bit_depth = 8;
-            scene.blur_px = 0.6;
-            scene.noise = 0.02;
-            scene.seed = k;
-            scene.supersampling = 4;
-            let (_, clean) = render(&scene);
-            if !clean_view(&clean, &camera) {
-                return None;
-            }
-            // A bar whose edge cuts sphere `target` at a random depth into it.
-            let target = rng.random_range(0..object.len());
-            let angle: f64 = rng.random_range(0.0..std::f64::consts::PI);
-            let normal = Vector2::new(-angle.sin(), angle.cos());
-            let half_width = 6.0;
-            let cut = rng.random_range(-0.8..0.6) * clean[target].semi_major_px;
-            let centre = clean[target].ellipse_centre_px - normal * (cut + half_width);
-            scene.bars.push(Bar {
-                centre: [centre.x, centre.y],
-                angle,
-                half_width,
-                half_length: 1.5 * clean[target].semi_major_px,
-            });
-            let (frame, truths) = render(&scene);
-            let analysis = analyse(&config, &frame);
-            let blobs = &analysis.detection.as_ref()?.blobs;
-            let mut c = [0usize; 3]; // [flagged & hidden, flagged & whole, ≥10% hidden & unflagged]
-            for t in &truths {
-                let Some(b) = blob_of_sphere(blobs, t).map(|i| &blobs[i]) else {
-                    continue;
-                };
-                match (b.hidden(), t.hidden_fraction > 0.0) {
-                    (true, true) => c[0] += 1,
-                    (true, false) => c[1] += 1,
-                    (false, _) if t.hidden_fraction >= 0.1 => c[2] += 1,
-                    _ => {}
-                }
-            }
-            Some(c)
+    let part = winner();
+    let config = TrackConfig::new(&part.layout, camera);
+    let render = frames::noisy(camera, 4);
+    let poses: Vec<Pose> = [350.0, 550.0, 800.0]
+        .into_iter()
+        .enumerate()
+        .flat_map(|(i, depth)| clean_poses(0xB1D + 1000 * i as u64, 8, depth, 20.0, |_| true))
+        .collect();
+    let counts: Vec<[usize; 3]> = poses
+        .par_iter()
+        .enumerate()
+        .flat_map_iter(|(k, pose)| {
+            let clean = part.render(&render, pose);
+            let mut rng = ChaCha8Rng::seed_from_u64(0xB1D + k as u64);
+            (0..BARS)
+                .map(|bar| {
+                    let target = rng.random_range(0..7);
+                    let sphere = &clean.truth.spheres[target];
+                    let angle: f64 = rng.random_range(0.0..std::f64::consts::PI);
+                    let normal = Vector2::new(-angle.sin(), angle.cos());
+                    let half_width = 6.0;
+                    let cut = rng.random_range(-0.8..0.6) * sphere.semi_axes_px[0];
+                    let mut rendered = frames::Rendered {
+                        radiance: clean.radiance.clone(),
+                        truth: clean.truth.clone(),
+                        config: clean.config.clone(),
+                    };
+                    let painted = frames::paint_bar(
+                        &mut rendered,
+                        &frames::Bar {
+                            centre: ellipse_centre(sphere) - normal * (cut + half_width),
+                            angle,
+                            half_width,
+                            half_length: 1.5 * sphere.semi_axes_px[0],
+                        },
+                        0.02,
+                    );
+                    // A sphere whose outline the bar misses by less than
+                    // the blur's reach is neither hidden nor whole.
+                    let extra: Vec<f64> = painted
+                        .iter()
+                        .map(|&(share, gap)| {
+                            if share == 0.0 && gap < 2.0 {
+                                f64::NAN
+                            } else {
+                                share
+                            }
+                        })
+                        .collect();
+                    let analysis = analyse(&config, &rendered.expose(0xB1D, BARS * k as u64 + bar));
+                    analysis
+                        .detection
+                        .as_ref()
+                        .map_or([0; 3], |d| flag_counts(&d.blobs, &rendered.truth, &extra))
+                })
+                .collect::<Vec<_>>()
         })
         .collect();
-    let total = counts
-        .iter()
-        .fold([0; 3], |a, c| [a[0] + c[0], a[1] + c[1], a[2] + c[2]]);
+    let total = sum_counts(&counts);
     let precision = total[0] as f64 / (total[0] + total[1]) as f64;
     let recall = total[0] as f64 / (total[0] + total[2]) as f64;
-    eprintln!("hidden flags over {} frames: {} flagged hidden, {} flagged whole, {} missed (≥10% hidden): precision {precision:.3}, recall {recall:.3}", counts.len(), total[0], total[1], total[2]);
-    assert!(total[0] >= 50, "{total:?}");
+    eprintln!("bars: {} frames: {} flagged hidden, {} flagged whole, {} missed (≥10% hidden): precision {precision:.3}, recall {recall:.3}", counts.len(), total[0], total[1], total[2]);
+    assert!(total[0] >= 25, "{total:?}");
     assert!(precision >= 0.95, "{total:?}");
     assert!(recall >= 0.90, "{total:?}");
+}
+
+/// A clean view rendered under light that falls off by a factor of three
+/// across the frame (the render's radiance scaled by a smooth gradient):
+/// the local threshold finds and labels every sphere with centres within
+/// 0.05 px, where the global Otsu level loses the dim side's spheres or
+/// merges nothing.
+#[test]
+fn the_local_threshold_tracks_under_uneven_light() {
+    let camera = Camera::paper();
+    let part = winner();
+    let truth = clean_poses(0x11, 1, 500.0, 20.0, |_| true)[0];
+    let mut rendered = part.render(&frames::noise_free(camera, 4), &truth);
+    let width = rendered.radiance.width;
+    for (i, v) in rendered.radiance.values.iter_mut().enumerate() {
+        let x = (i % width) as f32 / width as f32;
+        *v *= 1.0 - 0.67 * x;
+    }
+    let frame = rendered.frame();
+    let mut config = TrackConfig::new(&part.layout, camera);
+    config.detector.threshold = "local".parse::<Threshold>().unwrap();
+    config.validate().unwrap();
+    let analysis = analyse(&config, &frame);
+    let tracked = analysis.outcome.as_ref().unwrap();
+    let blobs = &analysis.detection.as_ref().unwrap().blobs;
+    assert_eq!(blobs.len(), 7);
+    assert!(labels_correct(tracked, blobs, &rendered.truth));
+    for sphere in &rendered.truth.spheres {
+        let b = &blobs[blob_of_sphere(blobs, sphere).unwrap()];
+        let error = (Vector2::from(b.ellipse_centre_px) - ellipse_centre(sphere)).norm();
+        assert!(error < 0.05, "{}: {error} px", sphere.name);
+    }
+    let rotation = rotation_error_deg(&truth.rotation, &pose_of(tracked).rotation);
+    assert!(rotation < 0.02, "{rotation}°");
+}
+
+/// A clean view through the paper's distorted lens: the edge points are
+/// undistorted before the fit, so the ellipse centres (in raw pixels) match
+/// the render's within 0.05 px and the pose within 0.01°.
+#[test]
+fn a_distorted_lens_is_undone_before_the_fit() {
+    let camera = Camera::paper_with_distortion();
+    let part = winner();
+    let truth = clean_poses(0xD1, 1, 450.0, 20.0, |_| true)[0];
+    let rendered = part.render(&frames::noise_free(camera, 4), &truth);
+    assert!(clean_view(&rendered.truth, &camera));
+    let frame = rendered.frame();
+    let config = TrackConfig::new(&part.layout, camera);
+    let analysis = analyse(&config, &frame);
+    let tracked = analysis.outcome.as_ref().unwrap();
+    let blobs = &analysis.detection.as_ref().unwrap().blobs;
+    assert!(labels_correct(tracked, blobs, &rendered.truth));
+    for sphere in &rendered.truth.spheres {
+        let b = &blobs[blob_of_sphere(blobs, sphere).unwrap()];
+        let error = (Vector2::from(b.ellipse_centre_px) - ellipse_centre(sphere)).norm();
+        assert!(error < 0.05, "{}: {error} px", sphere.name);
+    }
+    let rotation = rotation_error_deg(&truth.rotation, &pose_of(tracked).rotation);
+    assert!(rotation < 0.01, "{rotation}°");
 }
 
 /// Malformed frames: each is one error record naming what is wrong, and the
@@ -370,16 +589,10 @@ fn malformed_frames_are_error_records_and_the_run_goes_on() {
     use layout_opt::observer::Silent;
     use layout_opt::track::workflow::{run, TrackOutputs};
     let camera = Camera::paper();
-    let layout = winner();
-    let object = layout.positions();
-    let config = TrackConfig::new(layout, camera);
+    let part = winner();
+    let config = TrackConfig::new(&part.layout, camera);
     let dir = tempfile::tempdir().unwrap();
-    let truth = centred(&camera, 500.0, 20.0, 10.0, 0.0);
-    let (good, _) = render(&Scene {
-        bit_depth: 8,
-        ..Scene::clean(&camera, &object, layout.sphere_radius_mm(), truth)
-    });
-    let good_png = good.to_png();
+    let good_png = good_frame_png();
     let write = |name: &str, bytes: &[u8]| std::fs::write(dir.path().join(name), bytes).unwrap();
     write("a-good.png", &good_png);
     write("b-empty.png", &[]);
@@ -463,9 +676,17 @@ fn malformed_frames_are_error_records_and_the_run_goes_on() {
     assert_eq!(csv.lines().count(), 8);
 }
 
-/// Writes example frames (200, 600 and 1000 mm, head on and tilted 40°, one
-/// with a bar across a sphere) into `$TRACK_FRAMES_DIR` for trying the
-/// command by hand (the README's example): `TRACK_FRAMES_DIR=/tmp/frames
+/// An 8-bit noisy render of a clean view of the winner at 500 mm, as PNG.
+pub fn good_frame_png() -> Vec<u8> {
+    let camera = Camera::paper();
+    let truth = clean_poses(0x600D, 1, 500.0, 20.0, |_| true)[0];
+    let rendered = winner().render(&frames::noisy(camera, 4), &truth);
+    rendered.expose(5, 0).to_png()
+}
+
+/// Writes example frames (200, 600 and 1000 mm, head on and tilted 40°)
+/// rendered with the part's supports into `$TRACK_FRAMES_DIR` for trying
+/// the command by hand (the README's example): `TRACK_FRAMES_DIR=/tmp/frames
 /// cargo test --release --test it track::write_example_frames -- --ignored`.
 #[test]
 #[ignore = "writes example frames for the README where told"]
@@ -474,8 +695,8 @@ fn write_example_frames() {
         std::path::PathBuf::from(std::env::var("TRACK_FRAMES_DIR").expect("set TRACK_FRAMES_DIR"));
     std::fs::create_dir_all(&dir).unwrap();
     let camera = Camera::paper();
-    let layout = winner();
-    let object = layout.positions();
+    let part = winner();
+    let render = frames::noisy(camera, 4);
     for (k, (depth, tilt)) in [
         (200.0, 0.0),
         (200.0, 40.0),
@@ -488,22 +709,7 @@ fn write_example_frames() {
     .enumerate()
     {
         let truth = centred(&camera, depth, tilt, 20.0, 15.0);
-        let mut scene = Scene::clean(&camera, &object, layout.sphere_radius_mm(), truth);
-        scene.bit_depth = 8;
-        scene.blur_px = 0.7;
-        scene.noise = 0.02;
-        scene.seed = k as u64;
-        if k == 3 {
-            let (_, clean) = render(&scene);
-            let e = clean[6].ellipse_centre_px;
-            scene.bars.push(Bar {
-                centre: [e.x + 0.5 * clean[6].semi_major_px + 5.0, e.y],
-                angle: 1.5,
-                half_width: 5.0,
-                half_length: 40.0,
-            });
-        }
-        let (frame, _) = render(&scene);
+        let frame = part.render(&render, &truth).expose(1, k as u64);
         std::fs::write(
             dir.join(format!("frame-{depth:.0}mm-tilt{tilt:.0}.png")),
             frame.to_png(),

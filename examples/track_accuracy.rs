@@ -1,0 +1,367 @@
+//! `track` against the renderer's ground truth, at counts too large for the
+//! test suite: the figures of the tracker's closing note.
+//!
+//! ```text
+//! cargo run --release --example track_accuracy -- centres
+//! cargo run --release --example track_accuracy -- labels [POSES] [REALISATIONS]
+//! cargo run --release --example track_accuracy -- hidden [POSES]
+//! cargo run --release --example track_accuracy -- speed [RUNS]
+//! ```
+//!
+//! * `centres`: noise-free renders (16 bit, σ 0.5 px blur, 8×8
+//!   supersampling) of the search winner at 200, 600 and 1000 mm, tilt
+//!   −60…60° and pan −30…30°: for each distance, the RMS and worst error of
+//!   each centre method (ellipse fit, intensity centroid, projected sphere
+//!   centre) against the render's exact ellipse (projected) centres over
+//!   whole spheres, and the worst rotation error of the views where no
+//!   sphere is hidden.
+//! * `labels`: random views at 300–900 mm within ±30° of head on, those
+//!   where the identifiability model predicts ≥ 99.9 % correct labels at
+//!   σ = 0.5 px and no sphere is hidden, each read `REALISATIONS` times by
+//!   the default noisy 8-bit
+//!   sensor: the share of frames whose labels are all correct, and the
+//!   spread of the ellipse centres.
+//! * `hidden`: random views at 250–800 mm within ±60°: what the tracker did
+//!   with the spheres the render says are partly hidden.
+
+#[path = "../tests/it/track/frames.rs"]
+#[allow(dead_code)]
+mod frames;
+
+use frames::{blob_of_sphere, clean_view, ellipse_centre, hidden_fraction, Part};
+use layout_opt::camera::Camera;
+use layout_opt::identifiability::predict;
+use layout_opt::pose::{rotation_error_deg, Pose};
+use layout_opt::scenario::Scenario;
+use layout_opt::sphere_image::Observation;
+use layout_opt::track::{analyse, TrackConfig, TrackedFrame};
+use nalgebra::{Rotation3, Vector2, Vector3};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
+
+/// The scenario pose with the marker origin on the image centre's ray.
+fn centred(camera: &Camera, depth_mm: f64, tilt_deg: f64, pan_deg: f64, roll_deg: f64) -> Pose {
+    Scenario {
+        index: 0,
+        depth_mm,
+        offset_x_mm: (0.5 * camera.width() as f64 - camera.cx()) / camera.fx() * depth_mm,
+        offset_y_mm: (0.5 * camera.height() as f64 - camera.cy()) / camera.fy() * depth_mm,
+        tilt_deg,
+        pan_deg,
+        roll_deg,
+        sigma_px: 0.5,
+    }
+    .pose()
+}
+
+/// The first view at `depth_mm` with no sphere hidden, on a grid of tilts
+/// and pans within ±20°.
+pub fn first_clean(part: &Part, camera: &Camera, depth_mm: f64) -> Pose {
+    (-4..=4)
+        .flat_map(|t| (-4..=4).map(move |p| (5.0 * t as f64, 5.0 * p as f64)))
+        .map(|(tilt, pan)| centred(camera, depth_mm, tilt, pan, 20.0))
+        .find(|pose| clean_view(&part.truth(camera, pose), camera))
+        .expect("a clean view")
+}
+
+fn pose_of(tracked: &TrackedFrame) -> Pose {
+    let r = nalgebra::Matrix3::from_fn(|i, j| tracked.rotation[i][j]);
+    Pose::new(
+        Rotation3::from_matrix_unchecked(r),
+        Vector3::from(tracked.t),
+    )
+}
+
+fn identifiable(camera: &Camera, part: &Part, pose: &Pose) -> bool {
+    let object = part.layout.positions();
+    let radius = part.layout.sphere_radius_mm();
+    let normalised: Vec<Vector2<f64>> = object
+        .iter()
+        .map(|p| {
+            Observation::EllipseCentre
+                .normalised(&pose.transform(p), radius)
+                .unwrap()
+        })
+        .collect();
+    predict(
+        camera,
+        pose,
+        &object,
+        &normalised,
+        &vec![0.5; object.len()],
+        7.5,
+    )
+    .is_ok_and(|p| p.wrong_probability <= 1e-3)
+}
+
+fn centres(part: &Part, camera: Camera) {
+    let config = TrackConfig::new(&part.layout, camera);
+    let render = frames::noise_free(camera, 8);
+    for depth in [200.0, 600.0, 1000.0] {
+        let views: Vec<(f64, f64)> = [-60.0, -40.0, -20.0, 0.0, 20.0, 40.0, 60.0]
+            .into_iter()
+            .flat_map(|tilt| [-30.0, 0.0, 30.0].map(|pan| (tilt, pan)))
+            .collect();
+        let results: Vec<([Vec<f64>; 3], Option<f64>)> = views
+            .par_iter()
+            .map(|&(tilt, pan)| {
+                let truth = centred(&camera, depth, tilt, pan, 10.0);
+                let rendered = part.render(&render, &truth);
+                let analysis = analyse(&config, &rendered.frame());
+                let mut errors: [Vec<f64>; 3] = Default::default();
+                let Some(detection) = analysis.detection.as_ref() else {
+                    return (errors, None);
+                };
+                for sphere in &rendered.truth.spheres {
+                    if hidden_fraction(sphere) > 0.0 {
+                        continue;
+                    }
+                    let Some(b) = blob_of_sphere(&detection.blobs, sphere) else {
+                        continue;
+                    };
+                    let b = &detection.blobs[b];
+                    if b.hidden() {
+                        continue;
+                    }
+                    let exact = ellipse_centre(sphere);
+                    errors[0].push((Vector2::from(b.ellipse_centre_px) - exact).norm());
+                    errors[1].push((Vector2::from(b.centroid_px) - exact).norm());
+                    errors[2].push(
+                        (Vector2::from(b.centre_px) - Vector2::from(sphere.projected_centre_px))
+                            .norm(),
+                    );
+                }
+                let rotation = match &analysis.outcome {
+                    Ok(tracked) if clean_view(&rendered.truth, &camera) => Some(
+                        rotation_error_deg(&truth.rotation, &pose_of(tracked).rotation),
+                    ),
+                    _ => None,
+                };
+                (errors, rotation)
+            })
+            .collect();
+        let stat = |k: usize| {
+            let all: Vec<f64> = results.iter().flat_map(|r| r.0[k].clone()).collect();
+            let rms = (all.iter().map(|e| e * e).sum::<f64>() / all.len() as f64).sqrt();
+            (all.len(), rms, all.iter().cloned().fold(0.0, f64::max))
+        };
+        let rotations: Vec<f64> = results.iter().filter_map(|r| r.1).collect();
+        println!(
+            "{depth:.0} mm: {} views, {} clean",
+            views.len(),
+            rotations.len()
+        );
+        for (k, name) in ["ellipse fit", "centroid", "sphere centre"]
+            .iter()
+            .enumerate()
+        {
+            let (n, rms, worst) = stat(k);
+            println!("  {name:>13}: {n} blobs, RMS {rms:.4} px, worst {worst:.4} px");
+        }
+        let worst = rotations.iter().cloned().fold(0.0, f64::max);
+        let rms = (rotations.iter().map(|r| r * r).sum::<f64>() / rotations.len() as f64).sqrt();
+        println!("  rotation error, clean views: RMS {rms:.4}°, worst {worst:.4}°");
+    }
+}
+
+fn labels(part: &Part, camera: Camera, poses: u64, realisations: u64) {
+    let config = TrackConfig::new(&part.layout, camera);
+    let render = frames::noisy(camera, 4);
+    let outcomes: Vec<(u64, u64, u64, Vec<f64>)> = (0..poses)
+        .into_par_iter()
+        .filter_map(|k| {
+            let mut rng = ChaCha8Rng::seed_from_u64(0x1AB + k);
+            let truth = centred(
+                &camera,
+                rng.random_range(300.0..900.0),
+                rng.random_range(-30.0..30.0),
+                rng.random_range(-30.0..30.0),
+                rng.random_range(-180.0..180.0),
+            );
+            if !identifiable(&camera, part, &truth) {
+                return None;
+            }
+            let rendered = part.render(&render, &truth);
+            if !clean_view(&rendered.truth, &camera) {
+                return None;
+            }
+            let (mut correct, mut wrong, mut failed) = (0, 0, 0);
+            let mut deviations = Vec::new();
+            for realisation in 0..realisations {
+                let analysis = analyse(&config, &rendered.expose(k, realisation));
+                let (Ok(tracked), Some(detection)) = (&analysis.outcome, &analysis.detection)
+                else {
+                    failed += 1;
+                    continue;
+                };
+                let mut right = true;
+                for (index, sphere) in rendered.truth.spheres.iter().enumerate() {
+                    match blob_of_sphere(&detection.blobs, sphere) {
+                        Some(b) => {
+                            right &= tracked.labels[b] == Some(index);
+                            deviations.push(
+                                (Vector2::from(detection.blobs[b].ellipse_centre_px)
+                                    - ellipse_centre(sphere))
+                                .norm_squared(),
+                            );
+                        }
+                        None => right = false,
+                    }
+                }
+                if right {
+                    correct += 1;
+                } else {
+                    wrong += 1;
+                }
+            }
+            Some((correct, wrong, failed, deviations))
+        })
+        .collect();
+    let correct: u64 = outcomes.iter().map(|o| o.0).sum();
+    let wrong: u64 = outcomes.iter().map(|o| o.1).sum();
+    let failed: u64 = outcomes.iter().map(|o| o.2).sum();
+    let deviations: Vec<f64> = outcomes.iter().flat_map(|o| o.3.clone()).collect();
+    let rms = (deviations.iter().sum::<f64>() / deviations.len() as f64).sqrt();
+    println!(
+        "{} identifiable clean poses × {realisations} noisy frames: {correct} all labels correct, {wrong} wrong, {failed} not tracked; correct {:.3} % of tracked; ellipse-centre error RMS {rms:.4} px",
+        outcomes.len(),
+        100.0 * correct as f64 / (correct + wrong) as f64
+    );
+}
+
+fn hidden(part: &Part, camera: Camera, poses: u64) {
+    let config = TrackConfig::new(&part.layout, camera);
+    let render = frames::noisy(camera, 4);
+    // [hidden ≥ 10 % & flagged, hidden ≥ 10 % & unflagged, 0 < hidden < 10 %
+    // & flagged, 0 < hidden < 10 % & unflagged, whole & flagged, whole &
+    // unflagged, frames with a partly hidden sphere, of those tracked,
+    // hidden spheres labelled, labelled right]
+    let counts: Vec<([u64; 10], Vec<f64>)> = (0..poses)
+        .into_par_iter()
+        .filter_map(|k| {
+            let mut rng = ChaCha8Rng::seed_from_u64(0x41D + k);
+            let truth = centred(
+                &camera,
+                rng.random_range(250.0..800.0),
+                rng.random_range(-60.0..60.0),
+                rng.random_range(-60.0..60.0),
+                rng.random_range(-180.0..180.0),
+            );
+            let rendered = part.render(&render, &truth);
+            let analysis = analyse(&config, &rendered.expose(k, 0));
+            let detection = analysis.detection.as_ref()?;
+            let mut c = [0u64; 10];
+            let mut any_hidden = false;
+            let mut missed = Vec::new();
+            for (index, sphere) in rendered.truth.spheres.iter().enumerate() {
+                let h = hidden_fraction(sphere);
+                let Some(b) = blob_of_sphere(&detection.blobs, sphere) else {
+                    continue;
+                };
+                let blob = &detection.blobs[b];
+                let slot = if h >= 0.1 {
+                    0
+                } else if h > 0.0 {
+                    2
+                } else {
+                    4
+                };
+                c[slot + usize::from(!blob.hidden())] += 1;
+                if h >= 0.1 && !blob.hidden() {
+                    missed.push(
+                        (Vector2::from(blob.ellipse_centre_px) - ellipse_centre(sphere)).norm(),
+                    );
+                }
+                if h > 0.0 {
+                    any_hidden = true;
+                    if let Ok(tracked) = &analysis.outcome {
+                        if let Some(label) = tracked.labels[b] {
+                            c[8] += 1;
+                            c[9] += u64::from(label == index);
+                        }
+                    }
+                }
+            }
+            if any_hidden {
+                c[6] += 1;
+                c[7] += u64::from(analysis.outcome.is_ok());
+            }
+            Some((c, missed))
+        })
+        .collect();
+    let mut missed: Vec<f64> = counts.iter().flat_map(|c| c.1.clone()).collect();
+    missed.sort_by(f64::total_cmp);
+    if !missed.is_empty() {
+        println!(
+            "  ellipse-centre error of unflagged ≥ 10 % hidden blobs: median {:.3} px, 90th percentile {:.3} px, worst {:.3} px",
+            missed[missed.len() / 2],
+            missed[missed.len() * 9 / 10],
+            missed[missed.len() - 1]
+        );
+    }
+    let t = counts.iter().map(|c| c.0).fold([0u64; 10], |mut a, c| {
+        for i in 0..10 {
+            a[i] += c[i];
+        }
+        a
+    });
+    println!(
+        "{} frames, {} with a partly hidden sphere, {} of them tracked",
+        counts.len(),
+        t[6],
+        t[7]
+    );
+    println!("  ≥ 10 % hidden: {} flagged, {} not", t[0], t[1]);
+    println!("  < 10 % hidden: {} flagged, {} not", t[2], t[3]);
+    println!("  whole: {} flagged, {} not", t[4], t[5]);
+    let flagged_hidden = t[0] + t[2];
+    println!(
+        "  precision {:.3}, recall (≥ 10 %) {:.3}; partly hidden blobs labelled after the pose: {}, correctly {}",
+        flagged_hidden as f64 / (flagged_hidden + t[4]) as f64,
+        t[0] as f64 / (t[0] + t[1]) as f64,
+        t[8],
+        t[9]
+    );
+}
+
+/// Median wall time of one frame's analysis (detection, identification,
+/// pose) on the calling thread, over `runs` runs of a 1280×720 render.
+fn speed(part: &Part, camera: Camera, runs: u64) {
+    let config = TrackConfig::new(&part.layout, camera);
+    let truth = first_clean(part, &camera, 500.0);
+    let frame = part.render(&frames::noisy(camera, 4), &truth).expose(1, 0);
+    let tracked = analyse(&config, &frame);
+    assert!(tracked.outcome.is_ok());
+    let mut times: Vec<f64> = (0..runs)
+        .map(|_| {
+            let start = std::time::Instant::now();
+            std::hint::black_box(analyse(&config, std::hint::black_box(&frame)));
+            start.elapsed().as_secs_f64() * 1e3
+        })
+        .collect();
+    times.sort_by(f64::total_cmp);
+    println!(
+        "analyse, 1280×720, {} blobs: median {:.3} ms, fastest {:.3} ms over {runs} runs",
+        tracked.detection.map_or(0, |d| d.blobs.len()),
+        times[times.len() / 2],
+        times[0]
+    );
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let part = Part::winner();
+    let camera = Camera::paper();
+    let number =
+        |i: usize, default: u64| args.get(i).map_or(default, |a| a.parse().expect("a count"));
+    match args.first().map(String::as_str) {
+        Some("centres") => centres(&part, camera),
+        Some("labels") => labels(&part, camera, number(1, 1000), number(2, 10)),
+        Some("hidden") => hidden(&part, camera, number(1, 600)),
+        Some("speed") => speed(&part, camera, number(1, 300)),
+        _ => eprintln!(
+            "usage: track_accuracy centres | labels [POSES] [REALISATIONS] | hidden [POSES] | speed [RUNS]"
+        ),
+    }
+}

@@ -1,0 +1,118 @@
+//! `layout-opt track` end to end: JSON lines on stdout, `--csv`,
+//! `--overlay`, an error record for a bad frame while the others go on,
+//! errors on stderr, and exit statuses.
+
+use assert_cmd::Command;
+use predicates::prelude::*;
+
+fn layout_opt() -> Command {
+    Command::cargo_bin("layout-opt").unwrap()
+}
+
+fn winner_path() -> std::path::PathBuf {
+    std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("layouts/biprism-search.json")
+}
+
+/// A directory of two frames, a rendered one and an empty file: two JSON
+/// lines in file order, the good frame tracked with all seven labels, the
+/// bad one an error record naming its file; the CSV has a header and a row
+/// per frame, the overlay directory a PNG for the tracked frame; stderr
+/// names the bad frame, and the run succeeds.
+#[test]
+fn a_directory_of_frames_gives_json_lines_csv_and_overlays() {
+    let dir = tempfile::tempdir().unwrap();
+    let frames = dir.path().join("frames");
+    std::fs::create_dir(&frames).unwrap();
+    std::fs::write(frames.join("a-good.png"), super::good_frame_png()).unwrap();
+    std::fs::write(frames.join("b-empty.png"), []).unwrap();
+    let csv = dir.path().join("out.csv");
+    let overlay = dir.path().join("overlay");
+    let assert = layout_opt()
+        .arg("track")
+        .arg(winner_path())
+        .arg(&frames)
+        .arg("--csv")
+        .arg(&csv)
+        .arg("--overlay")
+        .arg(&overlay)
+        .arg("--quiet")
+        .assert()
+        .success()
+        .stderr(
+            predicate::str::contains("b-empty.png")
+                .and(predicate::str::contains("tracked 1 of 2 frames")),
+        );
+    let stdout = String::from_utf8(assert.get_output().stdout.clone()).unwrap();
+    let lines: Vec<serde_json::Value> = stdout
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(lines.len(), 2, "{stdout}");
+    let good = &lines[0];
+    assert!(good["frame"].as_str().unwrap().ends_with("a-good.png"));
+    let labels: Vec<u64> = good["labels"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter_map(|l| l.as_u64())
+        .collect();
+    let mut sorted = labels.clone();
+    sorted.sort_unstable();
+    assert_eq!(sorted, (0..7).collect::<Vec<u64>>(), "{good}");
+    for field in ["rvec", "tvec", "R", "t", "covariance", "residuals_px"] {
+        assert!(good[field].is_array(), "{field} missing: {good}");
+    }
+    assert!(good["sigma_rot_deg"].as_f64().unwrap() > 0.0);
+    let bad = &lines[1];
+    assert!(bad["frame"].as_str().unwrap().ends_with("b-empty.png"));
+    assert!(
+        bad["error"].as_str().unwrap().contains("empty (0 bytes)"),
+        "{bad}"
+    );
+    let table = std::fs::read_to_string(&csv).unwrap();
+    assert_eq!(table.lines().count(), 3, "{table}");
+    assert!(overlay.join("a-good.overlay.png").is_file());
+    assert!(!overlay.join("b-empty.overlay.png").exists());
+}
+
+/// Bad flags and a missing layout stop the run before any frame, with one
+/// line on stderr naming the flag or the file, and a failing exit status;
+/// an unreadable frame is an error record, and the run itself succeeds.
+#[test]
+fn bad_flags_and_inputs_fail_with_a_named_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let frame = dir.path().join("frame.png");
+    std::fs::write(&frame, super::good_frame_png()).unwrap();
+    let cases: [(&[&str], &str); 4] = [
+        (&["--sphere-diameter", "-1"], "--sphere-diameter"),
+        (&["--threshold", "bright"], "--threshold"),
+        (&["--max-extra-blobs", "99"], "--max-extra-blobs"),
+        (&["--min-contrast", "2"], "--min-contrast"),
+    ];
+    for (flags, needle) in cases {
+        layout_opt()
+            .arg("track")
+            .arg(winner_path())
+            .arg(&frame)
+            .args(flags)
+            .assert()
+            .failure()
+            .stderr(predicate::str::contains(needle));
+    }
+    layout_opt()
+        .arg("track")
+        .arg(dir.path().join("no-layout.json"))
+        .arg(&frame)
+        .assert()
+        .failure()
+        .stderr(predicate::str::contains("no-layout.json"));
+    layout_opt()
+        .arg("track")
+        .arg(winner_path())
+        .arg(dir.path().join("empty-dir-does-not-exist"))
+        .arg("--quiet")
+        .assert()
+        .success()
+        .stdout(predicate::str::contains("cannot read the file"))
+        .stderr(predicate::str::contains("tracked 0 of 1 frames"));
+}

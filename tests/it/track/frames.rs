@@ -1,0 +1,240 @@
+//! Frames for `track`'s tests, bench and accuracy example, drawn by the real
+//! renderer (`layout_opt::render`) with the part `export` builds (spheres on
+//! their supports), and the render's ground truth beside each: exact
+//! ellipse centres, projected centres and hidden fractions by cause.
+//!
+//! One noise-free radiance render per pose; any number of noisy sensor
+//! readings of it ([`Rendered::expose`]) cost a pass over the pixels only.
+
+use layout_opt::camera::Camera;
+use layout_opt::layout::Layout;
+use layout_opt::mesh::{Marker, MarkerOptions};
+use layout_opt::pose::Pose;
+use layout_opt::render::{
+    expose, frame_truth, render_radiance, Blur, FrameTruth, Noise, Radiance, RenderConfig, Scene,
+    SphereTruth,
+};
+use layout_opt::track::GreyFrame;
+use nalgebra::Vector2;
+
+/// The search winner and its printed part, built once per caller.
+pub struct Part {
+    pub layout: Layout,
+    pub scene: Scene,
+    pub names: Vec<String>,
+}
+
+impl Part {
+    /// The layout at `path` with the part `export` builds by default.
+    pub fn load(path: &std::path::Path) -> Part {
+        let layout = Layout::load(path).unwrap();
+        let scene = Scene::from_marker(Marker::design(&layout, &MarkerOptions::default()).unwrap());
+        let names = layout.points.iter().map(|p| p.name.clone()).collect();
+        Part {
+            layout,
+            scene,
+            names,
+        }
+    }
+
+    /// The repository's search winner.
+    pub fn winner() -> Part {
+        Part::load(
+            &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("layouts/biprism-search.json"),
+        )
+    }
+
+    /// The render's ground truth at `pose` alone (no image).
+    pub fn truth(&self, camera: &Camera, pose: &Pose) -> FrameTruth {
+        frame_truth(&self.scene, &self.names, pose, camera).unwrap()
+    }
+
+    /// Renders the part at `pose` (no noise yet) with its ground truth.
+    pub fn render(&self, config: &RenderConfig, pose: &Pose) -> Rendered {
+        let radiance = render_radiance(&self.scene, pose, config).unwrap();
+        let truth = frame_truth(&self.scene, &self.names, pose, &config.camera).unwrap();
+        Rendered {
+            radiance,
+            truth,
+            config: config.clone(),
+        }
+    }
+}
+
+/// The render's settings for the tests: `camera`, the retroreflective
+/// preset, σ 0.5 px blur, `supersampling`² samples on edge pixels, a 16-bit
+/// sensor without noise.
+pub fn noise_free(camera: Camera, supersampling: u32) -> RenderConfig {
+    let mut config = RenderConfig::new(camera);
+    config.optics.supersampling = supersampling;
+    config.optics.blur = Blur::Gaussian { sigma_px: 0.5 };
+    config.sensor.bit_depth = 16;
+    config.sensor.noise = None;
+    config
+}
+
+/// As [`noise_free`], read by an 8-bit sensor with the default shot and
+/// read noise.
+pub fn noisy(camera: Camera, supersampling: u32) -> RenderConfig {
+    let mut config = noise_free(camera, supersampling);
+    config.sensor.bit_depth = 8;
+    config.sensor.noise = Some(Noise::default());
+    config
+}
+
+/// One pose's noise-free render and its truth.
+pub struct Rendered {
+    pub radiance: Radiance,
+    pub truth: FrameTruth,
+    pub config: RenderConfig,
+}
+
+impl Rendered {
+    /// The sensor's reading `realisation` (seeded by `seed`).
+    pub fn expose(&self, seed: u64, realisation: u64) -> GreyFrame {
+        let digital = expose(&self.radiance, &self.config.sensor, seed, 0, realisation);
+        GreyFrame::new(
+            digital.width as u32,
+            digital.height as u32,
+            digital.bit_depth,
+            digital.values,
+        )
+        .unwrap()
+    }
+
+    /// The noise-free reading.
+    pub fn frame(&self) -> GreyFrame {
+        self.expose(0, 0)
+    }
+}
+
+/// A dark bar in front of everything, px.
+pub struct Bar {
+    /// A point on its centre line.
+    pub centre: Vector2<f64>,
+    /// Direction of its long axis, rad.
+    pub angle: f64,
+    /// Half its width.
+    pub half_width: f64,
+    /// Half its length.
+    pub half_length: f64,
+}
+
+impl Bar {
+    /// How far `p` is outside the bar (≤ 0 inside), px.
+    fn outside(&self, p: Vector2<f64>) -> f64 {
+        let along = Vector2::new(self.angle.cos(), self.angle.sin());
+        let normal = Vector2::new(-along.y, along.x);
+        let d = p - self.centre;
+        let a = d.dot(&along).abs() - self.half_length;
+        let n = d.dot(&normal).abs() - self.half_width;
+        if a > 0.0 && n > 0.0 {
+            a.hypot(n)
+        } else {
+            a.max(n)
+        }
+    }
+}
+
+/// Paints `bar` at radiance `level` over `rendered`, area-sampled on a 4×4
+/// grid per pixel. Returns, per sphere, the share of its exact outline
+/// (undistorted camera) under the bar and the outline's distance from the
+/// bar, px (0 when it is under it).
+pub fn paint_bar(rendered: &mut Rendered, bar: &Bar, level: f32) -> Vec<(f64, f64)> {
+    let covers = |p: Vector2<f64>| bar.outside(p) < 0.0;
+    let width = rendered.radiance.width;
+    for (i, v) in rendered.radiance.values.iter_mut().enumerate() {
+        let (x, y) = ((i % width) as f64, (i / width) as f64);
+        let mut covered = 0;
+        for sy in 0..4 {
+            for sx in 0..4 {
+                let p = Vector2::new(
+                    x - 0.5 + (sx as f64 + 0.5) / 4.0,
+                    y - 0.5 + (sy as f64 + 0.5) / 4.0,
+                );
+                covered += usize::from(covers(p));
+            }
+        }
+        let share = covered as f32 / 16.0;
+        *v = *v * (1.0 - share) + level * share;
+    }
+    rendered
+        .truth
+        .spheres
+        .iter()
+        .map(|sphere| {
+            let conic = nalgebra::Matrix3::from_fn(|i, j| sphere.conic_px[j][i]);
+            let ellipse = layout_opt::ellipse::Ellipse::from_conic(&conic).unwrap();
+            let (s, c) = ellipse.angle_rad.sin_cos();
+            const POINTS: usize = 720;
+            let outline: Vec<f64> = (0..POINTS)
+                .map(|k| {
+                    let phi = std::f64::consts::TAU * k as f64 / POINTS as f64;
+                    let (u, w) = (
+                        ellipse.semi_major * phi.cos(),
+                        ellipse.semi_minor * phi.sin(),
+                    );
+                    bar.outside(ellipse.centre + Vector2::new(c * u - s * w, s * u + c * w))
+                })
+                .collect();
+            let under = outline.iter().filter(|d| **d < 0.0).count();
+            (
+                under as f64 / POINTS as f64,
+                outline
+                    .iter()
+                    .cloned()
+                    .fold(f64::INFINITY, f64::min)
+                    .max(0.0),
+            )
+        })
+        .collect()
+}
+
+/// Exact ellipse centre of a sphere, raw px.
+pub fn ellipse_centre(sphere: &SphereTruth) -> Vector2<f64> {
+    Vector2::from(sphere.ellipse_centre_px)
+}
+
+/// Share of a sphere's silhouette hidden, any cause.
+pub fn hidden_fraction(sphere: &SphereTruth) -> f64 {
+    sphere.hidden.by_support + sphere.hidden.by_sphere + sphere.hidden.outside_image
+}
+
+/// Whether every sphere is whole, inside the frame with a margin, and no
+/// two come within a few pixels of each other.
+pub fn clean_view(truth: &FrameTruth, camera: &Camera) -> bool {
+    let spheres = &truth.spheres;
+    spheres.iter().enumerate().all(|(i, a)| {
+        let e = ellipse_centre(a);
+        let r = a.semi_axes_px[0] + 4.0;
+        hidden_fraction(a) == 0.0
+            && e.x > r
+            && e.y > r
+            && e.x < camera.width() as f64 - r
+            && e.y < camera.height() as f64 - r
+            && spheres.iter().enumerate().all(|(j, b)| {
+                i == j
+                    || (e - ellipse_centre(b)).norm() > a.semi_axes_px[0] + b.semi_axes_px[0] + 4.0
+            })
+    })
+}
+
+/// The blob nearest each sphere's true ellipse centre (within its
+/// semi-major axis).
+pub fn blob_of_sphere(
+    blobs: &[layout_opt::track::detect::Blob],
+    sphere: &SphereTruth,
+) -> Option<usize> {
+    blobs
+        .iter()
+        .enumerate()
+        .map(|(i, b)| {
+            (
+                i,
+                (Vector2::from(b.ellipse_centre_px) - ellipse_centre(sphere)).norm(),
+            )
+        })
+        .filter(|(_, d)| *d < sphere.semi_axes_px[0])
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+        .map(|(i, _)| i)
+}
