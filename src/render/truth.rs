@@ -2,26 +2,29 @@
 //! silhouette conic and ellipse centre ([`crate::sphere_image`]), its
 //! projected centre and how much of its silhouette is hidden, by cause.
 //!
-//! **Hidden fractions** come from the tool's one visibility model
-//! ([`crate::visibility::hidden_fractions`]), the same figures `validate`,
-//! `search` and `export` count, with the supports
-//! ([`crate::mesh::Marker::occluders`]) of the part in the image: the
-//! shares of the sight lines through the sphere's disc that meet another
-//! sphere first (*by a sphere*), a pillar, strut, cone or the plate first
-//! (*by the support*), or whose point on the sphere projects outside the
-//! image (*outside the image*). The integration tests check them against
-//! an independent dense count of the renderer's own rays.
+//! **Hidden fractions** are counted over [`SILHOUETTE_RAYS`] rays spread
+//! evenly in angle around the sphere's silhouette (the cone of rays
+//! tangent to it), each aimed a hair inside the limb: a ray whose limb
+//! point projects outside the image counts as *outside the image*; one
+//! that meets another sphere's coating first, as hidden *by a sphere*; one
+//! that meets anything else of the part first (a pillar, a strut, the
+//! plate, a fillet, the sphere's own cone), as hidden *by the support*.
+//! The rays are cast on the same scene as the image's.
 
-use super::scene::Scene;
+use super::scene::{Ray, Scene};
 use super::RenderError;
 use crate::camera::Camera;
-use crate::config::ConfigError;
 use crate::ellipse::Ellipse;
 use crate::pose::Pose;
 use crate::sphere_image;
-use crate::visibility::{self, HiddenFractions};
 use nalgebra::{Vector2, Vector3};
 use serde::Serialize;
+
+/// Rays cast around each sphere's silhouette.
+pub const SILHOUETTE_RAYS: usize = 2048;
+/// A silhouette ray aims at the limb pulled this fraction of the radius
+/// towards the sphere's centre, so that it meets the sphere.
+const LIMB_INSET: f64 = 1e-6;
 
 /// Fractions of a sphere's silhouette hidden, by cause (they add up to
 /// at most 1).
@@ -75,15 +78,13 @@ pub struct FrameTruth {
 
 /// The truth of the frame at `pose`, or why there is none: a sphere not
 /// wholly in front of the camera ([`RenderError::BehindCamera`], naming
-/// frame 0), or spheres of several radii, which the visibility model does
-/// not take ([`RenderError::Config`]).
+/// frame 0).
 pub fn frame_truth(
     scene: &Scene,
     names: &[String],
     pose: &Pose,
     camera: &Camera,
 ) -> Result<FrameTruth, RenderError> {
-    let hidden = hidden_fractions(scene, pose, camera)?;
     let mut spheres = Vec::with_capacity(scene.spheres().len());
     for (index, &(centre, radius)) in scene.spheres().iter().enumerate() {
         let name = names
@@ -120,7 +121,7 @@ pub fn frame_truth(
             ellipse_centre_undistorted_px: undistorted.into(),
             semi_axes_px: ellipse.map_or([f64::NAN; 2], |e| [e.semi_major, e.semi_minor]),
             projected_centre_px: projected.into(),
-            hidden: hidden[index],
+            hidden: hidden_fractions(scene, pose, camera, index, SILHOUETTE_RAYS),
         });
     }
     Ok(FrameTruth {
@@ -130,44 +131,74 @@ pub fn frame_truth(
     })
 }
 
-/// Per sphere, the hidden fractions of the visibility model (module docs).
-/// The model gives none for a sphere not in front of the camera, which
-/// [`frame_truth`] has refused before; such a sphere would count as wholly
-/// outside the image.
+/// The points where `rays` rays evenly spread in angle touch the sphere
+/// `(centre, radius)` (camera frame) tangentially: its limb.
+pub fn limb_points(centre: &Vector3<f64>, radius: f64, rays: usize) -> Vec<Vector3<f64>> {
+    let distance = centre.norm();
+    let axis = centre / distance;
+    let circle_centre = centre * (1.0 - radius * radius / (distance * distance));
+    let circle_radius = radius * (distance * distance - radius * radius).max(0.0).sqrt() / distance;
+    let helper = if axis.x.abs() < 0.9 {
+        Vector3::x()
+    } else {
+        Vector3::y()
+    };
+    let e1 = axis.cross(&helper).normalize();
+    let e2 = axis.cross(&e1);
+    (0..rays)
+        .map(|k| {
+            let phi = std::f64::consts::TAU * (k as f64 + 0.5) / rays as f64;
+            circle_centre + (e1 * phi.cos() + e2 * phi.sin()) * circle_radius
+        })
+        .collect()
+}
+
+/// Whether a pixel position lies on the image (pixel squares of
+/// `[−½, w − ½] × [−½, h − ½]`).
+pub fn on_image(camera: &Camera, pixel: &Vector2<f64>) -> bool {
+    pixel.x >= -0.5
+        && pixel.y >= -0.5
+        && pixel.x <= camera.width() as f64 - 0.5
+        && pixel.y <= camera.height() as f64 - 0.5
+}
+
+/// The hidden fractions of sphere `index`'s silhouette over `rays` rays
+/// (module docs).
 pub fn hidden_fractions(
     scene: &Scene,
     pose: &Pose,
     camera: &Camera,
-) -> Result<Vec<Hidden>, RenderError> {
-    let spheres = scene.spheres();
-    let Some(&(_, radius)) = spheres.first() else {
-        return Ok(Vec::new());
-    };
-    if spheres.iter().any(|&(_, r)| r != radius) {
-        return Err(ConfigError::new(
-            "spheres",
-            "the visibility model takes spheres of one radius".to_string(),
-        )
-        .into());
+    index: usize,
+    rays: usize,
+) -> Hidden {
+    let (centre, radius) = scene.spheres()[index];
+    let c = pose.transform(&centre);
+    let inverse = pose.rotation.inverse();
+    let origin = -(inverse * pose.translation);
+    let all = scene.all_shapes();
+    let mut counts = [0usize; 3];
+    for limb in limb_points(&c, radius, rays) {
+        let visible_on_image = camera.project(&limb).is_some_and(|p| on_image(camera, &p));
+        if !visible_on_image {
+            counts[2] += 1;
+            continue;
+        }
+        let aim = c + (limb - c) * (1.0 - LIMB_INSET);
+        let ray = Ray {
+            origin,
+            direction: inverse * aim.normalize(),
+        };
+        match scene.first_hit(&ray, &all) {
+            Some(hit) if hit.sphere == Some(index) => {}
+            Some(hit) if hit.sphere.is_some() => counts[1] += 1,
+            Some(_) => counts[0] += 1,
+            None => {}
+        }
     }
-    let centres: Vec<Vector3<f64>> = spheres.iter().map(|&(c, _)| c).collect();
-    let fractions = visibility::hidden_fractions(camera, pose, &centres, radius, scene.supports());
-    Ok(fractions
-        .into_iter()
-        .map(|f| match f {
-            Some(HiddenFractions {
-                support,
-                sphere,
-                outside,
-            }) => Hidden {
-                by_support: support,
-                by_sphere: sphere,
-                outside_image: outside,
-            },
-            None => Hidden {
-                outside_image: 1.0,
-                ..Hidden::default()
-            },
-        })
-        .collect())
+    let n = rays as f64;
+    Hidden {
+        by_support: counts[0] as f64 / n,
+        by_sphere: counts[1] as f64 / n,
+        outside_image: counts[2] as f64 / n,
+    }
 }

@@ -1,14 +1,13 @@
-//! `render`: silhouettes against the exact sphere model, the ground
-//! truth's hidden fractions (the visibility model's) against an independent
-//! dense count of the renderer's own rays, reproducibility across thread
-//! counts, the PNG round trip, and bad input.
+//! `render`: silhouettes against the exact sphere model, hidden fractions
+//! against an independent ray march of the mesher's signed distance,
+//! reproducibility across thread counts, the PNG round trip, and bad input.
 
 use layout_opt::camera::Camera;
 use layout_opt::ellipse::{fit_ellipse, Ellipse};
 use layout_opt::layout::Layout;
 use layout_opt::mesh::{Marker, MarkerOptions};
 use layout_opt::pose::Pose;
-use layout_opt::render::scene::Ray;
+use layout_opt::render::truth::{limb_points, on_image};
 use layout_opt::render::workflow::{run, FramePose, RenderJob};
 use layout_opt::render::{
     frame_truth, render_radiance, Appearance, Blur, Hidden, Lighting, RenderConfig, RenderError,
@@ -179,66 +178,47 @@ fn a_rendered_silhouette_fits_the_exact_ellipse() {
     }
 }
 
-/// The hidden fractions of one sphere by an independent count: sight
-/// lines through a dense square grid over the sphere's disc (not the
-/// model's sunflower), each followed by the renderer's own ray caster
-/// ([`Scene::first_hit`]: the image's geometry, fillets and the bed cut
-/// included, rather than the model's analytic occluders). A line whose
-/// point on the sphere projects outside the image is outside; else the
-/// first thing it meets decides: this sphere, another sphere's coating, or
-/// the support.
-fn counted_fractions(scene: &Scene, pose: &Pose, camera: &Camera, index: usize) -> Hidden {
-    const GRID: usize = 64;
-    let (centre, radius) = scene.spheres()[index];
+/// The hidden fractions of one sphere by an independent count: rays
+/// marched on the mesher's own signed distance ([`Marker::signed_distance`])
+/// towards the limb, a different number of them. They aim 2e-5 radii
+/// inside the limb: where the cone under a sphere leaves the ball, its
+/// flank parts from the ball only to second order, so a ray aimed deeper
+/// would see the ball over a wider arc than the silhouette itself shows.
+fn marched_fractions(marker: &Marker, pose: &Pose, camera: &Camera, index: usize) -> Hidden {
+    const RAYS: usize = 500;
+    let sphere = &marker.spheres[index];
+    let c = pose.transform(&sphere.centre);
     let inverse = pose.rotation.inverse();
-    let eye = -(inverse * pose.translation);
-    let to_centre = centre - eye;
-    let distance = to_centre.norm();
-    let axis = to_centre / distance;
-    let tan_half = (radius / distance).asin().tan();
-    let helper = if axis.x.abs() < 0.9 {
-        Vector3::x()
-    } else {
-        Vector3::y()
-    };
-    let e1 = axis.cross(&helper).normalize();
-    let e2 = axis.cross(&e1);
-    let all = scene.all_shapes();
-    let (mut total, mut counts) = (0usize, [0usize; 3]);
-    for gy in 0..GRID {
-        for gx in 0..GRID {
-            let x = 2.0 * (gx as f64 + 0.5) / GRID as f64 - 1.0;
-            let y = 2.0 * (gy as f64 + 0.5) / GRID as f64 - 1.0;
-            if x * x + y * y > 1.0 {
-                continue;
+    let origin = -(inverse * pose.translation);
+    let mut counts = [0usize; 3];
+    for limb in limb_points(&c, sphere.radius, RAYS) {
+        if !camera.project(&limb).is_some_and(|p| on_image(camera, &p)) {
+            counts[2] += 1;
+            continue;
+        }
+        let aim = c + (limb - c) * (1.0 - 2e-5);
+        let direction = inverse * aim.normalize();
+        let mut t = 0.0;
+        let hit = loop {
+            let p = origin + direction * t;
+            let d = marker.signed_distance(&p);
+            if d < 1e-5 {
+                break p;
             }
-            total += 1;
-            let direction = (axis + (e1 * x + e2 * y) * tan_half).normalize();
-            // Where the line enters the sphere.
-            let oc = eye - centre;
-            let b = oc.dot(&direction);
-            let h = (b * b - oc.norm_squared() + radius * radius).max(0.0);
-            let on_sphere = pose.transform(&(eye + direction * (-b - h.sqrt())));
-            if !camera
-                .project(&on_sphere)
-                .is_some_and(|p| camera.contains(&p, 0.0))
-            {
-                counts[2] += 1;
-                continue;
-            }
-            let ray = Ray {
-                origin: eye,
-                direction,
-            };
-            match scene.first_hit(&ray, &all) {
-                Some(hit) if hit.sphere == Some(index) => {}
-                Some(hit) if hit.sphere.is_some() => counts[1] += 1,
-                Some(_) => counts[0] += 1,
-                None => {}
-            }
+            t += d;
+            assert!(t < 1e5, "the march left the scene");
+        };
+        let owner = marker
+            .spheres
+            .iter()
+            .position(|s| (hit - s.centre).norm() <= s.radius + 5e-5);
+        match owner {
+            Some(j) if j == index => {}
+            Some(_) => counts[1] += 1,
+            None => counts[0] += 1,
         }
     }
-    let n = total as f64;
+    let n = RAYS as f64;
     Hidden {
         by_support: counts[0] as f64 / n,
         by_sphere: counts[1] as f64 / n,
@@ -247,7 +227,7 @@ fn counted_fractions(scene: &Scene, pose: &Pose, camera: &Camera, index: usize) 
 }
 
 #[test]
-fn hidden_fractions_agree_with_an_independent_dense_ray_count() {
+fn hidden_fractions_agree_with_an_independent_ray_march() {
     let camera = Camera::paper();
     let cases = [
         ("biprism-search.json", pose(600.0, 0.0)),
@@ -260,27 +240,28 @@ fn hidden_fractions_agree_with_an_independent_dense_ray_count() {
     let mut worst: f64 = 0.0;
     for (file, pose) in cases {
         let layout = layout(file);
-        let scene = Scene::from_marker(Marker::design(&layout, &MarkerOptions::default()).unwrap());
+        let marker = Marker::design(&layout, &MarkerOptions::default()).unwrap();
+        let scene = Scene::from_marker(marker.clone());
         let names: Vec<String> = layout.points.iter().map(|p| p.name.clone()).collect();
         let truth = frame_truth(&scene, &names, &pose, &camera).unwrap();
         for (index, sphere) in truth.spheres.iter().enumerate() {
-            let counted = counted_fractions(&scene, &pose, &camera, index);
+            let marched = marched_fractions(&marker, &pose, &camera, index);
             let h = sphere.hidden;
             println!(
                 "{file} t={:?} {}: support {:.4}/{:.4} sphere {:.4}/{:.4} outside {:.4}/{:.4}",
                 pose.translation.z,
                 sphere.name,
                 h.by_support,
-                counted.by_support,
+                marched.by_support,
                 h.by_sphere,
-                counted.by_sphere,
+                marched.by_sphere,
                 h.outside_image,
-                counted.outside_image
+                marched.outside_image
             );
             for (a, b) in [
-                (h.by_support, counted.by_support),
-                (h.by_sphere, counted.by_sphere),
-                (h.outside_image, counted.outside_image),
+                (h.by_support, marched.by_support),
+                (h.by_sphere, marched.by_sphere),
+                (h.outside_image, marched.outside_image),
             ] {
                 worst = worst.max((a - b).abs());
                 assert!((a - b).abs() <= 0.01, "{file} {}: {a} vs {b}", sphere.name);
