@@ -446,7 +446,17 @@ impl Scene {
         if !near_other {
             return hit;
         }
-        let (t, sample) = blended_surface(marker, ray, hit.t);
+        // March back from inside by the signed distance, which never
+        // crosses the surface, to the front of the blended solid.
+        let mut t = hit.t;
+        let mut sample = marker.sample(&ray.at(t));
+        for _ in 0..MAX_TRACE_STEPS {
+            if sample.value > -SURFACE_EPSILON_MM {
+                break;
+            }
+            t += sample.value;
+            sample = marker.sample(&ray.at(t));
+        }
         let p = ray.at(t);
         Hit {
             t,
@@ -455,52 +465,6 @@ impl Scene {
             normal: sample.gradient,
         }
     }
-}
-
-/// The front of the blended solid on the ray before `t_inside`, a point
-/// on the ray at which the marker is solid or on its surface: where the
-/// marker's signed distance crosses zero between the camera and
-/// `t_inside`, to within [`SURFACE_EPSILON_MM`], with the signed distance
-/// there. A Newton step along the ray (the signed distance's slope is its
-/// gradient along the ray) inside a bracket that keeps a solid point
-/// behind and, once one is seen, a free point in front; a step that leaves
-/// the bracket is halved back into it. A plain backward march (steps of
-/// the signed distance, which never cross the surface) needs several
-/// times as many samples where the ray meets a fillet obliquely.
-fn blended_surface(marker: &Marker, ray: &Ray, t_inside: f64) -> (f64, sdf::Sample) {
-    let mut t = t_inside;
-    let mut sample = marker.sample(&ray.at(t));
-    if sample.value > -SURFACE_EPSILON_MM {
-        return (t, sample);
-    }
-    // `solid`: a ray distance where the marker is solid; `free`: one in
-    // front of it where it is not (the camera, until a sample lands there).
-    let (mut solid, mut free) = (t, 0.0);
-    for _ in 0..MAX_TRACE_STEPS {
-        if sample.value.abs() < SURFACE_EPSILON_MM {
-            break;
-        }
-        if sample.value < 0.0 {
-            solid = t;
-        } else {
-            free = t;
-        }
-        let slope = sample.gradient.dot(&ray.direction);
-        // |slope| ≤ 1, so a Newton step is never shorter than the safe
-        // step of the signed distance itself.
-        let newton = if slope < -1e-3 {
-            t - sample.value / slope
-        } else {
-            t + sample.value
-        };
-        t = if newton > free && newton < solid {
-            newton
-        } else {
-            0.5 * (free + solid)
-        };
-        sample = marker.sample(&ray.at(t));
-    }
-    (t, sample)
 }
 
 /// A ball holding one primitive of `marker`: `(centre, radius)`.
