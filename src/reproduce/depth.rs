@@ -18,12 +18,13 @@
 //! Near and far panels of one marker share their trials' draws.
 
 use super::claims::{self, describe, num, Claim};
+use super::engine::{find, group, stream};
 use super::engine::{
     from_camera_points, random_rotation, run_random, unit_noise, Context, Instance,
 };
 use super::panel::{two_worst, Cell, Metric, Panel};
 use super::stats::{knee_fit, spearman};
-use super::{find, group, paper_sigma_px, stream, Experiment, ExperimentResult, PAPER_SOLVERS};
+use super::{paper_sigma_px, Experiment, ExperimentResult, PAPER_SOLVERS};
 use crate::layout::PAPER_ARM_MM;
 use crate::pnp::Solver;
 use crate::pose::Pose;

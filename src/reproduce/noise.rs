@@ -13,9 +13,10 @@ use super::engine::{
     camera_box_points, from_camera_points, random_rotation, run_random, unit_noise, Context,
     Instance,
 };
+use super::engine::{find, group, stream};
 use super::panel::{Metric, Panel};
 use super::stats::{line_fit, spearman};
-use super::{find, group, stream, Experiment, ExperimentResult, PAPER_SOLVERS};
+use super::{Experiment, ExperimentResult, PAPER_SOLVERS};
 use crate::pnp::Solver;
 use crate::pose::Pose;
 use crate::report::Table;

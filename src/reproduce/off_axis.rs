@@ -11,9 +11,10 @@
 //! position is the ratio 9.52 that the paper quotes.
 
 use super::claims::{self, describe, num, Claim};
+use super::engine::{find, group, stream};
 use super::engine::{run_scenarios, scenario_cells, Context};
 use super::panel::{two_worst, Metric, Panel};
-use super::{find, group, paper_sigma_px, stream, Experiment, ExperimentResult, PAPER_SOLVERS};
+use super::{paper_sigma_px, Experiment, ExperimentResult, PAPER_SOLVERS};
 use crate::layout::{Layout, PAPER_ARM_MM};
 use crate::scenario::Scenario;
 

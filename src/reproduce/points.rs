@@ -11,9 +11,10 @@ use super::engine::{
     camera_box_points, from_camera_points, random_rotation, run_random, unit_noise, Context,
     Instance,
 };
+use super::engine::{find, group, stream};
 use super::panel::{Metric, Panel};
 use super::stats::{spearman, Stat};
-use super::{find, group, paper_sigma_px, stream, Experiment, ExperimentResult, PAPER_SOLVERS};
+use super::{paper_sigma_px, Experiment, ExperimentResult, PAPER_SOLVERS};
 use crate::pnp::Solver;
 
 /// Smallest n.

@@ -20,9 +20,10 @@
 //! noise is simulated Gaussian, not the three lighting conditions.
 
 use super::claims::{self, describe, num, Claim};
+use super::engine::{find, group, stream};
 use super::engine::{run_scenarios, scenario_cells, Context};
 use super::panel::{Cell, FirstOrderLine, Metric, Panel};
-use super::{find, group, paper_sigma_px, stream, Experiment, ExperimentResult, PAPER_SOLVERS};
+use super::{paper_sigma_px, Experiment, ExperimentResult, PAPER_SOLVERS};
 use crate::layout::Layout;
 use crate::pnp::Solver;
 use crate::report::{significant, Table};

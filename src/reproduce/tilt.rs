@@ -10,10 +10,11 @@
 //! 54.7°.
 
 use super::claims::{self, num, Claim};
+use super::engine::{find, group, stream};
 use super::engine::{run_scenarios, scenario_cells, Context};
 use super::panel::{Metric, Panel};
 use super::stats::{mean, pearson};
-use super::{find, group, paper_sigma_px, stream, Experiment, ExperimentResult, PAPER_SOLVERS};
+use super::{paper_sigma_px, Experiment, ExperimentResult, PAPER_SOLVERS};
 use crate::layout::Layout;
 use crate::pnp::Solver;
 use crate::scenario::Scenario;

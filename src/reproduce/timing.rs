@@ -14,20 +14,20 @@
 //! go to `timing.csv` / `timing.json`, never to `summary.json`.
 
 use super::claims::{self, num, Claim};
+use super::engine::{find, group, stream};
 use super::engine::{random_rotation, unit_noise, Context};
 use super::stats::line_fit;
-use super::{find, group, paper_sigma_px, stream, Experiment, ExperimentResult};
+use super::summary::{TimingResult, TimingRow};
+use super::{paper_sigma_px, Experiment, ExperimentResult};
 use crate::pnp::{validate_input, Solver};
 use crate::pose::Pose;
-use crate::report::{plots, write_text, ReportError, Table};
+use crate::report::Table;
 use crate::statistics::median;
 use crate::synthetic::stream_rng;
 use nalgebra::{Vector2, Vector3};
 use rand::Rng;
-use serde::Serialize;
 use std::fmt::Write as _;
 use std::hint::black_box;
-use std::path::Path;
 use std::time::Instant;
 
 /// Smallest n.
@@ -66,105 +66,19 @@ const OTHER_CLOSED_FORM: [&str; 7] = [
     "parallel-weighted",
 ];
 
-/// One solver at one n.
-#[derive(Debug, Clone, Serialize)]
-pub struct TimingRow {
-    /// Number of points.
-    pub n: usize,
-    /// Stable solver name.
-    pub solver: String,
-    /// Timed solves.
-    pub repetitions: usize,
-    /// Solves that returned an error.
-    pub errors: usize,
-    /// Median time per call of `solve_best`, µs.
-    pub median_us: Option<f64>,
-    /// Mean time per call of `solve_best`, µs.
-    pub mean_us: Option<f64>,
-    /// Median time of the shared input checks alone, µs.
-    pub median_validation_us: Option<f64>,
-    /// Median over problems of (solve − checks): the method's own time, µs.
-    pub median_method_us: Option<f64>,
-}
-
-/// The timing experiment's measurements.
-#[derive(Debug, Clone, Serialize)]
-pub struct TimingResult {
-    /// Point counts.
-    pub counts: Vec<usize>,
-    /// One row per (n, solver).
-    pub rows: Vec<TimingRow>,
-    /// Threads in rayon's pool (the timing itself runs on one thread).
-    pub rayon_threads: usize,
-}
-
 impl TimingResult {
-    fn median_of(&self, solver: Solver, n: usize) -> Option<f64> {
+    pub(crate) fn median_of(&self, solver: Solver, n: usize) -> Option<f64> {
         self.rows
             .iter()
             .find(|r| r.n == n && r.solver == solver.name())
             .and_then(|r| r.median_method_us)
     }
 
-    fn curve(&self, solver: Solver) -> Vec<(f64, f64)> {
+    pub(crate) fn curve(&self, solver: Solver) -> Vec<(f64, f64)> {
         self.counts
             .iter()
             .filter_map(|&n| self.median_of(solver, n).map(|t| (n as f64, t)))
             .collect()
-    }
-
-    /// Writes `timing.csv` and `fig10_timing.svg`.
-    pub fn write(&self, dir: &Path) -> Result<(), ReportError> {
-        let mut table = Table::new([
-            "n",
-            "solver",
-            "repetitions",
-            "errors",
-            "median_us",
-            "mean_us",
-            "median_validation_us",
-            "median_method_us",
-        ]);
-        let cell = |v: Option<f64>| v.map_or(String::new(), |v| format!("{v:.4}"));
-        for r in &self.rows {
-            table.row([
-                r.n.to_string(),
-                r.solver.clone(),
-                r.repetitions.to_string(),
-                r.errors.to_string(),
-                cell(r.median_us),
-                cell(r.mean_us),
-                cell(r.median_validation_us),
-                cell(r.median_method_us),
-            ]);
-        }
-        let path = dir.join("timing.csv");
-        write_text(
-            &path,
-            &table.csv().map_err(|e| ReportError::write(&path, e))?,
-        )?;
-        let mut names: Vec<&str> = Vec::new();
-        for r in &self.rows {
-            if !names.contains(&r.solver.as_str()) {
-                names.push(&r.solver);
-            }
-        }
-        let series: Vec<plots::Series> = names
-            .iter()
-            .filter_map(|name| Solver::from_name(name))
-            .map(|s| plots::Series {
-                name: s.name().to_string(),
-                points: self.curve(s),
-                dashed: false,
-            })
-            .collect();
-        plots::line_plot(
-            &dir.join("fig10_timing.svg"),
-            "Median time per solve without the shared input checks, one thread (Fig. 10)",
-            "number of points n",
-            "median method time per solve (µs)",
-            &series,
-        )
     }
 }
 
