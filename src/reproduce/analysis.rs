@@ -34,7 +34,7 @@ pub fn run_until(
     stop: &AtomicBool,
 ) -> Result<Reproduction, ReproduceError> {
     config.check()?;
-    let context = Context {
+    let mut context = Context {
         camera: Camera::paper(),
         seed: config.seed,
         solvers: Solver::ALL.to_vec(),
@@ -54,6 +54,7 @@ pub fn run_until(
                 experiment,
                 trials: config.trials_for(experiment),
                 paper_trials: experiment.paper_trials(),
+                camera: config.camera_for(experiment),
             })
             .collect(),
         solvers: context
@@ -62,17 +63,18 @@ pub fn run_until(
             .map(|s| s.name().to_string())
             .collect(),
         paper_solvers_not_available: missing,
-        camera: context.camera,
+        camera_override: config.camera,
         paper_sigma_px: paper_sigma_px(),
         gross_error_deg: GROSS_ERROR_DEG,
     };
     let mut experiments = Vec::new();
     let mut wall_seconds = Vec::new();
-    let interrupted = || context.stopped().then_some(ReproduceError::Interrupted);
+    let interrupted = |context: &Context| context.stopped().then_some(ReproduceError::Interrupted);
     for &experiment in &config.experiments {
-        if let Some(error) = interrupted() {
+        if let Some(error) = interrupted(&context) {
             return Err(error);
         }
+        context.camera = config.camera_for(experiment);
         let trials = config.trials_for(experiment);
         let started = Instant::now();
         let result = match experiment {
@@ -85,7 +87,7 @@ pub fn run_until(
             Experiment::Protocol => protocol::run(&context, trials),
         };
         // A stopped experiment's results are incomplete: never returned.
-        if let Some(error) = interrupted() {
+        if let Some(error) = interrupted(&context) {
             return Err(error);
         }
         let result = result?;

@@ -16,6 +16,8 @@ pub struct TrialCount {
     pub trials: usize,
     /// The paper's count (`None`: one real image per pose).
     pub paper_trials: Option<usize>,
+    /// The camera it ran with.
+    pub camera: Camera,
 }
 
 /// Where every number came from.
@@ -35,8 +37,9 @@ pub struct Header {
     pub solvers: Vec<String>,
     /// The paper's solvers this build does not have.
     pub paper_solvers_not_available: Vec<String>,
-    /// The camera.
-    pub camera: Camera,
+    /// The camera given for every experiment (`--camera`), if any; each
+    /// experiment's camera is in [`TrialCount::camera`].
+    pub camera_override: Option<Camera>,
     /// σ used for the paper's "variance 0.2", px.
     pub paper_sigma_px: f64,
     /// Gross-failure threshold on the geodesic rotation error, degrees.

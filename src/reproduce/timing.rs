@@ -335,19 +335,22 @@ fn claims(context: &Context, timing: &TimingResult) -> Vec<Claim> {
             let (others, others_missing) = group(context, &OTHER_CLOSED_FORM);
             let factor = ratio_over_n(opnp, &median_of_group(others)).unwrap_or(f64::NAN);
             let g = growth(opnp).unwrap_or(f64::NAN);
-            let holds = claims::about_factor(OPNP_CLAIMED_FACTOR, factor) && g <= FLAT_GROWTH;
-            out.push(
-                claim
-                    .judge(
-                        holds,
-                        format!(
-                            "OPnP / other closed-form: {}×; OPnP ×{} from n = {first} to {last}",
-                            num(factor),
-                            num(g)
-                        ),
-                    )
-                    .missing(others_missing),
+            // The ratio is a property of the implementations (MATLAB's
+            // interpreter against our compiled solvers); the flat cost is a
+            // trend, and judged.
+            let evidence = format!(
+                "OPnP / other closed-form: {}× ({} the paper's ~5× within a factor {}; a ratio between implementations, not judged); OPnP ×{} from n = {first} to {last}",
+                num(factor),
+                if claims::about_factor(OPNP_CLAIMED_FACTOR, factor) { "matches" } else { "differs from" },
+                claims::ABOUT_FACTOR,
+                num(g)
             );
+            let claim = if g <= FLAT_GROWTH {
+                claim.implementation_dependent(evidence)
+            } else {
+                claim.judge(false, evidence)
+            };
+            out.push(claim.missing(others_missing));
         }
         None => out.push(claim.solvers_missing(vec!["opnp".into()])),
     }
@@ -365,11 +368,11 @@ fn claims(context: &Context, timing: &TimingResult) -> Vec<Claim> {
             let factor = ratio_over_n(pw, &median_of_group(refs)).unwrap_or(f64::NAN);
             out.push(
                 claim
-                    .judge(
-                        (1.0..=CLOSE_FACTOR).contains(&factor),
+                    .implementation_dependent(
                         format!(
-                            "parallel-weighted / median of the others: {}×{}",
+                            "parallel-weighted / median of the others: {}× ({} [1, {CLOSE_FACTOR}]; a ratio between implementations, not judged){}",
                             num(factor),
+                            if (1.0..=CLOSE_FACTOR).contains(&factor) { "within" } else { "outside" },
                             if factor < 1.0 {
                                 " (faster than them)"
                             } else {
@@ -389,18 +392,22 @@ fn claims(context: &Context, timing: &TimingResult) -> Vec<Claim> {
         "§4.3 timing (3), Fig. 10",
         "Paraperspective without optimisation runs as fast as EPnP.",
         &format!(
-            "median over n of parallel's time / EPnP's within [1/{SAME_FACTOR}, {SAME_FACTOR}]"
+            "median over n of parallel-init's time / EPnP's within [1/{SAME_FACTOR}, {SAME_FACTOR}] (shown, not judged: a ratio between implementations); the iterated parallel beside"
         ),
     );
-    match (find(context, "parallel"), find(context, "epnp")) {
-        (Some(parallel), Some(epnp)) => {
-            let factor = ratio_over_n(parallel, &|n| timing.median_of(epnp, n)).unwrap_or(f64::NAN);
-            out.push(claim.judge(
-                (1.0 / SAME_FACTOR..=SAME_FACTOR).contains(&factor),
-                format!("parallel / EPnP: {}× (our `parallel` iterates Horaud's correction to convergence)", num(factor)),
-            ));
+    match (find(context, "parallel-init"), find(context, "epnp")) {
+        (Some(init), Some(epnp)) => {
+            let epnp_time = |n| timing.median_of(epnp, n);
+            let factor = ratio_over_n(init, &epnp_time).unwrap_or(f64::NAN);
+            let iterated = find(context, "parallel").and_then(|p| ratio_over_n(p, &epnp_time));
+            out.push(claim.implementation_dependent(format!(
+                "parallel-init (the single step) / EPnP: {}× ({} [1/{SAME_FACTOR}, {SAME_FACTOR}]); parallel (iterated to convergence) / EPnP: {}×",
+                num(factor),
+                if (1.0 / SAME_FACTOR..=SAME_FACTOR).contains(&factor) { "within" } else { "outside" },
+                iterated.map_or("—".into(), num)
+            )));
         }
-        _ => out.push(claim.solvers_missing(vec!["parallel".into(), "epnp".into()])),
+        _ => out.push(claim.solvers_missing(vec!["parallel-init".into(), "epnp".into()])),
     }
 
     // (3) The weighting costs time.
@@ -408,26 +415,30 @@ fn claims(context: &Context, timing: &TimingResult) -> Vec<Claim> {
         "timing.weighting-costs-time",
         "§4.3 timing (3), Fig. 10",
         "The weighted optimisation makes the proposed method slower than paraperspective alone.",
-        "median over n of parallel-weighted's time / parallel's > 1 (the ablation parallel-gn shows what the weights alone cost)",
+        "median over n of parallel-weighted's time / parallel-init's > 1 (paraperspective alone is the method's initial value; the iterated parallel and the ablation parallel-gn beside)",
     );
     match (
         find(context, "parallel-weighted"),
-        find(context, "parallel"),
+        find(context, "parallel-init"),
     ) {
-        (Some(pw), Some(parallel)) => {
-            let factor = ratio_over_n(pw, &|n| timing.median_of(parallel, n)).unwrap_or(f64::NAN);
-            let weights = find(context, "parallel-gn")
-                .and_then(|gn| ratio_over_n(pw, &|n| timing.median_of(gn, n)));
+        (Some(pw), Some(init)) => {
+            let factor = ratio_over_n(pw, &|n| timing.median_of(init, n)).unwrap_or(f64::NAN);
+            let against = |name: &str| {
+                find(context, name)
+                    .and_then(|s| ratio_over_n(pw, &|n| timing.median_of(s, n)))
+                    .map_or("—".into(), num)
+            };
             out.push(claim.judge(
                 factor > 1.0,
                 format!(
-                    "parallel-weighted / parallel: {}×; parallel-weighted / parallel-gn: {}×",
+                    "parallel-weighted / parallel-init: {}×; / parallel (iterated): {}×; / parallel-gn: {}×",
                     num(factor),
-                    weights.map_or("—".into(), num)
+                    against("parallel"),
+                    against("parallel-gn")
                 ),
             ));
         }
-        _ => out.push(claim.solvers_missing(vec!["parallel".into()])),
+        _ => out.push(claim.solvers_missing(vec!["parallel-init".into()])),
     }
     out
 }
