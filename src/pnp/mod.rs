@@ -54,6 +54,7 @@ pub mod ml_sphere;
 pub mod opnp;
 pub mod p3p;
 pub mod parallel;
+pub mod parallel_init;
 pub mod polynomial;
 pub mod rpnp;
 pub mod sqpnp;
@@ -240,6 +241,7 @@ solvers! {
     Epnp => epnp::EPNP,
     EpnpGn => epnp_gn::EPNP_GN,
     Iepnp => iepnp::IEPNP,
+    ParallelInit => parallel_init::PARALLEL_INIT,
     Parallel => parallel::PARALLEL,
     ParallelGn => parallel::PARALLEL_GN,
     ParallelWeighted => parallel::PARALLEL_WEIGHTED,

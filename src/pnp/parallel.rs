@@ -200,6 +200,15 @@ impl<'a> Paraperspective<'a> {
     }
 }
 
+/// The single paraperspective step of eqs. 17–21 about the reference
+/// point ([`reference_index`]), without Horaud's correction, in the caller's
+/// object frame: the pose `parallel-weighted` starts from, and the
+/// `parallel-init` solver.
+pub fn single_step(object: &[Vector3<f64>], image: &[Vector2<f64>]) -> Result<Pose, PnpError> {
+    let problem = Paraperspective::new(object, image)?;
+    Ok(problem.unshift(&problem.solve(|_| 1.0)?.pose))
+}
+
 /// `parallel`: the paraperspective pose of eqs. 17–21, iterated with
 /// Horaud's perspective correction until it converges to the full
 /// perspective pose. Returns one candidate: the iterate with the lowest

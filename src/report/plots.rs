@@ -95,16 +95,21 @@ const fn solver_style(colour: &'static str, dash: Option<&'static str>, marker: 
     }
 }
 
-/// Every solver's style: thirteen colours from Paul Tol's muted and the
+/// Every solver's style: fourteen colours from Paul Tol's muted (and one
+/// medium-contrast) and the
 /// Okabe–Ito palettes (both chosen to stay apart under colour-vision
 /// deficiency), each with its own marker–dash pair so that even series of
 /// similar hue differ in shape.
-const SOLVER_STYLES: [(&str, Style); 13] = [
+const SOLVER_STYLES: [(&str, Style); 14] = [
     (
         "parallel-weighted",
         solver_style("#332288", SOLID, Marker::Circle),
     ),
     ("parallel", solver_style("#88CCEE", SOLID, Marker::Square)),
+    (
+        "parallel-init",
+        solver_style("#6699CC", DOTTED, Marker::Circle),
+    ),
     (
         "parallel-gn",
         solver_style("#44AA99", SOLID, Marker::TriangleUp),

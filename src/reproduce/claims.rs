@@ -57,24 +57,53 @@ pub const KNEE_RESIDUAL_FRACTION: f64 = 0.5;
 /// degrees of β₀.
 pub const MINIMUM_TOLERANCE_DEG: f64 = 10.0;
 
+/// "Indistinguishable": two errors whose ratio is within this fraction of
+/// 1, or whose difference is not significant (z below [`SIGNIFICANCE_Z`]).
+pub const TIE_FRACTION: f64 = 0.05;
+/// A level the paper states as a range holds within the range widened by
+/// this fraction at either end.
+pub const LEVEL_TOLERANCE: f64 = 0.10;
+
+/// The ambiguity of the paper's "Parallel": the single paraperspective step
+/// of eqs. 17–21 (`parallel-init`) or Horaud's iteration (`parallel`).
+pub const PARALLEL_AMBIGUITY: &str = "\"Parallel\" as Horaud's iteration (`parallel`) rather than the single paraperspective step of eqs. 17–21 (`parallel-init`), the method's initial value";
+
 /// A claim's verdict.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum Verdict {
     /// Our data meet the criterion.
     Holds,
-    /// Our data do not meet the criterion.
+    /// The claim orders two methods, and ours are tied: their ratio is
+    /// within [`TIE_FRACTION`] of 1, or the difference is not significant
+    /// over the trials run.
+    Indistinguishable,
+    /// Our data do not meet the criterion; [`Claim::reason`] says why.
     DoesNotHold,
+    /// A cost ratio between the paper's MATLAB implementations: our ratio
+    /// is shown, not judged.
+    ImplementationDependent,
     /// The criterion could not be computed (a solver or data is missing).
     NotEvaluated,
 }
 
 impl Verdict {
+    /// Every verdict, in report order.
+    pub const ALL: [Verdict; 5] = [
+        Verdict::Holds,
+        Verdict::Indistinguishable,
+        Verdict::DoesNotHold,
+        Verdict::ImplementationDependent,
+        Verdict::NotEvaluated,
+    ];
+
     /// The verdict in words.
     pub fn label(self) -> &'static str {
         match self {
             Verdict::Holds => "holds",
+            Verdict::Indistinguishable => "indistinguishable",
             Verdict::DoesNotHold => "does not hold",
+            Verdict::ImplementationDependent => "implementation-dependent",
             Verdict::NotEvaluated => "not evaluated",
         }
     }
@@ -85,6 +114,45 @@ impl Verdict {
             Verdict::Holds
         } else {
             Verdict::DoesNotHold
+        }
+    }
+}
+
+/// Why a claim does not hold.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(tag = "kind", rename_all = "kebab-case")]
+pub enum Reason {
+    /// A faithful simulation contradicts it; `figure` is where the paper
+    /// shows what we do not see.
+    Contradiction {
+        /// The paper's figure or table.
+        figure: String,
+    },
+    /// The verdict depends on an ambiguity in the paper, named here.
+    Ambiguity {
+        /// The ambiguity.
+        ambiguity: String,
+    },
+}
+
+impl Reason {
+    /// The kind, for counts.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            Reason::Contradiction { .. } => "contradiction",
+            Reason::Ambiguity { .. } => "ambiguity",
+        }
+    }
+
+    /// One line on why.
+    pub fn text(&self) -> String {
+        match self {
+            Reason::Contradiction { figure } => {
+                format!("a faithful simulation contradicts it ({figure})")
+            }
+            Reason::Ambiguity { ambiguity } => {
+                format!("depends on an ambiguity in the paper: {ambiguity}")
+            }
         }
     }
 }
@@ -106,6 +174,12 @@ pub struct Claim {
     pub evidence: String,
     /// Solvers the claim names that this build does not have.
     pub not_available: Vec<String>,
+    /// Why it does not hold (set exactly when the verdict is
+    /// [`Verdict::DoesNotHold`]).
+    pub reason: Option<Reason>,
+    /// The ambiguity a failure depends on, if any ([`Claim::ambiguity`]).
+    #[serde(skip)]
+    depends_on: Option<String>,
 }
 
 impl Claim {
@@ -120,14 +194,58 @@ impl Claim {
             verdict: Verdict::NotEvaluated,
             evidence: String::new(),
             not_available: Vec::new(),
+            reason: None,
+            depends_on: None,
         }
     }
 
     /// Records a computed verdict.
-    pub fn judge(mut self, holds: bool, evidence: String) -> Claim {
-        self.verdict = Verdict::from_bool(holds);
+    pub fn judge(self, holds: bool, evidence: String) -> Claim {
+        self.decide(Verdict::from_bool(holds), evidence)
+    }
+
+    /// Records a verdict, with its reason when it is "does not hold": the
+    /// ambiguity the claim depends on ([`Claim::ambiguity`]), else a
+    /// contradiction with the figure the claim cites.
+    pub fn decide(mut self, verdict: Verdict, evidence: String) -> Claim {
+        self.verdict = verdict;
         self.evidence = evidence;
+        self.reason = (verdict == Verdict::DoesNotHold).then(|| match &self.depends_on {
+            Some(ambiguity) => Reason::Ambiguity {
+                ambiguity: ambiguity.clone(),
+            },
+            None => Reason::Contradiction {
+                figure: self.source.clone(),
+            },
+        });
         self
+    }
+
+    /// Records the verdict of an ordering claim decided by comparison `c`:
+    /// "holds" when `holds`, else "indistinguishable" when `c` is a tie
+    /// ([`is_tie`]), else "does not hold".
+    pub fn judge_order(self, holds: bool, c: &Comparison, evidence: String) -> Claim {
+        let verdict = if holds {
+            Verdict::Holds
+        } else if is_tie(c) {
+            Verdict::Indistinguishable
+        } else {
+            Verdict::DoesNotHold
+        };
+        self.decide(verdict, evidence)
+    }
+
+    /// Records a cost ratio between implementations: shown, not judged.
+    pub fn implementation_dependent(self, evidence: String) -> Claim {
+        self.decide(Verdict::ImplementationDependent, evidence)
+    }
+
+    /// Declares that a failure of this claim depends on an ambiguity in the
+    /// paper (before or after the verdict).
+    pub fn ambiguity(mut self, ambiguity: &str) -> Claim {
+        self.depends_on = Some(ambiguity.to_string());
+        let (verdict, evidence) = (self.verdict, std::mem::take(&mut self.evidence));
+        self.decide(verdict, evidence)
     }
 
     /// Records that the claim could not be evaluated, and why.
@@ -160,6 +278,71 @@ pub fn improves(better: &Stat, worse: &Stat) -> Option<(bool, Comparison)> {
 pub fn slightly_better(better: &Stat, worse: &Stat) -> Option<(bool, Comparison)> {
     let c = compare(worse, better)?;
     Some((c.ratio > 1.0 && c.z >= SIGNIFICANCE_Z, c))
+}
+
+/// The verdict of a claim made of several conditions, some of them
+/// orderings: "does not hold" if any condition fails outright, else
+/// "indistinguishable" if an ordering failed only as a tie, else "holds".
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Tally {
+    failed: bool,
+    tied: bool,
+}
+
+impl Tally {
+    /// A condition that is not an ordering.
+    pub fn check(&mut self, ok: bool) {
+        self.failed |= !ok;
+    }
+
+    /// An ordering decided by comparison `c`.
+    pub fn order(&mut self, ok: bool, c: &Comparison) {
+        if !ok {
+            if is_tie(c) {
+                self.tied = true;
+            } else {
+                self.failed = true;
+            }
+        }
+    }
+
+    /// The verdict so far.
+    pub fn verdict(&self) -> Verdict {
+        if self.failed {
+            Verdict::DoesNotHold
+        } else if self.tied {
+            Verdict::Indistinguishable
+        } else {
+            Verdict::Holds
+        }
+    }
+}
+
+/// Whether comparison `c` is a tie: a ratio within [`TIE_FRACTION`] of 1,
+/// or a difference that is not significant.
+pub fn is_tie(c: &Comparison) -> bool {
+    (c.ratio - 1.0).abs() <= TIE_FRACTION || c.z.abs() < SIGNIFICANCE_Z
+}
+
+/// Whether `value` lies in the paper's stated range `(low, high)` widened
+/// by [`LEVEL_TOLERANCE`] at each end.
+pub fn within_level(value: f64, (low, high): (f64, f64)) -> bool {
+    value >= low * (1.0 - LEVEL_TOLERANCE) && value <= high * (1.0 + LEVEL_TOLERANCE)
+}
+
+/// The per-setting comparison of two methods: the median over settings of
+/// `median_a / median_b` at each setting (settings where either has no
+/// median are left out), so that a few gross failures at one setting do
+/// not decide it. `None` without a usable setting.
+pub fn per_setting_ratio(settings: &[(Stat, Stat)]) -> Option<f64> {
+    let mut ratios: Vec<f64> = settings
+        .iter()
+        .filter_map(|(a, b)| {
+            let (a, b) = (a.median?, b.median?);
+            (b > 0.0).then_some(a / b)
+        })
+        .collect();
+    crate::statistics::median(&mut ratios)
 }
 
 /// Whether two means are comparable; returns (holds, ratio a/b).
@@ -237,5 +420,68 @@ mod tests {
         assert_eq!(claim.verdict, Verdict::NotEvaluated);
         assert_eq!(claim.evidence, "not evaluated: solver not available (opnp)");
         assert_eq!(Verdict::DoesNotHold.label(), "does not hold");
+    }
+
+    #[test]
+    fn a_tie_is_indistinguishable_not_a_failure() {
+        // OPnP against LHM at 1.001×: a saturated tie.
+        let a = Stat::of(&mut [1.0, 1.2, 0.8, 1.0, 1.1, 0.9]);
+        let b = Stat::of(&mut [1.001, 1.201, 0.801, 1.001, 1.101, 0.901]);
+        let (holds, c) = slightly_better(&a, &b).unwrap();
+        assert!(!holds);
+        let claim =
+            Claim::new("x", "Fig. 8", "a beats b", "rule").judge_order(holds, &c, "e".into());
+        assert_eq!(claim.verdict, Verdict::Indistinguishable);
+        assert_eq!(claim.reason, None);
+        // A real reversal is a failure, with its figure.
+        let worse = Stat::of(&mut [2.0, 2.2, 1.8, 2.0, 2.1, 1.9]);
+        let (holds, c) = slightly_better(&worse, &a).unwrap();
+        let claim =
+            Claim::new("x", "Fig. 8", "worse beats a", "rule").judge_order(holds, &c, "e".into());
+        assert_eq!(claim.verdict, Verdict::DoesNotHold);
+        assert_eq!(
+            claim.reason.as_ref().unwrap().text(),
+            "a faithful simulation contradicts it (Fig. 8)"
+        );
+        // Declared ambiguities are named, before or after the verdict.
+        let claim = Claim::new("x", "Fig. 8", "s", "r")
+            .judge(false, "e".into())
+            .ambiguity("which \"Parallel\"");
+        assert_eq!(claim.reason.unwrap().kind(), "ambiguity");
+        assert_eq!(claim.evidence, "e");
+    }
+
+    #[test]
+    fn a_pooled_outlier_does_not_decide_a_per_setting_comparison() {
+        // Four settings where a is 0.9–1.1× b, one where a failed grossly in
+        // a few trials: the pooled means say 1.5×, the settings do not.
+        let mut settings = Vec::new();
+        let mut pooled_a = Vec::new();
+        let mut pooled_b = Vec::new();
+        for (k, factor) in [0.9, 1.0, 1.05, 1.1, 1.0].into_iter().enumerate() {
+            let mut b: Vec<f64> = (1..=20).map(|i| i as f64 / 10.0).collect();
+            let mut a: Vec<f64> = b.iter().map(|v| v * factor).collect();
+            if k == 4 {
+                a[0] = 60.0;
+                a[1] = 90.0;
+            }
+            pooled_a.extend_from_slice(&a);
+            pooled_b.extend_from_slice(&b);
+            settings.push((Stat::of(&mut a), Stat::of(&mut b)));
+        }
+        let pooled = Stat::of(&mut pooled_a).mean / Stat::of(&mut pooled_b).mean;
+        assert!(pooled > COMPARABLE_RATIO, "{pooled}");
+        let per_setting = per_setting_ratio(&settings).unwrap();
+        assert!((per_setting - 1.0).abs() < 0.06, "{per_setting}");
+        assert!(comparable(per_setting, 1.0).0);
+    }
+
+    #[test]
+    fn levels_allow_ten_percent_beyond_the_stated_range() {
+        assert!(within_level(0.5, (0.5, 0.7)) && within_level(0.76, (0.5, 0.7)));
+        assert!(within_level(0.46, (0.5, 0.7)));
+        // Just outside the widened bounds.
+        assert!(!within_level(0.771, (0.5, 0.7)));
+        assert!(!within_level(0.449, (0.5, 0.7)));
     }
 }

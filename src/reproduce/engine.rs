@@ -13,6 +13,7 @@
 //! reduction is sequential, so the output is bit-identical at any thread
 //! count.
 
+use super::config::Experiment;
 use super::panel::{Cell, FirstOrderLine};
 use super::stats::Stat;
 use crate::camera::Camera;
@@ -397,4 +398,28 @@ pub(crate) fn scenario_cells(
         })
         .collect();
     (cells, outcome.first_order.map(FirstOrderLine::from))
+}
+
+/// The paper's solvers this build has, and the names it lacks, from `names`.
+pub(crate) fn group(context: &Context, names: &[&str]) -> (Vec<Solver>, Vec<String>) {
+    let mut found = Vec::new();
+    let mut missing = Vec::new();
+    for name in names {
+        match find(context, name) {
+            Some(solver) => found.push(solver),
+            None => missing.push(name.to_string()),
+        }
+    }
+    (found, missing)
+}
+
+/// The solver called `name`, if this build has it and it runs.
+pub(crate) fn find(context: &Context, name: &str) -> Option<Solver> {
+    Solver::from_name(name).filter(|s| context.solvers.contains(s))
+}
+
+/// The stream of panel `panel` of experiment `experiment`:
+/// `10⁶·experiment + 10⁴·panel` (scenarios add their index within the panel).
+pub(crate) fn stream(experiment: Experiment, panel: u64) -> u64 {
+    1_000_000 * experiment.number() + 10_000 * panel
 }

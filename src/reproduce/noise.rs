@@ -13,9 +13,10 @@ use super::engine::{
     camera_box_points, from_camera_points, random_rotation, run_random, unit_noise, Context,
     Instance,
 };
+use super::engine::{find, group, stream};
 use super::panel::{Metric, Panel};
 use super::stats::{line_fit, spearman};
-use super::{find, group, stream, Experiment, ExperimentResult, PAPER_SOLVERS};
+use super::{Experiment, ExperimentResult, PAPER_SOLVERS};
 use crate::pnp::Solver;
 use crate::pose::Pose;
 use crate::report::Table;
@@ -296,22 +297,22 @@ fn claims(context: &Context, panels: &[Panel]) -> Vec<Claim> {
         "improvement rule on mean E_rot pooled over σ: L = 100 mm against L = 25 mm, for every paper solver available",
     );
     let (small, large) = (&panels[1], &panels[2]);
-    let mut holds = true;
+    let mut tally = claims::Tally::default();
     let mut parts = Vec::new();
     for &s in &paper {
         let pair = small.pooled(s, |_| true).zip(large.pooled(s, |_| true));
         match pair.and_then(|(a, b)| claims::improves(&b.rotation_deg, &a.rotation_deg)) {
             Some((ok, c)) => {
-                holds &= ok;
+                tally.order(ok, &c);
                 parts.push(format!("{} {}×", s.name(), num(c.ratio)));
             }
-            None => holds = false,
+            None => tally.check(false),
         }
     }
     out.push(
         claim
-            .judge(
-                holds,
+            .decide(
+                tally.verdict(),
                 format!("E_rot(L = 25) / E_rot(L = 100): {}", parts.join(", ")),
             )
             .missing(missing.clone()),
@@ -380,7 +381,7 @@ fn claims(context: &Context, panels: &[Panel]) -> Vec<Claim> {
     match (find(context, "opnp"), find(context, "lhm")) {
         (Some(opnp), Some(lhm)) => {
             let (closed, _) = group(context, &CLOSED_FORM);
-            let mut holds = true;
+            let mut tally = claims::Tally::default();
             let mut parts = Vec::new();
             for panel in panels {
                 let own = pooled_mean(panel, opnp).unwrap_or(f64::NAN);
@@ -390,7 +391,7 @@ fn claims(context: &Context, panels: &[Panel]) -> Vec<Claim> {
                     .filter_map(|&s| pooled_mean(panel, s).map(|m| (s, m)))
                     .min_by(|a, b| a.1.total_cmp(&b.1));
                 if let Some((s, m)) = best_other {
-                    holds &= own <= m;
+                    tally.check(own <= m);
                     parts.push(format!(
                         "{}: OPnP {}° vs best other closed-form {} {}°",
                         panel.figure,
@@ -406,13 +407,13 @@ fn claims(context: &Context, panels: &[Panel]) -> Vec<Claim> {
                     .and_then(|(a, b)| claims::slightly_better(&a.rotation_deg, &b.rotation_deg))
                 {
                     Some((ok, c)) => {
-                        holds &= ok;
+                        tally.order(ok, &c);
                         parts.push(format!("LHM/OPnP {}", describe(&c)));
                     }
-                    None => holds = false,
+                    None => tally.check(false),
                 }
             }
-            out.push(claim.judge(holds, parts.join("; ")));
+            out.push(claim.decide(tally.verdict(), parts.join("; ")));
         }
         (opnp, lhm) => {
             let mut names = Vec::new();

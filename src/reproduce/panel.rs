@@ -4,9 +4,8 @@
 use super::stats::Stat;
 use crate::montecarlo::{FirstOrderPrediction, SolverOutcome};
 use crate::pnp::Solver;
-use crate::report::{plots, significant, ReportError, Table};
+use crate::report::significant;
 use serde::Serialize;
-use std::path::Path;
 
 /// Which error a curve shows.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -307,140 +306,6 @@ impl Panel {
             .collect();
         let pooled = Cell::pool(solver, cells.iter().copied());
         pooled.applicable.then_some(pooled)
-    }
-
-    /// Rows of the long-format CSV shared by every experiment.
-    pub fn csv_rows(&self, experiment: &str, table: &mut Table) {
-        let number = |v: Option<f64>| v.map_or(String::new(), |v| format!("{v:.6e}"));
-        for (i, &x) in self.x.iter().enumerate() {
-            for cell in &self.cells[i] {
-                let first_order = self.first_order[i];
-                table.row([
-                    experiment.to_string(),
-                    self.id.clone(),
-                    x.to_string(),
-                    cell.solver.name().to_string(),
-                    cell.applicable.to_string(),
-                    cell.attempts.to_string(),
-                    cell.rotation_deg.count.to_string(),
-                    cell.solver_errors.to_string(),
-                    cell.gross_failures.to_string(),
-                    number(cell.rotation_deg.mean()),
-                    number(cell.rotation_deg.median),
-                    number(cell.geodesic_deg.mean()),
-                    number((cell.geodesic_deg.count > 0).then_some(cell.geodesic_deg.rms)),
-                    number(cell.translation_percent.mean()),
-                    number(cell.translation_percent.median),
-                    number(first_order.map(|f| f.rms_rotation_deg)),
-                    number(first_order.map(|f| f.rms_translation_percent)),
-                ]);
-            }
-        }
-    }
-
-    /// The header of [`Panel::csv_rows`].
-    pub fn csv_header() -> Table {
-        Table::new([
-            "experiment",
-            "panel",
-            "x",
-            "solver",
-            "applicable",
-            "trials",
-            "poses",
-            "solver_errors",
-            "gross_failures",
-            "mean_erot_deg",
-            "median_erot_deg",
-            "mean_geodesic_deg",
-            "rms_geodesic_deg",
-            "mean_et_percent",
-            "median_et_percent",
-            "first_order_rms_rot_deg",
-            "first_order_rms_trans_percent",
-        ])
-    }
-
-    /// Writes `<id>_rotation.svg` and `<id>_translation.svg`.
-    pub fn write_plots(&self, dir: &Path) -> Result<(), ReportError> {
-        for metric in [Metric::Rotation, Metric::Translation] {
-            let mut series: Vec<plots::Series> = self
-                .solvers
-                .iter()
-                .map(|&solver| plots::Series {
-                    name: solver.name().to_string(),
-                    points: self
-                        .curve(solver, metric)
-                        .into_iter()
-                        .map(|(x, s)| (x, s.mean))
-                        .collect(),
-                    dashed: false,
-                })
-                .collect();
-            let limit: Vec<(f64, f64)> = self
-                .x
-                .iter()
-                .zip(&self.first_order)
-                .filter_map(|(&x, f)| {
-                    f.map(|f| match metric {
-                        Metric::Rotation => (x, f.rms_rotation_deg),
-                        Metric::Translation => (x, f.rms_translation_percent),
-                    })
-                })
-                .collect();
-            if !limit.is_empty() {
-                series.push(plots::Series {
-                    name: "first-order limit (RMS)".into(),
-                    points: limit,
-                    dashed: true,
-                });
-            }
-            if let (Metric::Rotation, Some((name, points))) = (metric, &self.model_rotation) {
-                series.push(plots::Series {
-                    name: name.clone(),
-                    points: points.clone(),
-                    dashed: true,
-                });
-            }
-            plots::line_plot(
-                &dir.join(format!("{}_{}.svg", self.id, metric.file_suffix())),
-                &format!("{} ({})", self.title, self.figure),
-                &self.x_label,
-                metric.label(),
-                &series,
-            )?;
-        }
-        Ok(())
-    }
-
-    /// A markdown table of mean `metric` at (at most) every `stride`-th x.
-    pub fn markdown_table(&self, metric: Metric, stride: usize) -> String {
-        let mut table = Table::new(
-            std::iter::once(self.x_label.clone())
-                .chain(self.solvers.iter().map(|s| format!("`{}`", s.name())))
-                .chain(std::iter::once("first-order (RMS)".to_string())),
-        );
-        for (i, &x) in self.x.iter().enumerate() {
-            if i % stride.max(1) != 0 && i + 1 != self.x.len() {
-                continue;
-            }
-            let limit = self.first_order[i].map(|f| match metric {
-                Metric::Rotation => f.rms_rotation_deg,
-                Metric::Translation => f.rms_translation_percent,
-            });
-            table.row(
-                std::iter::once(x.to_string())
-                    .chain(self.cells[i].iter().map(|c| {
-                        if c.applicable {
-                            significant(c.stat(metric).mean(), 3)
-                        } else {
-                            "n/a".to_string()
-                        }
-                    }))
-                    .chain(std::iter::once(significant(limit, 3))),
-            );
-        }
-        table.markdown()
     }
 }
 

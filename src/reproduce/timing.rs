@@ -14,20 +14,20 @@
 //! go to `timing.csv` / `timing.json`, never to `summary.json`.
 
 use super::claims::{self, num, Claim};
+use super::engine::{find, group, stream};
 use super::engine::{random_rotation, unit_noise, Context};
 use super::stats::line_fit;
-use super::{find, group, paper_sigma_px, stream, Experiment, ExperimentResult};
+use super::summary::{TimingResult, TimingRow};
+use super::{paper_sigma_px, Experiment, ExperimentResult};
 use crate::pnp::{validate_input, Solver};
 use crate::pose::Pose;
-use crate::report::{plots, write_text, ReportError, Table};
+use crate::report::Table;
 use crate::statistics::median;
 use crate::synthetic::stream_rng;
 use nalgebra::{Vector2, Vector3};
 use rand::Rng;
-use serde::Serialize;
 use std::fmt::Write as _;
 use std::hint::black_box;
-use std::path::Path;
 use std::time::Instant;
 
 /// Smallest n.
@@ -66,105 +66,19 @@ const OTHER_CLOSED_FORM: [&str; 7] = [
     "parallel-weighted",
 ];
 
-/// One solver at one n.
-#[derive(Debug, Clone, Serialize)]
-pub struct TimingRow {
-    /// Number of points.
-    pub n: usize,
-    /// Stable solver name.
-    pub solver: String,
-    /// Timed solves.
-    pub repetitions: usize,
-    /// Solves that returned an error.
-    pub errors: usize,
-    /// Median time per call of `solve_best`, µs.
-    pub median_us: Option<f64>,
-    /// Mean time per call of `solve_best`, µs.
-    pub mean_us: Option<f64>,
-    /// Median time of the shared input checks alone, µs.
-    pub median_validation_us: Option<f64>,
-    /// Median over problems of (solve − checks): the method's own time, µs.
-    pub median_method_us: Option<f64>,
-}
-
-/// The timing experiment's measurements.
-#[derive(Debug, Clone, Serialize)]
-pub struct TimingResult {
-    /// Point counts.
-    pub counts: Vec<usize>,
-    /// One row per (n, solver).
-    pub rows: Vec<TimingRow>,
-    /// Threads in rayon's pool (the timing itself runs on one thread).
-    pub rayon_threads: usize,
-}
-
 impl TimingResult {
-    fn median_of(&self, solver: Solver, n: usize) -> Option<f64> {
+    pub(crate) fn median_of(&self, solver: Solver, n: usize) -> Option<f64> {
         self.rows
             .iter()
             .find(|r| r.n == n && r.solver == solver.name())
             .and_then(|r| r.median_method_us)
     }
 
-    fn curve(&self, solver: Solver) -> Vec<(f64, f64)> {
+    pub(crate) fn curve(&self, solver: Solver) -> Vec<(f64, f64)> {
         self.counts
             .iter()
             .filter_map(|&n| self.median_of(solver, n).map(|t| (n as f64, t)))
             .collect()
-    }
-
-    /// Writes `timing.csv` and `fig10_timing.svg`.
-    pub fn write(&self, dir: &Path) -> Result<(), ReportError> {
-        let mut table = Table::new([
-            "n",
-            "solver",
-            "repetitions",
-            "errors",
-            "median_us",
-            "mean_us",
-            "median_validation_us",
-            "median_method_us",
-        ]);
-        let cell = |v: Option<f64>| v.map_or(String::new(), |v| format!("{v:.4}"));
-        for r in &self.rows {
-            table.row([
-                r.n.to_string(),
-                r.solver.clone(),
-                r.repetitions.to_string(),
-                r.errors.to_string(),
-                cell(r.median_us),
-                cell(r.mean_us),
-                cell(r.median_validation_us),
-                cell(r.median_method_us),
-            ]);
-        }
-        let path = dir.join("timing.csv");
-        write_text(
-            &path,
-            &table.csv().map_err(|e| ReportError::write(&path, e))?,
-        )?;
-        let mut names: Vec<&str> = Vec::new();
-        for r in &self.rows {
-            if !names.contains(&r.solver.as_str()) {
-                names.push(&r.solver);
-            }
-        }
-        let series: Vec<plots::Series> = names
-            .iter()
-            .filter_map(|name| Solver::from_name(name))
-            .map(|s| plots::Series {
-                name: s.name().to_string(),
-                points: self.curve(s),
-                dashed: false,
-            })
-            .collect();
-        plots::line_plot(
-            &dir.join("fig10_timing.svg"),
-            "Median time per solve without the shared input checks, one thread (Fig. 10)",
-            "number of points n",
-            "median method time per solve (µs)",
-            &series,
-        )
     }
 }
 
@@ -421,19 +335,22 @@ fn claims(context: &Context, timing: &TimingResult) -> Vec<Claim> {
             let (others, others_missing) = group(context, &OTHER_CLOSED_FORM);
             let factor = ratio_over_n(opnp, &median_of_group(others)).unwrap_or(f64::NAN);
             let g = growth(opnp).unwrap_or(f64::NAN);
-            let holds = claims::about_factor(OPNP_CLAIMED_FACTOR, factor) && g <= FLAT_GROWTH;
-            out.push(
-                claim
-                    .judge(
-                        holds,
-                        format!(
-                            "OPnP / other closed-form: {}×; OPnP ×{} from n = {first} to {last}",
-                            num(factor),
-                            num(g)
-                        ),
-                    )
-                    .missing(others_missing),
+            // The ratio is a property of the implementations (MATLAB's
+            // interpreter against our compiled solvers); the flat cost is a
+            // trend, and judged.
+            let evidence = format!(
+                "OPnP / other closed-form: {}× ({} the paper's ~5× within a factor {}; a ratio between implementations, not judged); OPnP ×{} from n = {first} to {last}",
+                num(factor),
+                if claims::about_factor(OPNP_CLAIMED_FACTOR, factor) { "matches" } else { "differs from" },
+                claims::ABOUT_FACTOR,
+                num(g)
             );
+            let claim = if g <= FLAT_GROWTH {
+                claim.implementation_dependent(evidence)
+            } else {
+                claim.judge(false, evidence)
+            };
+            out.push(claim.missing(others_missing));
         }
         None => out.push(claim.solvers_missing(vec!["opnp".into()])),
     }
@@ -451,11 +368,11 @@ fn claims(context: &Context, timing: &TimingResult) -> Vec<Claim> {
             let factor = ratio_over_n(pw, &median_of_group(refs)).unwrap_or(f64::NAN);
             out.push(
                 claim
-                    .judge(
-                        (1.0..=CLOSE_FACTOR).contains(&factor),
+                    .implementation_dependent(
                         format!(
-                            "parallel-weighted / median of the others: {}×{}",
+                            "parallel-weighted / median of the others: {}× ({} [1, {CLOSE_FACTOR}]; a ratio between implementations, not judged){}",
                             num(factor),
+                            if (1.0..=CLOSE_FACTOR).contains(&factor) { "within" } else { "outside" },
                             if factor < 1.0 {
                                 " (faster than them)"
                             } else {
@@ -475,18 +392,22 @@ fn claims(context: &Context, timing: &TimingResult) -> Vec<Claim> {
         "§4.3 timing (3), Fig. 10",
         "Paraperspective without optimisation runs as fast as EPnP.",
         &format!(
-            "median over n of parallel's time / EPnP's within [1/{SAME_FACTOR}, {SAME_FACTOR}]"
+            "median over n of parallel-init's time / EPnP's within [1/{SAME_FACTOR}, {SAME_FACTOR}] (shown, not judged: a ratio between implementations); the iterated parallel beside"
         ),
     );
-    match (find(context, "parallel"), find(context, "epnp")) {
-        (Some(parallel), Some(epnp)) => {
-            let factor = ratio_over_n(parallel, &|n| timing.median_of(epnp, n)).unwrap_or(f64::NAN);
-            out.push(claim.judge(
-                (1.0 / SAME_FACTOR..=SAME_FACTOR).contains(&factor),
-                format!("parallel / EPnP: {}× (our `parallel` iterates Horaud's correction to convergence)", num(factor)),
-            ));
+    match (find(context, "parallel-init"), find(context, "epnp")) {
+        (Some(init), Some(epnp)) => {
+            let epnp_time = |n| timing.median_of(epnp, n);
+            let factor = ratio_over_n(init, &epnp_time).unwrap_or(f64::NAN);
+            let iterated = find(context, "parallel").and_then(|p| ratio_over_n(p, &epnp_time));
+            out.push(claim.implementation_dependent(format!(
+                "parallel-init (the single step) / EPnP: {}× ({} [1/{SAME_FACTOR}, {SAME_FACTOR}]); parallel (iterated to convergence) / EPnP: {}×",
+                num(factor),
+                if (1.0 / SAME_FACTOR..=SAME_FACTOR).contains(&factor) { "within" } else { "outside" },
+                iterated.map_or("—".into(), num)
+            )));
         }
-        _ => out.push(claim.solvers_missing(vec!["parallel".into(), "epnp".into()])),
+        _ => out.push(claim.solvers_missing(vec!["parallel-init".into(), "epnp".into()])),
     }
 
     // (3) The weighting costs time.
@@ -494,26 +415,30 @@ fn claims(context: &Context, timing: &TimingResult) -> Vec<Claim> {
         "timing.weighting-costs-time",
         "§4.3 timing (3), Fig. 10",
         "The weighted optimisation makes the proposed method slower than paraperspective alone.",
-        "median over n of parallel-weighted's time / parallel's > 1 (the ablation parallel-gn shows what the weights alone cost)",
+        "median over n of parallel-weighted's time / parallel-init's > 1 (paraperspective alone is the method's initial value; the iterated parallel and the ablation parallel-gn beside)",
     );
     match (
         find(context, "parallel-weighted"),
-        find(context, "parallel"),
+        find(context, "parallel-init"),
     ) {
-        (Some(pw), Some(parallel)) => {
-            let factor = ratio_over_n(pw, &|n| timing.median_of(parallel, n)).unwrap_or(f64::NAN);
-            let weights = find(context, "parallel-gn")
-                .and_then(|gn| ratio_over_n(pw, &|n| timing.median_of(gn, n)));
+        (Some(pw), Some(init)) => {
+            let factor = ratio_over_n(pw, &|n| timing.median_of(init, n)).unwrap_or(f64::NAN);
+            let against = |name: &str| {
+                find(context, name)
+                    .and_then(|s| ratio_over_n(pw, &|n| timing.median_of(s, n)))
+                    .map_or("—".into(), num)
+            };
             out.push(claim.judge(
                 factor > 1.0,
                 format!(
-                    "parallel-weighted / parallel: {}×; parallel-weighted / parallel-gn: {}×",
+                    "parallel-weighted / parallel-init: {}×; / parallel (iterated): {}×; / parallel-gn: {}×",
                     num(factor),
-                    weights.map_or("—".into(), num)
+                    against("parallel"),
+                    against("parallel-gn")
                 ),
             ));
         }
-        _ => out.push(claim.solvers_missing(vec!["parallel".into()])),
+        _ => out.push(claim.solvers_missing(vec!["parallel-init".into()])),
     }
     out
 }

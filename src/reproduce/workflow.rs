@@ -1,7 +1,8 @@
 //! A reproduction as one call: the experiments, the report and `run.json`,
 //! into the directory the configuration names, with progress through an
 //! [`Observer`](crate::observer::Observer) (one phase per experiment).
-use super::{run_until, write_report, Config, ReproduceError, Reproduction};
+use super::report::write as write_report;
+use super::{run_until, Config, ReproduceError, Reproduction};
 use crate::observer::{relay, Observer};
 use crate::report::{write_text, ReportError};
 use std::path::{Path, PathBuf};

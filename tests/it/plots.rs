@@ -254,6 +254,7 @@ fn write_reports(dir: &Path) {
             seed: 3,
             trials: Some(1),
             quick: true,
+            camera: None,
         },
         command: "plots test".into(),
         out_dir: dir.join("paper"),
