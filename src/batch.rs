@@ -534,7 +534,7 @@ mod tests {
     #[test]
     fn demo_batch_solves_with_every_solver() {
         let batch = Batch::from_json(&demo_batch_json(1, 0.0)).unwrap();
-        for &solver in Solver::ALL {
+        for &solver in Solver::ALL.iter().filter(|s| s.is_exact()) {
             let output = batch.solve(solver, |_| {});
             assert_eq!(output.results.len(), 5);
             for result in &output.results {

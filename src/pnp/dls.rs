@@ -969,6 +969,7 @@ pub const DLS: Method = Method {
     description: "direct least squares: all 27 critical points of the Cayley-parameterised cost by a Macaulay/action-matrix solver, in four charts (Hesch & Roumeliotis 2011)",
     min_points: MIN_POINTS,
     accepts_coplanar: true,
+    exact: true,
     start: None,
     solve,
 };

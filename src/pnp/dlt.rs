@@ -32,6 +32,7 @@ pub const DLT: Method = Method {
     description: "normalised DLT with orthonormalisation (Hartley & Zisserman; paper refs [32,33])",
     min_points: MIN_POINTS,
     accepts_coplanar: false,
+    exact: true,
     start: None,
     solve,
 };

@@ -879,6 +879,7 @@ pub const EPNP: Method = Method {
     description: "EPnP, no refinement, null-space cases N = 1..4 (Lepetit et al. 2009)",
     min_points: 4,
     accepts_coplanar: false,
+    exact: true,
     start: None,
     solve,
 };

@@ -19,6 +19,7 @@ pub const EPNP_GN: Method = Method {
     description: "EPnP + Gauss-Newton on the betas, paper eq. 10 (Lepetit et al. 2009)",
     min_points: 4,
     accepts_coplanar: false,
+    exact: true,
     start: None,
     solve,
 };

@@ -66,6 +66,7 @@ pub const IEPNP: Method = Method {
     description: "weak-perspective initial betas + the same Gauss-Newton (paper §2.1, Chen [26])",
     min_points: 4,
     accepts_coplanar: false,
+    exact: true,
     start: None,
     solve,
 };

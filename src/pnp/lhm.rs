@@ -155,6 +155,7 @@ pub const LHM: Method = Method {
     description: "orthogonal iteration on the object-space error from a weak-perspective start (Lu, Hager & Mjolsness 2000)",
     min_points: 4,
     accepts_coplanar: false,
+    exact: true,
     start: None,
     solve,
 };

@@ -184,6 +184,7 @@ pub const ML: Method = Method {
     description: "Levenberg-Marquardt on reprojection error from the best SQPnP candidate (maximum likelihood); coplanar points allowed",
     min_points: 4,
     accepts_coplanar: true,
+    exact: true,
     start: Some(START),
     solve,
 };

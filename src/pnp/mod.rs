@@ -193,6 +193,10 @@ pub struct Method {
     pub min_points: usize,
     /// Whether the method runs on coplanar object points.
     pub accepts_coplanar: bool,
+    /// Whether it recovers the pose of noise-free pinhole data exactly
+    /// (false for an approximation, such as a single paraperspective
+    /// step, which keeps its model's bias).
+    pub exact: bool,
     /// The solver whose best pose the method refines; `None` for methods
     /// that start from their own closed forms.
     pub start: Option<Solver>,
@@ -291,6 +295,12 @@ impl Solver {
     /// Whether the method needs noncoplanar object points.
     pub fn needs_noncoplanar(self) -> bool {
         !self.method().accepts_coplanar
+    }
+
+    /// Whether the method recovers noise-free poses exactly
+    /// ([`Method::exact`]).
+    pub fn is_exact(self) -> bool {
+        self.method().exact
     }
 
     /// Runs the method and returns every candidate pose it produces.

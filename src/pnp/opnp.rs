@@ -387,6 +387,7 @@ pub const OPNP: Method = Method {
     description: "OPnP: all minima of the algebraic cost in a non-unit quaternion, Gröbner-basis solver (Zheng et al. 2013)",
     min_points: MIN_POINTS,
     accepts_coplanar: true,
+    exact: true,
     start: None,
     solve,
 };

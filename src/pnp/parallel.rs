@@ -318,6 +318,7 @@ pub const PARALLEL: Method = Method {
         "paraperspective pose, eqs. 17-21, iterated to full perspective (Horaud et al. 1997)",
     min_points: 4,
     accepts_coplanar: false,
+    exact: true,
     start: None,
     solve: solve_iterative,
 };
@@ -329,6 +330,7 @@ pub const PARALLEL_GN: Method = Method {
     description: "ablation: paraperspective betas + unweighted Gauss-Newton (eq. 10)",
     min_points: 4,
     accepts_coplanar: false,
+    exact: true,
     start: None,
     solve: solve_unweighted,
 };
@@ -340,6 +342,7 @@ pub const PARALLEL_WEIGHTED: Method = Method {
     description: "the paper's method: paraperspective -> betas (eqs. 14-16) -> weighted GN (eqs. 30-31) -> absolute orientation",
     min_points: 4,
     accepts_coplanar: false,
+    exact: true,
     start: None,
     solve: solve_weighted,
 };

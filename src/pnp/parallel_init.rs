@@ -29,6 +29,7 @@ pub const PARALLEL_INIT: Method = Method {
         "paraperspective pose, eqs. 17-21, one step: the initial value of the paper's method",
     min_points: 4,
     accepts_coplanar: false,
+    exact: false,
     start: None,
     solve,
 };

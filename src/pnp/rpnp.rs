@@ -156,6 +156,7 @@ pub const RPNP: Method = Method {
     description: "RPnP: every local minimum of the degree-7 cost about the widest edge, then 3D alignment (Li, Xu & Xie 2012)",
     min_points: 4,
     accepts_coplanar: false,
+    exact: true,
     start: None,
     solve,
 };

@@ -423,6 +423,7 @@ pub const SQPNP: Method = Method {
     description: "SQPnP: SQP over the rotation entries from the null-space starts, all local minima; coplanar points allowed (Terzakis & Lourakis 2020)",
     min_points: 4,
     accepts_coplanar: true,
+    exact: true,
     start: None,
     solve,
 };

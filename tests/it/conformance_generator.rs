@@ -202,7 +202,7 @@ fn noise_free_exception(solver: Solver, cell: &Cell) -> Option<&'static str> {
     }
 }
 
-/// Every solver, on every noise-free problem of [`noise_free_cells`] that it
+/// Every exact solver ([`Solver::is_exact`]), on every noise-free problem of [`noise_free_cells`] that it
 /// accepts and that is not a listed exception, recovers the rotation to
 /// < 1e-6°. The exceptions are counted and printed, and may not exceed the
 /// miss rate measured when they were set (plus a small margin), so a
@@ -210,7 +210,7 @@ fn noise_free_exception(solver: Solver, cell: &Cell) -> Option<&'static str> {
 #[test]
 fn noise_free_problems_are_solved_exactly_by_every_solver() {
     let mut misses = Vec::new();
-    for &solver in Solver::ALL {
+    for &solver in Solver::ALL.iter().filter(|s| s.is_exact()) {
         let (mut excepted_misses, mut excepted_runs) = (0usize, 0usize);
         for c in noise_free_cells() {
             if (c.thickness == 0.0 && solver.needs_noncoplanar()) || c.points < solver.min_points()
