@@ -146,7 +146,7 @@ fn every_family_and_optimiser_runs() {
             "--no-tilts",
             "--no-centre",
             "--iterations",
-            "3000",
+            "1000",
         ][..],
         &["--objective", "transfer", "--aggregate", "max"][..],
         &[

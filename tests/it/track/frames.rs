@@ -143,8 +143,14 @@ impl Bar {
 pub fn paint_bar(rendered: &mut Rendered, bar: &Bar, level: f32) -> Vec<(f64, f64)> {
     let covers = |p: Vector2<f64>| bar.outside(p) < 0.0;
     let width = rendered.radiance.width;
+    // Only pixels within the bar's circumscribed circle (plus a pixel) can
+    // be covered; the rest keep their values.
+    let reach = bar.half_length.hypot(bar.half_width) + 1.0;
     for (i, v) in rendered.radiance.values.iter_mut().enumerate() {
         let (x, y) = ((i % width) as f64, (i / width) as f64);
+        if (x - bar.centre.x).abs() > reach || (y - bar.centre.y).abs() > reach {
+            continue;
+        }
         let mut covered = 0;
         for sy in 0..4 {
             for sx in 0..4 {
