@@ -13,7 +13,7 @@ use crate::search::analysis::{
 };
 use crate::search::config::FrontOutput;
 use crate::search::identify::IDENTIFY_ROUNDS;
-use crate::search::FrontSettings;
+use crate::search::{FrontSettings, IdentifiabilityFloor};
 
 fn small(dir: &Path) -> SearchConfig {
     let mut config = SearchConfig::new("t", dir);
@@ -32,9 +32,19 @@ fn small(dir: &Path) -> SearchConfig {
     config.compare_trials = 10;
     config.validate_solvers = vec![Solver::ParallelWeighted];
     // The winner's identifiability Monte-Carlo runs, at the fewest trials:
-    // no test here asserts on its rate.
+    // no test here asserts on its rate. The identifiability floor, which
+    // costs a prediction per evaluation, only where a test needs it.
     config.identify_trials = 2;
+    config.min_identifiability = None;
     config
+}
+
+/// [`small`] with the default identifiability floor.
+fn small_with_floor(dir: &Path) -> SearchConfig {
+    SearchConfig {
+        min_identifiability: Some(IdentifiabilityFloor::DEFAULT),
+        ..small(dir)
+    }
 }
 
 #[test]
@@ -205,7 +215,7 @@ fn a_front_is_written_with_its_report_and_not_before() {
 #[test]
 fn custom_layouts_of_twelve_points_end_identifiable_and_sixteen_are_refused_up_front() {
     let dir = tempfile::tempdir().unwrap();
-    let mut config = small(dir.path());
+    let mut config = small_with_floor(dir.path());
     // The stereo rule (pairwise distances 1 mm apart) in the default
     // 100 mm cube.
     config.constraints.min_distance_diff_mm = 1.0;
@@ -273,7 +283,7 @@ impl Observer for Record {
 #[test]
 fn every_phase_has_a_bar_that_ends_at_its_total() {
     let dir = tempfile::tempdir().unwrap();
-    let mut config = small(dir.path());
+    let mut config = small_with_floor(dir.path());
     config.search.starts = 3;
     config.search.iterations = 400;
     let mut observer = Record::default();
