@@ -155,29 +155,8 @@ impl Tolerances {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::layout::{Layout, LayoutPoint};
+    use crate::mesh::workflow::tests::small;
     use crate::mesh::MarkerOptions;
-
-    /// A small part that meshes in a fraction of a second.
-    fn small() -> Layout {
-        let points = [
-            [0.0, 0.0, 0.0],
-            [30.0, 0.0, -10.0],
-            [0.0, 26.0, -5.0],
-            [-12.0, -14.0, 15.0],
-        ];
-        Layout {
-            name: "small".into(),
-            points: points
-                .iter()
-                .enumerate()
-                .map(|(i, p)| LayoutPoint::new(format!("S{i}"), (*p).into()))
-                .collect(),
-            sphere_diameter_mm: 6.0,
-            family: None,
-            provenance: None,
-        }
-    }
 
     /// The datum is the corner of the plate's bed face: the datum
     /// coordinates of the plate's corners are 0 and its sizes, and Z is

@@ -250,7 +250,7 @@ fn file_size(path: &Path) -> u64 {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::layout::LayoutPoint;
     use std::cell::Cell;
@@ -310,7 +310,7 @@ mod tests {
     }
 
     /// A small part that meshes in a fraction of a second.
-    fn small() -> Layout {
+    pub(crate) fn small() -> Layout {
         let points = [
             [0.0, 0.0, 0.0],
             [30.0, 0.0, -10.0],
