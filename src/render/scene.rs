@@ -14,7 +14,6 @@
 
 use crate::mesh::sdf;
 use crate::mesh::Marker;
-use crate::visibility::Supports;
 use nalgebra::Vector3;
 
 /// A traced hit is accepted this close to the surface, mm.
@@ -86,8 +85,6 @@ pub struct Scene {
     bed: Option<(Vector3<f64>, f64)>,
     /// For each primitive, a ball holding it: `(centre, radius)`.
     enclosing: Vec<(Vector3<f64>, f64)>,
-    /// The supports as the visibility model sees them.
-    supports: Supports,
 }
 
 impl Scene {
@@ -122,7 +119,6 @@ impl Scene {
         Scene {
             shapes,
             spheres,
-            supports: Supports::new(marker.occluders()),
             marker: Some(marker),
             bed,
             enclosing,
@@ -145,19 +141,12 @@ impl Scene {
             marker: None,
             bed: None,
             enclosing: spheres.to_vec(),
-            supports: Supports::none(),
         }
     }
 
     /// The spheres: (centre, radius) in the marker frame, layout order.
     pub fn spheres(&self) -> &[(Vector3<f64>, f64)] {
         &self.spheres
-    }
-
-    /// The part's supports for the visibility model
-    /// ([`crate::visibility`]): none for free spheres.
-    pub fn supports(&self) -> &Supports {
-        &self.supports
     }
 
     /// How many primitives.
