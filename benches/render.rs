@@ -4,7 +4,14 @@
 //! the time to add sensor noise to a rendered frame.
 //!
 //! `cargo bench --bench render`
+//!
+//! Each frame renders on a pool of one thread and is timed in the process's
+//! CPU time ([`cpu_time::CpuTime`]), so the figures are the cost on one
+//! core whatever else the machine is doing.
 
+mod cpu_time;
+
+use cpu_time::CpuTime;
 use criterion::{criterion_group, criterion_main, Criterion};
 use layout_opt::camera::Camera;
 use layout_opt::layout::Layout;
@@ -21,7 +28,7 @@ fn pose(depth_mm: f64, tilt_deg: f64) -> Pose {
     )
 }
 
-fn bench(c: &mut Criterion) {
+fn bench(c: &mut Criterion<CpuTime>) {
     // The benches are a package of their own in benches/: the layouts are
     // one folder up.
     let path =
@@ -61,5 +68,9 @@ fn bench(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, bench);
+criterion_group! {
+    name = benches;
+    config = Criterion::default().with_measurement(CpuTime);
+    targets = bench
+}
 criterion_main!(benches);
