@@ -13,10 +13,16 @@
 //!   averages: `σ_i = σ · √(r_ref / r_i)` with r_i the image disc radius and
 //!   `r_ref` the radius at which the scenario's σ applies (default
 //!   [`DEFAULT_REFERENCE_RADIUS_PX`]).
+//! * `calibrated:FILE`: σ measured from images as a function of the disc
+//!   radius, `σ_i = a / r_i^b + c` ([`calibrated`]); the scenario's σ is
+//!   not used.
 //! * outliers (on top of any of the above): with probability `rate` a feature
 //!   gets a gross error of [`DEFAULT_OUTLIER_PX`] px (default) in a uniformly
 //!   random direction.
 
+pub mod calibrated;
+
+pub use calibrated::{CalibratedSigma, CalibrationError, CalibrationFile};
 use rand::Rng;
 use rand_distr::StandardNormal;
 use serde::Serialize;
@@ -42,6 +48,8 @@ pub enum NoiseKind {
         /// Disc radius at which σ applies unscaled, px.
         reference_radius_px: f64,
     },
+    /// σ = a / r^b + c from an image calibration; the scenario's σ unused.
+    Calibrated(CalibratedSigma),
 }
 
 /// A noise model: how σ varies, plus an optional outlier process.
@@ -60,7 +68,7 @@ pub struct NoiseModel {
 #[non_exhaustive]
 pub enum NoiseError {
     /// The model text is not one we know.
-    #[error("unknown noise model '{0}'; use isotropic, per-point, size[:REF_RADIUS_PX], optionally +outliers:RATE[:PX]")]
+    #[error("unknown noise model '{0}'; use isotropic, per-point, size[:REF_RADIUS_PX] or calibrated:FILE, optionally +outliers:RATE[:PX]")]
     Unknown(String),
     /// A parameter is out of range.
     #[error("noise model parameter {name} = {value} is out of range ({requirement})")]
@@ -72,6 +80,9 @@ pub enum NoiseError {
         /// The allowed range.
         requirement: &'static str,
     },
+    /// A `calibrated:FILE` whose file cannot be used.
+    #[error(transparent)]
+    Calibration(#[from] CalibrationError),
 }
 
 impl Default for NoiseModel {
@@ -94,6 +105,7 @@ impl NoiseModel {
             NoiseKind::Size {
                 reference_radius_px,
             } => sigma_px * (reference_radius_px / radius_px).sqrt(),
+            NoiseKind::Calibrated(law) => law.sigma(radius_px),
         }
     }
 
@@ -113,6 +125,43 @@ impl NoiseModel {
         [dx, dy]
     }
 
+    /// This model with the outlier process of `+outliers:…` text, if any.
+    fn with_outliers(
+        mut self,
+        outliers: Option<&str>,
+        unknown: impl Fn() -> NoiseError,
+    ) -> Result<Self, NoiseError> {
+        let number = |s: &str| s.parse::<f64>().map_err(|_| unknown());
+        if let Some(outliers) = outliers {
+            let mut parts = outliers.split(':');
+            if parts.next() != Some("outliers") {
+                return Err(unknown());
+            }
+            self.outlier_rate = number(parts.next().ok_or_else(&unknown)?)?;
+            if let Some(px) = parts.next() {
+                self.outlier_px = number(px)?;
+            }
+            if parts.next().is_some() {
+                return Err(unknown());
+            }
+            if !(0.0..=1.0).contains(&self.outlier_rate) {
+                return Err(NoiseError::Parameter {
+                    name: "outlier rate",
+                    value: self.outlier_rate,
+                    requirement: "0 to 1",
+                });
+            }
+            if !(self.outlier_px >= 0.0 && self.outlier_px.is_finite()) {
+                return Err(NoiseError::Parameter {
+                    name: "outlier size",
+                    value: self.outlier_px,
+                    requirement: "non-negative px",
+                });
+            }
+        }
+        Ok(self)
+    }
+
     /// A short description for report headers.
     pub fn describe(&self) -> String {
         let kind = match self.kind {
@@ -121,6 +170,10 @@ impl NoiseModel {
             NoiseKind::Size {
                 reference_radius_px,
             } => format!("σ·√({reference_radius_px} px / disc radius)"),
+            NoiseKind::Calibrated(law) => format!(
+                "calibrated from images: σ = {:.3} / r^{:.2} + {:.3} px (r the disc radius; the scenario's σ unused)",
+                law.a, law.b, law.c
+            ),
         };
         if self.outlier_rate > 0.0 {
             format!(
@@ -136,8 +189,9 @@ impl NoiseModel {
 
 impl FromStr for NoiseModel {
     type Err = NoiseError;
-    /// `isotropic`, `per-point`, `size` or `size:REF_PX`, each optionally
-    /// followed by `+outliers:RATE` or `+outliers:RATE:PX`.
+    /// `isotropic`, `per-point`, `size`, `size:REF_PX` or
+    /// `calibrated:FILE` (which reads the file), each optionally followed
+    /// by `+outliers:RATE` or `+outliers:RATE:PX`.
     fn from_str(text: &str) -> Result<Self, Self::Err> {
         let unknown = || NoiseError::Unknown(text.to_string());
         let number = |s: &str| s.parse::<f64>().map_err(|_| unknown());
@@ -146,6 +200,11 @@ impl FromStr for NoiseModel {
             None => (text, None),
         };
         let mut model = NoiseModel::default();
+        if let Some(path) = base.strip_prefix("calibrated:") {
+            let file = CalibrationFile::load(std::path::Path::new(path))?;
+            model.kind = NoiseKind::Calibrated(file.sigma()?);
+            return model.with_outliers(outliers, unknown);
+        }
         let mut parts = base.split(':');
         model.kind = match (parts.next(), parts.next(), parts.next()) {
             (Some("isotropic"), None, None) => NoiseKind::Isotropic,
@@ -168,34 +227,7 @@ impl FromStr for NoiseModel {
             }
             _ => return Err(unknown()),
         };
-        if let Some(outliers) = outliers {
-            let mut parts = outliers.split(':');
-            if parts.next() != Some("outliers") {
-                return Err(unknown());
-            }
-            model.outlier_rate = number(parts.next().ok_or_else(unknown)?)?;
-            if let Some(px) = parts.next() {
-                model.outlier_px = number(px)?;
-            }
-            if parts.next().is_some() {
-                return Err(unknown());
-            }
-            if !(0.0..=1.0).contains(&model.outlier_rate) {
-                return Err(NoiseError::Parameter {
-                    name: "outlier rate",
-                    value: model.outlier_rate,
-                    requirement: "0 to 1",
-                });
-            }
-            if !(model.outlier_px >= 0.0 && model.outlier_px.is_finite()) {
-                return Err(NoiseError::Parameter {
-                    name: "outlier size",
-                    value: model.outlier_px,
-                    requirement: "non-negative px",
-                });
-            }
-        }
-        Ok(model)
+        model.with_outliers(outliers, unknown)
     }
 }
 
@@ -242,6 +274,40 @@ mod tests {
             let dy = y[1] - x[1];
             assert!(((dx * dx + dy * dy).sqrt() - 20.0).abs() < 1e-9);
         }
+    }
+
+    #[test]
+    fn a_calibrated_model_reads_its_file_and_scales_with_radius() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("noise.json");
+        let file = CalibrationFile {
+            law: calibrated::LAW.to_string(),
+            a: 2.0,
+            b: 1.0,
+            c: 0.05,
+            radius_px: [3.0, 40.0],
+            fit: calibrated::FitQuality {
+                points: 8,
+                rms_relative_residual: 0.02,
+                worst_relative_residual: 0.04,
+                size_law_rms_relative_residual: 0.3,
+            },
+            source: String::new(),
+        };
+        std::fs::write(&path, file.to_json()).unwrap();
+        let model: NoiseModel = format!("calibrated:{}+outliers:0.01", path.display())
+            .parse()
+            .unwrap();
+        assert!((model.point_sigma(0.5, Some(9.0), 20.0) - 0.15).abs() < 1e-12);
+        assert_eq!(model.outlier_rate, 0.01);
+        assert!(
+            model.describe().contains("calibrated"),
+            "{}",
+            model.describe()
+        );
+        let missing = format!("calibrated:{}", dir.path().join("none.json").display());
+        let error = missing.parse::<NoiseModel>().unwrap_err().to_string();
+        assert!(error.contains("cannot read noise calibration"), "{error}");
     }
 
     #[test]

@@ -36,7 +36,7 @@ pub struct ValidateArgs {
     /// Monte-Carlo trials per scenario.
     #[arg(long, default_value_t = 200)]
     trials: usize,
-    /// Noise model: isotropic, per-point, size[:REF_PX], each optionally +outliers:RATE[:PX].
+    /// Noise model: isotropic, per-point, size[:REF_PX] or calibrated:FILE (σ from images, docs/formats.md), each optionally +outliers:RATE[:PX].
     #[arg(long, default_value = "isotropic")]
     noise_model: NoiseModel,
     /// Rotation error counted as a gross failure, degrees.

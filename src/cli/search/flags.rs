@@ -105,7 +105,7 @@ pub struct SearchArgs {
     /// Monte-Carlo trials per scenario for mc: objectives.
     #[arg(long, default_value_t = 20)]
     pub(super) trials: usize,
-    /// Noise model: isotropic, per-point, size[:REF_PX], optionally +outliers:RATE[:PX].
+    /// Noise model: isotropic, per-point, size[:REF_PX] or calibrated:FILE (σ from images, docs/formats.md), optionally +outliers:RATE[:PX].
     #[arg(long, default_value = "isotropic")]
     pub(super) noise_model: NoiseModel,
     /// Image point of a sphere: `ellipse-centre` (its silhouette's centre,
