@@ -33,6 +33,7 @@
 
 pub mod analysis;
 pub mod config;
+pub mod images;
 pub mod markdown;
 pub mod report;
 pub mod summary;

@@ -1,0 +1,342 @@
+//! The model meets the image: render a pose once, read it back through
+//! `track`'s pipeline under many seeded sensor-noise realisations, and
+//! compare every detected centre and every pose with the render's ground
+//! truth.
+//!
+//! **Per pose.** [`check_pose`] renders the part noise-free
+//! ([`render_radiance`]), exposes it `trials` times with seeded shot, read
+//! and quantisation noise ([`expose`], realisation `0..trials` of frame
+//! `frame`), and tracks each frame ([`analyse`]). For every sphere that a
+//! blob was labelled as, the centre error is the blob's sphere centre
+//! (`centre_px`, the projected sphere centre from its fitted ellipse, what
+//! the pose is solved from) minus the exact projected centre. A label is
+//! wrong when the blob lies nearer another sphere's exact centre than its
+//! own. A frame with no pose counts as lost, with the tracker's reason.
+//!
+//! **Noise law.** [`sigma_samples`] turns whole spheres (hidden by less than
+//! [`WHOLE_SPHERE_HIDDEN`] of their silhouette) into one σ measurement each:
+//! the per-axis RMS of their centre errors about their mean, at their disc
+//! radius (the mean of the exact ellipse's semi-axes), weighted by the
+//! number of centres. [`crate::noise::calibrated::fit`] fits the law to
+//! them.
+
+use crate::noise::calibrated::SigmaSample;
+use crate::pose::{rotation_error_deg, translation_error_mm, Pose};
+use crate::render::{
+    expose, frame_truth, render_radiance, FrameTruth, RenderConfig, RenderError, Scene,
+};
+use crate::track::{analyse, GreyFrame, TrackConfig};
+use nalgebra::{Rotation3, Vector2, Vector3};
+use serde::Serialize;
+use std::collections::BTreeMap;
+
+/// A sphere hidden by less than this fraction of its silhouette (by every
+/// cause together) counts as whole.
+pub const WHOLE_SPHERE_HIDDEN: f64 = 0.01;
+
+/// One detected, labelled sphere centre in one noisy frame.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct CentreError {
+    /// The sphere (layout order).
+    pub sphere: usize,
+    /// Measured minus exact projected centre, px.
+    pub error_px: [f64; 2],
+}
+
+/// Everything one pose gave over its noise realisations.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PoseImages {
+    /// The frame index that seeded its noise.
+    pub frame: u64,
+    /// Noisy frames read.
+    pub trials: usize,
+    /// Per sphere: its disc radius (mean exact semi-axis), px.
+    pub radius_px: Vec<f64>,
+    /// Per sphere: the fraction of its silhouette hidden (every cause).
+    pub hidden: Vec<f64>,
+    /// Centre errors of correctly labelled blobs, every frame.
+    pub centres: Vec<CentreError>,
+    /// Rotation error of each frame that gave a pose, degrees.
+    pub rotation_error_deg: Vec<f64>,
+    /// Translation error of each frame that gave a pose, mm.
+    pub translation_error_mm: Vec<f64>,
+    /// Frames with a wrong label among their labelled blobs.
+    pub mislabelled_frames: usize,
+    /// Frames in which a sphere the render shows whole got no blob.
+    pub frames_missing_a_whole_sphere: usize,
+    /// Frames that gave no pose, by the tracker's reason.
+    pub lost: BTreeMap<String, usize>,
+}
+
+/// Renders `pose` once and reads it back `trials` times (module docs).
+/// `track` must have been validated, and its camera must be `render`'s.
+pub fn check_pose(
+    scene: &Scene,
+    names: &[String],
+    render: &RenderConfig,
+    track: &TrackConfig,
+    pose: &Pose,
+    frame: u64,
+    trials: usize,
+) -> Result<PoseImages, RenderError> {
+    let truth = frame_truth(scene, names, pose, &render.camera)?;
+    let radiance = render_radiance(scene, pose, render)?;
+    let exact: Vec<Vector2<f64>> = truth
+        .spheres
+        .iter()
+        .map(|s| Vector2::from(s.projected_centre_px))
+        .collect();
+    let hidden: Vec<f64> = truth
+        .spheres
+        .iter()
+        .map(|s| (s.hidden.by_support + s.hidden.by_sphere + s.hidden.outside_image).min(1.0))
+        .collect();
+    let mut outcome = PoseImages {
+        frame,
+        trials,
+        radius_px: truth
+            .spheres
+            .iter()
+            .map(|s| 0.5 * (s.semi_axes_px[0] + s.semi_axes_px[1]))
+            .collect(),
+        hidden,
+        centres: Vec::new(),
+        rotation_error_deg: Vec::new(),
+        translation_error_mm: Vec::new(),
+        mislabelled_frames: 0,
+        frames_missing_a_whole_sphere: 0,
+        lost: BTreeMap::new(),
+    };
+    for trial in 0..trials {
+        let digital = expose(&radiance, &render.sensor, render.seed, frame, trial as u64);
+        let image = GreyFrame::new(
+            digital.width as u32,
+            digital.height as u32,
+            digital.bit_depth,
+            digital.values,
+        )
+        .expect("the sensor writes a frame of its own size and depth");
+        let analysis = analyse(track, &image);
+        read_frame(&mut outcome, &truth, &exact, pose, &analysis);
+    }
+    Ok(outcome)
+}
+
+/// Adds one tracked frame's figures to `outcome`.
+fn read_frame(
+    outcome: &mut PoseImages,
+    truth: &FrameTruth,
+    exact: &[Vector2<f64>],
+    pose: &Pose,
+    analysis: &crate::track::FrameAnalysis,
+) {
+    let mut seen = vec![false; exact.len()];
+    let mut mislabelled = false;
+    if let Some(detection) = &analysis.detection {
+        for blob in &detection.blobs {
+            let Some(label) = blob.label else { continue };
+            let measured = Vector2::from(blob.centre_px);
+            let nearest = exact
+                .iter()
+                .enumerate()
+                .min_by(|(_, a), (_, b)| (*a - measured).norm().total_cmp(&(*b - measured).norm()))
+                .map(|(i, _)| i);
+            if nearest != Some(label) {
+                mislabelled = true;
+                continue;
+            }
+            seen[label] = true;
+            let error = measured - exact[label];
+            outcome.centres.push(CentreError {
+                sphere: label,
+                error_px: [error.x, error.y],
+            });
+        }
+    }
+    outcome.mislabelled_frames += usize::from(mislabelled);
+    let whole_missed = truth
+        .spheres
+        .iter()
+        .zip(&outcome.hidden)
+        .zip(&seen)
+        .any(|((_, &hidden), &seen)| hidden < WHOLE_SPHERE_HIDDEN && !seen);
+    outcome.frames_missing_a_whole_sphere += usize::from(whole_missed);
+    match (&analysis.outcome, &analysis.pose) {
+        (Ok(_), Some(estimate)) => {
+            outcome
+                .rotation_error_deg
+                .push(rotation_error_deg(&pose.rotation, &estimate.rotation));
+            outcome.translation_error_mm.push(translation_error_mm(
+                &pose.translation,
+                &estimate.translation,
+            ));
+        }
+        (Err(error), _) => {
+            *outcome
+                .lost
+                .entry(lost_reason(&error.to_string()))
+                .or_default() += 1;
+        }
+        (Ok(_), None) => {
+            *outcome.lost.entry("no pose".to_string()).or_default() += 1;
+        }
+    }
+}
+
+/// A tracker error's kind: its message up to the first figure, so that
+/// frames lost for one reason count together.
+fn lost_reason(message: &str) -> String {
+    let cut = message
+        .find(|c: char| c.is_ascii_digit())
+        .unwrap_or(message.len());
+    message[..cut]
+        .trim_end_matches([' ', '(', ':', '='])
+        .to_string()
+}
+
+/// One σ measurement per whole sphere of each pose (module docs); spheres
+/// with fewer than two centres give none.
+pub fn sigma_samples(poses: &[PoseImages]) -> Vec<SigmaSample> {
+    let mut samples = Vec::new();
+    for pose in poses {
+        for (sphere, (&radius_px, &hidden)) in pose.radius_px.iter().zip(&pose.hidden).enumerate() {
+            if hidden >= WHOLE_SPHERE_HIDDEN {
+                continue;
+            }
+            let errors: Vec<[f64; 2]> = pose
+                .centres
+                .iter()
+                .filter(|c| c.sphere == sphere)
+                .map(|c| c.error_px)
+                .collect();
+            if errors.len() < 2 {
+                continue;
+            }
+            let n = errors.len() as f64;
+            let mean = errors
+                .iter()
+                .fold([0.0; 2], |m, e| [m[0] + e[0] / n, m[1] + e[1] / n]);
+            let spread = errors
+                .iter()
+                .map(|e| (e[0] - mean[0]).powi(2) + (e[1] - mean[1]).powi(2))
+                .sum::<f64>();
+            // Per axis, each axis with n − 1 degrees of freedom.
+            let sigma_px = (spread / (2.0 * (n - 1.0))).sqrt();
+            if sigma_px > 0.0 {
+                samples.push(SigmaSample {
+                    radius_px,
+                    sigma_px,
+                    weight: n,
+                });
+            }
+        }
+    }
+    samples
+}
+
+/// The first view at `depth_mm`, on the optical axis, over tilts and pans
+/// of 0, ±10°, ±20° and ±30° (nearest head-on first), in which the render
+/// shows every sphere whole, or `None`.
+pub fn first_whole_view(
+    scene: &Scene,
+    names: &[String],
+    camera: &crate::camera::Camera,
+    depth_mm: f64,
+) -> Result<Option<Pose>, RenderError> {
+    const ANGLES_DEG: [f64; 7] = [0.0, 10.0, -10.0, 20.0, -20.0, 30.0, -30.0];
+    for tilt in ANGLES_DEG {
+        for pan in ANGLES_DEG {
+            let pose = Pose::new(
+                Rotation3::from_euler_angles(tilt.to_radians(), pan.to_radians(), 0.0),
+                Vector3::new(0.0, 0.0, depth_mm),
+            );
+            let truth = frame_truth(scene, names, &pose, camera)?;
+            if truth.spheres.iter().all(|s| {
+                s.hidden.by_support + s.hidden.by_sphere + s.hidden.outside_image
+                    < WHOLE_SPHERE_HIDDEN
+            }) {
+                return Ok(Some(pose));
+            }
+        }
+    }
+    Ok(None)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::camera::Camera;
+    use crate::layout::Layout;
+    use crate::mesh::{Marker, MarkerOptions};
+
+    fn setup() -> (Layout, Scene, RenderConfig, TrackConfig) {
+        // The search winner: the paper's biprism is symmetric, so its labels
+        // are ambiguous from one image.
+        let layout = Layout::load(
+            &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("layouts/biprism-search.json"),
+        )
+        .expect("the search winner loads");
+        let scene = Scene::from_marker(
+            Marker::design(&layout, &MarkerOptions::default()).expect("the part builds"),
+        );
+        let camera = Camera::paper();
+        let render = RenderConfig::new(camera);
+        let track = TrackConfig::new(&layout, camera);
+        (layout, scene, render, track)
+    }
+
+    fn names(layout: &Layout) -> Vec<String> {
+        layout.points.iter().map(|p| p.name.clone()).collect()
+    }
+
+    #[test]
+    fn noisy_frames_give_unbiased_centres_whose_spread_falls_with_blob_size() {
+        let (layout, scene, render, track) = setup();
+        track.validate().unwrap();
+        let whole = |depth: f64| {
+            first_whole_view(&scene, &names(&layout), &render.camera, depth)
+                .unwrap()
+                .expect("a view with every sphere whole")
+        };
+        let poses: Vec<PoseImages> = [(350.0, 0u64), (900.0, 1)]
+            .iter()
+            .map(|&(depth, frame)| {
+                check_pose(
+                    &scene,
+                    &names(&layout),
+                    &render,
+                    &track,
+                    &whole(depth),
+                    frame,
+                    6,
+                )
+                .unwrap()
+            })
+            .collect();
+        for pose in &poses {
+            assert_eq!(pose.mislabelled_frames, 0, "{pose:?}");
+            assert_eq!(pose.rotation_error_deg.len(), 6, "{:?}", pose.lost);
+            assert!(pose.rotation_error_deg.iter().all(|e| *e < 0.5), "{pose:?}");
+        }
+        let samples = sigma_samples(&poses);
+        assert!(samples.len() >= 8, "{samples:?}");
+        let mean_sigma = |near: bool| {
+            let chosen: Vec<f64> = samples
+                .iter()
+                .filter(|s| (s.radius_px > 15.0) == near)
+                .map(|s| s.sigma_px)
+                .collect();
+            chosen.iter().sum::<f64>() / chosen.len() as f64
+        };
+        // Centres from the image are good to a fraction of a pixel, and
+        // better on the larger discs of the nearer pose.
+        assert!(mean_sigma(true) < mean_sigma(false), "{samples:?}");
+        assert!(samples.iter().all(|s| s.sigma_px < 0.5), "{samples:?}");
+    }
+
+    #[test]
+    fn lost_reasons_group_by_kind() {
+        assert_eq!(lost_reason("too few blobs: 3 of 7"), "too few blobs");
+        assert_eq!(lost_reason("no blobs"), "no blobs");
+    }
+}
