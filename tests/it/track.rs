@@ -374,18 +374,25 @@ fn identifiable_views_are_labelled_correctly() {
 
 /// Renders of random views, head on to ±60°, where the part's supports and
 /// the spheres hide one another: a blob flagged as partly hidden is hidden
-/// per the render's truth (precision ≥ 95%). Recall is lower here than for
-/// an occluder that cuts across a sphere (next test): a support in front of
-/// the limb often hides a sliver that moves the outline by less than the
-/// edge tolerance; the example `track_accuracy -- hidden` measures it and
-/// the centre error of the hidden blobs left unflagged.
+/// per the render's truth (precision ≥ 95%), and of the blobs with ≥ 10%
+/// of their outline hidden whose support cuts a notch at least the edge
+/// tolerance deep ([`frames::support_reach_px`]), ≥ 90% are flagged. A
+/// shallower notch is not always seen (a round cone just past the angle
+/// where it covers the limb hides a tenth of the outline and bends the
+/// edge by a hundredth of a pixel), but what it leaves moves the ellipse
+/// centre by less than a quarter pixel. The example `track_accuracy --
+/// hidden` gives the large counts.
 #[test]
 fn blobs_flagged_behind_supports_are_hidden() {
     let camera = Camera::paper();
     let part = winner();
     let config = TrackConfig::new(&part.layout, camera);
     let render = frames::noisy(camera, 4);
-    let counts: Vec<[usize; 3]> = (0..30u64)
+    let reach_px = layout_opt::track::detect::MIN_EDGE_TOLERANCE_PX;
+    // Per frame: [flagged & hidden, flagged & whole, deep notch & flagged,
+    // deep notch & not], and the centre errors of unflagged ≥ 10% hidden
+    // blobs.
+    let counts: Vec<([usize; 4], Vec<f64>)> = (0..30u64)
         .into_par_iter()
         .filter_map(|k| {
             let mut rng = ChaCha8Rng::seed_from_u64(0x41D + k);
@@ -398,19 +405,45 @@ fn blobs_flagged_behind_supports_are_hidden() {
             );
             let rendered = part.render(&render, &truth);
             let analysis = analyse(&config, &rendered.expose(0x41D, k));
-            Some(flag_counts(
-                &analysis.detection.as_ref()?.blobs,
-                &rendered.truth,
-                &[0.0; 7],
-            ))
+            let blobs = &analysis.detection.as_ref()?.blobs;
+            let mut c = [0usize; 4];
+            let mut missed = Vec::new();
+            for (index, sphere) in rendered.truth.spheres.iter().enumerate() {
+                let Some(b) = blob_of_sphere(blobs, sphere).map(|i| &blobs[i]) else {
+                    continue;
+                };
+                let hidden = hidden_fraction(sphere);
+                if b.hidden() {
+                    c[usize::from(hidden == 0.0)] += 1;
+                }
+                if hidden < 0.1 {
+                    continue;
+                }
+                if !b.hidden() {
+                    missed
+                        .push((Vector2::from(b.ellipse_centre_px) - ellipse_centre(sphere)).norm());
+                }
+                if frames::support_reach_px(&part.scene, &truth, &camera, index, 128) >= reach_px {
+                    c[2 + usize::from(!b.hidden())] += 1;
+                }
+            }
+            Some((c, missed))
         })
         .collect();
-    let total = sum_counts(&counts);
+    let total = counts
+        .iter()
+        .fold([0; 4], |a, (c, _)| std::array::from_fn(|i| a[i] + c[i]));
+    let worst_missed = counts
+        .iter()
+        .flat_map(|c| c.1.iter().copied())
+        .fold(0.0, f64::max);
     let precision = total[0] as f64 / (total[0] + total[1]) as f64;
-    let recall = total[0] as f64 / (total[0] + total[2]) as f64;
-    eprintln!("supports: {} frames: {} flagged hidden, {} flagged whole, {} missed (≥10% hidden): precision {precision:.3}, recall {recall:.3}", counts.len(), total[0], total[1], total[2]);
-    assert!(total[0] >= 20, "{total:?}");
+    let recall = total[2] as f64 / (total[2] + total[3]) as f64;
+    eprintln!("supports: {} frames: {} flagged hidden, {} flagged whole, notch ≥ {reach_px} px: {} flagged, {} not: precision {precision:.3}, recall {recall:.3}; unflagged ≥ 10% hidden blobs' centres off by at most {worst_missed:.3} px", counts.len(), total[0], total[1], total[2], total[3]);
+    assert!(total[0] >= 20 && total[2] + total[3] >= 40, "{total:?}");
     assert!(precision >= 0.95, "{total:?}");
+    assert!(recall >= 0.90, "{total:?}");
+    assert!(worst_missed < 0.25, "{worst_missed} px");
 }
 
 /// `[flagged & hidden, flagged & whole, ≥ 10% hidden & unflagged]` over
