@@ -674,6 +674,15 @@ fn malformed_frames_are_error_records_and_the_run_goes_on() {
             .unwrap()
             .to_png(),
     );
+    // The good frame with three more bright discs below the marker, near
+    // the principal point (where a sphere's image is round, so they pass
+    // as whole): ten whole blobs for seven spheres, one more than the two
+    // extra allowed.
+    let mut clutter = layout_opt::track::GreyFrame::from_png(&good_png).unwrap();
+    for (cx, cy) in [(420.0, 640.0), (880.0, 640.0), (653.0, 690.0)] {
+        paint_disc(&mut clutter, cx, cy, 8.0);
+    }
+    write("h-clutter.png", &clutter.to_png());
     let out = dir.path().join("out.jsonl");
     let outputs = TrackOutputs {
         json_lines: Some(out.clone()),
@@ -686,7 +695,7 @@ fn malformed_frames_are_error_records_and_the_run_goes_on() {
         .lines()
         .map(|l| serde_json::from_str(l).unwrap())
         .collect();
-    assert_eq!(lines.len(), 7);
+    assert_eq!(lines.len(), 8);
     assert_eq!(result.tracked(), 1);
     assert!(
         lines[0]["R"].is_array() && lines[0]["covariance"].as_array().unwrap().len() == 6,
@@ -703,6 +712,10 @@ fn malformed_frames_are_error_records_and_the_run_goes_on() {
         (4, "blobs"),
         (5, "the image is 64×48 px but the camera is 1280×720 px"),
         (6, "no blobs found"),
+        (
+            7,
+            "too many blobs: 10 whole blobs for 7 spheres, more than the 2 extra allowed",
+        ),
     ];
     for (index, needle) in expect {
         let error = lines[index]["error"]
@@ -713,7 +726,35 @@ fn malformed_frames_are_error_records_and_the_run_goes_on() {
     }
     assert!(dir.path().join("overlay/a-good.overlay.png").exists());
     let csv = std::fs::read_to_string(dir.path().join("out.csv")).unwrap();
-    assert_eq!(csv.lines().count(), 8);
+    assert_eq!(csv.lines().count(), 9);
+}
+
+/// Paints a bright disc of radius `radius_px` centred at `(cx, cy)` over
+/// `frame`, area-sampled on a 4×4 grid per pixel.
+fn paint_disc(frame: &mut layout_opt::track::GreyFrame, cx: f64, cy: f64, radius_px: f64) {
+    let (width, height) = (frame.width() as usize, frame.height() as usize);
+    let bright = 0.9 * f64::from(frame.full_scale());
+    let mut pixels = frame.pixels().to_vec();
+    for y in 0..height {
+        for x in 0..width {
+            if (x as f64 - cx).abs() > radius_px + 1.0 || (y as f64 - cy).abs() > radius_px + 1.0 {
+                continue;
+            }
+            let covered = (0..16u32)
+                .filter(|k| {
+                    let px = x as f64 - 0.5 + (f64::from(k % 4) + 0.5) / 4.0;
+                    let py = y as f64 - 0.5 + (f64::from(k / 4) + 0.5) / 4.0;
+                    (px - cx).hypot(py - cy) < radius_px
+                })
+                .count() as f64
+                / 16.0;
+            let v = &mut pixels[y * width + x];
+            *v = (f64::from(*v) * (1.0 - covered) + bright * covered).round() as u16;
+        }
+    }
+    *frame =
+        layout_opt::track::GreyFrame::new(frame.width(), frame.height(), frame.bit_depth(), pixels)
+            .unwrap();
 }
 
 /// An 8-bit noisy render of a clean view of the winner at 500 mm, as PNG.
