@@ -14,9 +14,12 @@
 //!    frame pixel by pixel.
 //! 3. **Measurement** of each component, in a window padded by
 //!    [`WINDOW_PAD_PX`]; pixels of other components are left out:
-//!    * background: median of the window's border, noise σ from its median
-//!      absolute deviation; plateau: median of the component's interior;
-//!      contrast: their difference;
+//!    * background: median of the window's border, noise σ from the
+//!      differences between neighbours along it (`neighbour_noise`: a
+//!      support crossing the border lifts a stretch of it, which would swell
+//!      a spread about one level); plateau: median of the component's
+//!      interior, its noise from neighbour differences there too; contrast:
+//!      plateau minus background;
 //!    * the **intensity-weighted centroid**, weights `I − background` over
 //!      the pixels at least [`CENTROID_FLOOR`] of the step above the
 //!      background (a dimmer support beside the sphere would pull it);
@@ -43,7 +46,9 @@
 //! 4. **Judgement.** A blob is rejected for size, contrast or a shape no
 //!    sphere casts; it is **flagged as partly hidden** when it touches the
 //!    image border, when its pixels above the half level fill too little of its fitted
-//!    ellipse, when too many edge points leave the ellipse, or when the
+//!    ellipse, when too many edge points leave the ellipse, when the edge
+//!    dips inside the ellipse along an arc ([`edge_dip`]: a support's notch
+//!    or chord too shallow to leave the outlier tolerance), or when the
 //!    ellipse's axis ratio is not the one a sphere's silhouette has there.
 //!
 //! Pixel convention: the centre of the pixel in column `x`, row `y` is the
