@@ -188,7 +188,7 @@ fn noise_free_renders_give_exact_labels_centres_and_poses() {
             // base plate's edge, so the background behind their limbs
             // steps from the plate's grey to the dark within the edge
             // samples, and their ellipse centres are off by 0.083 and
-            // 0.059 px (every other disc by ≤ 0.022 px). 0.01° there
+            // 0.059 px (every other disc by ≤ 0.023 px). 0.01° there
             // would need every centre within about 0.03 px.
             let bound = if depth <= 600.0 { 0.01 } else { 0.02 };
             if correct {
