@@ -13,7 +13,11 @@ use layout_opt::scenario::Scenario;
 use layout_opt::track::{analyse, GreyFrame, TrackConfig};
 
 fn bench(c: &mut Criterion) {
-    let part = frames::Part::winner();
+    // The benches are their own package (benches/Cargo.toml): the
+    // repository's layouts are one folder up from its manifest.
+    let part = frames::Part::load(
+        &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../layouts/biprism-search.json"),
+    );
     let camera = Camera::paper();
     // The first view at 500 mm, within ±20° of head on, with no sphere
     // hidden.

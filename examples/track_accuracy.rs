@@ -22,13 +22,15 @@
 //!   sensor: the share of frames whose labels are all correct, and the
 //!   spread of the ellipse centres.
 //! * `hidden`: random views at 250–800 mm within ±60°: what the tracker did
-//!   with the spheres the render says are partly hidden.
+//!   with the spheres the render says are partly hidden, by hidden share
+//!   of the outline and by how deep the support's notch reaches into the
+//!   disc ([`frames::support_reach_px`]).
 
 #[path = "../tests/it/track/frames.rs"]
 #[allow(dead_code)]
 mod frames;
 
-use frames::{blob_of_sphere, clean_view, ellipse_centre, hidden_fraction, Part};
+use frames::{blob_of_sphere, clean_view, ellipse_centre, hidden_fraction, support_reach_px, Part};
 use layout_opt::camera::Camera;
 use layout_opt::identifiability::predict;
 use layout_opt::pose::{rotation_error_deg, Pose};
@@ -230,14 +232,31 @@ fn labels(part: &Part, camera: Camera, poses: u64, realisations: u64) {
     );
 }
 
+/// What the tracker did with one frame's spheres, by how much of each the
+/// render says is hidden.
+#[derive(Default, Clone)]
+struct HiddenCounts {
+    /// `[flagged, not]` for: ≥ 10 % hidden with the support reaching
+    /// ≥ `REACH_PX` into the disc, ≥ 10 % with a shallower notch, 1–10 %,
+    /// under 1 %, whole.
+    spheres: [[u64; 2]; 5],
+    /// Frames with a sphere partly hidden, and of those, tracked.
+    frames: [u64; 2],
+    /// Partly hidden blobs labelled after the pose, and labelled right.
+    labelled: [u64; 2],
+    /// Ellipse-centre errors of unflagged ≥ 10 % hidden blobs, px, by the
+    /// two reach classes.
+    missed: [Vec<f64>; 2],
+}
+
+/// The notch depth that separates the two ≥ 10 % classes, px: the edge
+/// points' outlier tolerance ([`layout_opt::track::detect::MIN_EDGE_TOLERANCE_PX`]).
+const REACH_PX: f64 = layout_opt::track::detect::MIN_EDGE_TOLERANCE_PX;
+
 fn hidden(part: &Part, camera: Camera, poses: u64) {
     let config = TrackConfig::new(&part.layout, camera);
     let render = frames::noisy(camera, 4);
-    // [hidden ≥ 10 % & flagged, hidden ≥ 10 % & unflagged, 0 < hidden < 10 %
-    // & flagged, 0 < hidden < 10 % & unflagged, whole & flagged, whole &
-    // unflagged, frames with a partly hidden sphere, of those tracked,
-    // hidden spheres labelled, labelled right]
-    let counts: Vec<([u64; 10], Vec<f64>)> = (0..poses)
+    let counts: Vec<HiddenCounts> = (0..poses)
         .into_par_iter()
         .filter_map(|k| {
             let mut rng = ChaCha8Rng::seed_from_u64(0x41D + k);
@@ -251,25 +270,28 @@ fn hidden(part: &Part, camera: Camera, poses: u64) {
             let rendered = part.render(&render, &truth);
             let analysis = analyse(&config, &rendered.expose(k, 0));
             let detection = analysis.detection.as_ref()?;
-            let mut c = [0u64; 10];
+            let mut c = HiddenCounts::default();
             let mut any_hidden = false;
-            let mut missed = Vec::new();
             for (index, sphere) in rendered.truth.spheres.iter().enumerate() {
                 let h = hidden_fraction(sphere);
                 let Some(b) = blob_of_sphere(&detection.blobs, sphere) else {
                     continue;
                 };
                 let blob = &detection.blobs[b];
-                let slot = if h >= 0.1 {
-                    0
-                } else if h > 0.0 {
+                let deep = h >= 0.1
+                    && support_reach_px(&part.scene, &truth, &camera, index, 256) >= REACH_PX;
+                let class = if h >= 0.1 {
+                    usize::from(!deep)
+                } else if h >= 0.01 {
                     2
+                } else if h > 0.0 {
+                    3
                 } else {
                     4
                 };
-                c[slot + usize::from(!blob.hidden())] += 1;
+                c.spheres[class][usize::from(!blob.hidden())] += 1;
                 if h >= 0.1 && !blob.hidden() {
-                    missed.push(
+                    c.missed[class].push(
                         (Vector2::from(blob.ellipse_centre_px) - ellipse_centre(sphere)).norm(),
                     );
                 }
@@ -277,51 +299,69 @@ fn hidden(part: &Part, camera: Camera, poses: u64) {
                     any_hidden = true;
                     if let Ok(tracked) = &analysis.outcome {
                         if let Some(label) = tracked.labels[b] {
-                            c[8] += 1;
-                            c[9] += u64::from(label == index);
+                            c.labelled[0] += 1;
+                            c.labelled[1] += u64::from(label == index);
                         }
                     }
                 }
             }
             if any_hidden {
-                c[6] += 1;
-                c[7] += u64::from(analysis.outcome.is_ok());
+                c.frames = [1, u64::from(analysis.outcome.is_ok())];
             }
-            Some((c, missed))
+            Some(c)
         })
         .collect();
-    let mut missed: Vec<f64> = counts.iter().flat_map(|c| c.1.clone()).collect();
-    missed.sort_by(f64::total_cmp);
-    if !missed.is_empty() {
-        println!(
-            "  ellipse-centre error of unflagged ≥ 10 % hidden blobs: median {:.3} px, 90th percentile {:.3} px, worst {:.3} px",
-            missed[missed.len() / 2],
-            missed[missed.len() * 9 / 10],
-            missed[missed.len() - 1]
-        );
-    }
-    let t = counts.iter().map(|c| c.0).fold([0u64; 10], |mut a, c| {
-        for i in 0..10 {
-            a[i] += c[i];
+    let mut t = HiddenCounts::default();
+    for c in &counts {
+        for (a, b) in t.spheres.iter_mut().zip(&c.spheres) {
+            a[0] += b[0];
+            a[1] += b[1];
         }
-        a
-    });
+        for i in 0..2 {
+            t.frames[i] += c.frames[i];
+            t.labelled[i] += c.labelled[i];
+            t.missed[i].extend(&c.missed[i]);
+        }
+    }
     println!(
         "{} frames, {} with a partly hidden sphere, {} of them tracked",
         counts.len(),
-        t[6],
-        t[7]
+        t.frames[0],
+        t.frames[1]
     );
-    println!("  ≥ 10 % hidden: {} flagged, {} not", t[0], t[1]);
-    println!("  < 10 % hidden: {} flagged, {} not", t[2], t[3]);
-    println!("  whole: {} flagged, {} not", t[4], t[5]);
-    let flagged_hidden = t[0] + t[2];
+    let names = [
+        format!("≥ 10 % hidden, notch ≥ {REACH_PX} px"),
+        format!("≥ 10 % hidden, notch < {REACH_PX} px"),
+        "1–10 % hidden".to_string(),
+        "< 1 % hidden".to_string(),
+        "whole".to_string(),
+    ];
+    for (name, [flagged, not]) in names.iter().zip(&t.spheres) {
+        println!(
+            "  {name}: {flagged} flagged, {not} not ({:.3} flagged)",
+            *flagged as f64 / (flagged + not).max(1) as f64
+        );
+    }
+    for (name, missed) in names.iter().zip(&mut t.missed) {
+        missed.sort_by(f64::total_cmp);
+        if let Some(worst) = missed.last() {
+            println!(
+                "  ellipse-centre error of unflagged blobs {name}: median {:.3} px, 90th percentile {:.3} px, worst {worst:.3} px",
+                missed[missed.len() / 2],
+                missed[missed.len() * 9 / 10],
+            );
+        }
+    }
+    let s = &t.spheres;
+    let flagged_hidden: u64 = s[..4].iter().map(|c| c[0]).sum();
+    let ten = [s[0][0] + s[1][0], s[0][1] + s[1][1]];
     println!(
-        "  precision {:.3}, recall (≥ 10 %) {:.3}; partly hidden blobs labelled after the pose: {}, correctly {}",
-        flagged_hidden as f64 / (flagged_hidden + t[4]) as f64,
-        t[0] as f64 / (t[0] + t[1]) as f64,
-        t[8],
-        t[9]
+        "  precision {:.3}; recall ≥ 10 % hidden {:.3}, of those with a notch ≥ {REACH_PX} px {:.3}; partly hidden blobs labelled after the pose: {}, correctly {}",
+        flagged_hidden as f64 / (flagged_hidden + s[4][0]) as f64,
+        ten[0] as f64 / (ten[0] + ten[1]) as f64,
+        s[0][0] as f64 / (s[0][0] + s[0][1]) as f64,
+        t.labelled[0],
+        t.labelled[1]
     );
 }
 

@@ -133,6 +133,10 @@ pub struct DetectorConfig {
     /// A blob with more than this share of its edge points off the fitted
     /// ellipse is flagged as partly hidden.
     pub max_outlier_fraction: f64,
+    /// A blob whose edge dips inside its fitted ellipse by more than this
+    /// along some arc, beyond the noise of its edge points, is flagged as
+    /// partly hidden ([`super::detect::edge_dip`]), px.
+    pub max_edge_dip_px: f64,
 }
 
 /// Default smallest blob, px: below this an ellipse fit has too few edge
@@ -150,6 +154,12 @@ pub const DEFAULT_MIN_CONTRAST: f64 = 0.08;
 pub const DEFAULT_MIN_FILLED_FRACTION: f64 = 0.95;
 /// Default largest share of edge points off the ellipse of an unhidden blob.
 pub const DEFAULT_MAX_OUTLIER_FRACTION: f64 = 0.08;
+/// Default largest dip of a whole blob's edge inside its ellipse, px: the
+/// edge model's own errors on a whole disc reach a few hundredths of a
+/// pixel along an arc, and a plate edge passing just behind a 15 px disc
+/// bends its edge by up to a tenth; a support's notch a third of a pixel
+/// deep goes well beyond this (`track_accuracy -- hidden`).
+pub const DEFAULT_MAX_EDGE_DIP_PX: f64 = 0.1;
 
 impl Default for DetectorConfig {
     fn default() -> Self {
@@ -160,6 +170,7 @@ impl Default for DetectorConfig {
             min_contrast: DEFAULT_MIN_CONTRAST,
             min_filled_fraction: DEFAULT_MIN_FILLED_FRACTION,
             max_outlier_fraction: DEFAULT_MAX_OUTLIER_FRACTION,
+            max_edge_dip_px: DEFAULT_MAX_EDGE_DIP_PX,
         }
     }
 }
@@ -208,6 +219,7 @@ impl DetectorConfig {
         ConfigError::within("min_contrast", self.min_contrast, 0.0, 1.0)?;
         ConfigError::within("min_filled_fraction", self.min_filled_fraction, 0.0, 1.0)?;
         ConfigError::within("max_outlier_fraction", self.max_outlier_fraction, 0.0, 1.0)?;
+        ConfigError::within("max_edge_dip_px", self.max_edge_dip_px, 0.0, 1e3)?;
         Ok(())
     }
 }
@@ -396,6 +408,16 @@ mod tests {
                     ..config.clone()
                 },
                 "min_contrast",
+            ),
+            (
+                TrackConfig {
+                    detector: DetectorConfig {
+                        max_edge_dip_px: f64::NAN,
+                        ..config.detector
+                    },
+                    ..config.clone()
+                },
+                "max_edge_dip_px",
             ),
         ];
         for (bad, field) in cases {

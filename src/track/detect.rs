@@ -14,9 +14,12 @@
 //!    frame pixel by pixel.
 //! 3. **Measurement** of each component, in a window padded by
 //!    [`WINDOW_PAD_PX`]; pixels of other components are left out:
-//!    * background: median of the window's border, noise σ from its median
-//!      absolute deviation; plateau: median of the component's interior;
-//!      contrast: their difference;
+//!    * background: median of the window's border, noise σ from the
+//!      differences between neighbours along it (`neighbour_noise`: a
+//!      support crossing the border lifts a stretch of it, which would swell
+//!      a spread about one level); plateau: median of the component's
+//!      interior, its noise from neighbour differences there too; contrast:
+//!      plateau minus background;
 //!    * the **intensity-weighted centroid**, weights `I − background` over
 //!      the pixels at least [`CENTROID_FLOOR`] of the step above the
 //!      background (a dimmer support beside the sphere would pull it);
@@ -43,7 +46,9 @@
 //! 4. **Judgement.** A blob is rejected for size, contrast or a shape no
 //!    sphere casts; it is **flagged as partly hidden** when it touches the
 //!    image border, when its pixels above the half level fill too little of its fitted
-//!    ellipse, when too many edge points leave the ellipse, or when the
+//!    ellipse, when too many edge points leave the ellipse, when the edge
+//!    dips inside the ellipse along an arc ([`edge_dip`]: a support's notch
+//!    or chord too shallow to leave the outlier tolerance), or when the
 //!    ellipse's axis ratio is not the one a sphere's silhouette has there.
 //!
 //! Pixel convention: the centre of the pixel in column `x`, row `y` is the
@@ -55,9 +60,15 @@ use super::frame::GreyFrame;
 use crate::camera::Camera;
 use image::{GrayImage, Luma};
 use imageproc::region_labelling::{connected_components, Connectivity};
-use nalgebra::Vector2;
+use nalgebra::{Matrix2, SymmetricEigen, Vector2};
 use serde::Serialize;
+use std::f64::consts::{SQRT_2, TAU};
 
+/// Share of the neighbour differences [`neighbour_noise`] keeps.
+const NOISE_KEPT: f64 = 0.9;
+/// RMS of a standard normal variable over its values within the central
+/// 90 % (`NOISE_KEPT`): `√(1 − 2·1.645·φ(1.645)/0.9)`.
+const KEPT_RMS: f64 = 0.789;
 /// Side of the coarse cells, px.
 pub const CELL_PX: usize = 4;
 /// Pixels added around a component's bounding box for its measurement (a
@@ -80,6 +91,16 @@ pub const MIN_LOCAL_STEP: f64 = 0.5;
 /// step: four normalised samples add up (√4), and the inside and outside
 /// levels that normalise them add their own share.
 pub const EDGE_SUM_NOISE: f64 = 2.5;
+/// The arc, degrees of the ellipse's parametric angle, over which
+/// [`edge_dip`] averages the edge points' distances: a support's notch in
+/// a disc spans tens of degrees; the edge model's own errors on a whole
+/// disc alternate in sign over a few.
+pub const DIP_ARC_DEG: f64 = 30.0;
+/// Fewest edge points on an arc that [`edge_dip`] judges.
+pub const DIP_MIN_POINTS: usize = 3;
+/// [`edge_dip`] discounts this many standard errors of an arc's mean
+/// distance.
+pub const DIP_SIGMAS: f64 = 2.0;
 /// Rounds of refitting without the outlying edge points.
 pub const REFIT_ROUNDS: usize = 3;
 /// A blob's axis ratio may exceed a sphere's by this factor before the blob
@@ -128,6 +149,9 @@ pub struct Blob {
     pub fit_residual_px: f64,
     /// Share of edge points left out as off the ellipse.
     pub outlier_fraction: f64,
+    /// How far the edge dips inside the ellipse along its worst arc, beyond
+    /// the noise of its points, px ([`edge_dip`]).
+    pub edge_dip_px: f64,
     /// Pixels above the half level over the fitted ellipse's area.
     pub filled_fraction: f64,
     /// Fitted axis ratio (major / minor).
@@ -416,6 +440,69 @@ pub fn detect(
     Ok(detection)
 }
 
+/// How far the edge dips inside `ellipse`, px: over every arc of at most
+/// [`DIP_ARC_DEG`] of the ellipse's parametric angle (the angle of
+/// `M^{1/2} (p − c)`, so that an arc is the same share of the outline
+/// however elongated the ellipse) that holds at least [`DIP_MIN_POINTS`]
+/// of the edge `points`, the mean distance of those points inside the
+/// ellipse less [`DIP_SIGMAS`] standard errors of that mean (each point's
+/// σ from `sigmas`); the largest such value, or 0.
+///
+/// Something in front of a disc cuts a notch or a chord into its edge:
+/// there the edge points all lie inside the ellipse fitted to the rest
+/// (the refit leaves out only those off by more than the outlier
+/// tolerance, so a shallow notch still pulls its points inside), where
+/// on a whole disc their distances scatter about zero.
+pub fn edge_dip(ellipse: &Ellipse, points: &[Vector2<f64>], sigmas: &[f64]) -> f64 {
+    let n = points.len();
+    if n < DIP_MIN_POINTS {
+        return 0.0;
+    }
+    let eigen = SymmetricEigen::new(ellipse.shape);
+    let root = eigen.eigenvectors
+        * Matrix2::from_diagonal(&eigen.eigenvalues.map(|v| v.max(0.0).sqrt()))
+        * eigen.eigenvectors.transpose();
+    let mut around: Vec<(f64, f64, f64)> = points
+        .iter()
+        .zip(sigmas)
+        .map(|(p, sigma)| {
+            let u = root * (p - ellipse.centre);
+            (u.y.atan2(u.x), ellipse.distance(p), *sigma)
+        })
+        .collect();
+    around.sort_by(|a, b| a.0.total_cmp(&b.0));
+    // Prefix sums over the points twice round, for arcs across ±180°.
+    let at = |k: usize| {
+        let (angle, distance, sigma) = around[k % n];
+        (angle + TAU * (k / n) as f64, distance, sigma)
+    };
+    let mut sum_distance = vec![0.0; 2 * n + 1];
+    let mut sum_sigma = vec![0.0; 2 * n + 1];
+    for k in 0..2 * n {
+        let (_, distance, sigma) = at(k);
+        sum_distance[k + 1] = sum_distance[k] + distance;
+        sum_sigma[k + 1] = sum_sigma[k] + sigma;
+    }
+    let arc = DIP_ARC_DEG.to_radians();
+    let mut deepest: f64 = 0.0;
+    let mut end = 0;
+    for start in 0..n {
+        end = end.max(start);
+        while end + 1 < start + n && at(end + 1).0 - at(start).0 <= arc {
+            end += 1;
+        }
+        let count = end + 1 - start;
+        if count < DIP_MIN_POINTS {
+            continue;
+        }
+        let count_f = count as f64;
+        let mean = (sum_distance[end + 1] - sum_distance[start]) / count_f;
+        let mean_sigma = (sum_sigma[end + 1] - sum_sigma[start]) / count_f;
+        deepest = deepest.max(-mean - DIP_SIGMAS * mean_sigma / count_f.sqrt());
+    }
+    deepest
+}
+
 /// Per-cell local means over a square of `radius_cells` cells, raw units.
 fn local_levels(
     cell_sum: &[u64],
@@ -530,6 +617,18 @@ enum Reason {
     Shape,
 }
 
+/// The pixel noise σ from `differences`, the absolute differences between
+/// neighbouring pixels: the RMS of the smallest [`NOISE_KEPT`] of them (the
+/// rest may straddle an edge), rescaled to a normal variable's full RMS,
+/// over √2 (a difference adds two pixels' noise). Unlike a median, it
+/// stays above zero when the noise is below one quantisation step.
+fn neighbour_noise(differences: &mut [f64]) -> f64 {
+    differences.sort_unstable_by(f64::total_cmp);
+    let kept = &differences[..((NOISE_KEPT * differences.len() as f64).ceil() as usize).max(1)];
+    let mean_square = kept.iter().map(|d| d * d).sum::<f64>() / kept.len() as f64;
+    mean_square.sqrt() / KEPT_RMS / SQRT_2
+}
+
 fn median(values: &mut [f64]) -> f64 {
     let mid = values.len() / 2;
     let (_, m, _) = values.select_nth_unstable_by(mid, f64::total_cmp);
@@ -583,31 +682,37 @@ fn measure(
         l != 0 && l != id
     };
 
-    // Background and noise from the window's border.
-    let mut ring = Vec::new();
-    for x in x0..=x1 {
-        for y in [y0, y1] {
-            if label(x, y) == 0 {
-                ring.push(value(x, y));
-            }
-        }
-    }
-    for y in y0 + 1..y1 {
-        for x in [x0, x1] {
-            if label(x, y) == 0 {
-                ring.push(value(x, y));
-            }
-        }
-    }
-    let (background, noise) = if ring.len() >= 8 {
-        let background = median(&mut ring);
-        let mut deviations: Vec<f64> = ring.iter().map(|v| (v - background).abs()).collect();
-        (background, 1.4826 * median(&mut deviations))
+    // Background and noise from the window's border: the background is
+    // the median of its pixels, the noise the spread of the differences
+    // between neighbours along it (a support crossing the border shifts
+    // the level of a stretch of it, which the median ignores but a spread
+    // about one level would not).
+    let border: Vec<(usize, usize)> = (x0..=x1)
+        .map(|x| (x, y0))
+        .chain((y0 + 1..=y1).map(|y| (x1, y)))
+        .chain((x0..x1).rev().map(|x| (x, y1)))
+        .chain((y0 + 1..y1).rev().map(|y| (x0, y)))
+        .collect();
+    let mut ring: Vec<f64> = border
+        .iter()
+        .filter(|p| label(p.0, p.1) == 0)
+        .map(|p| value(p.0, p.1))
+        .collect();
+    let mut steps: Vec<f64> = border
+        .iter()
+        .zip(border.iter().cycle().skip(1))
+        .filter(|(a, b)| label(a.0, a.1) == 0 && label(b.0, b.1) == 0)
+        .map(|(a, b)| (value(a.0, a.1) - value(b.0, b.1)).abs())
+        .collect();
+    let (background, noise) = if ring.len() >= 8 && steps.len() >= 8 {
+        (median(&mut ring), neighbour_noise(&mut steps))
     } else {
         (context.fallback_background, 0.0)
     };
     // Plateau: the component's interior (all four neighbours in it).
     let mut interior = Vec::new();
+    let mut interior_steps = Vec::new();
+    let mut previous_interior: Option<(usize, usize, f64)> = None;
     let mut peak = f64::MIN;
     for y in stats.min.1..=stats.max.1 {
         for x in stats.min.0..=stats.max.0 {
@@ -626,6 +731,12 @@ fn measure(
                 && label(x, y + 1) == id;
             if inside {
                 interior.push(v);
+                if let Some((px, py, pv)) = previous_interior {
+                    if py == y && px + 1 == x {
+                        interior_steps.push((v - pv).abs());
+                    }
+                }
+                previous_interior = Some((x, y, v));
             }
         }
     }
@@ -633,6 +744,11 @@ fn measure(
         median(&mut interior)
     } else {
         peak
+    };
+    let plateau_noise = if interior_steps.len() >= 8 {
+        neighbour_noise(&mut interior_steps)
+    } else {
+        noise
     };
     let step = plateau - background;
     let contrast = step / context.full_scale;
@@ -765,10 +881,15 @@ fn measure(
     };
     let mut points = Vec::with_capacity(edges.len());
     let mut tolerances = Vec::with_capacity(edges.len());
+    // Edge samples straddle the background and the plateau, whose noise
+    // differs (shot noise).
+    let edge_noise = (0.5 * (noise * noise + plateau_noise * plateau_noise)).sqrt();
+    let mut sigmas = Vec::with_capacity(edges.len());
     for (p, step_here) in &edges {
         if let Some(q) = ideal(p) {
             points.push(q);
-            let sigma = EDGE_SUM_NOISE * noise / step_here.max(f64::MIN_POSITIVE);
+            let sigma = EDGE_SUM_NOISE * edge_noise / step_here.max(f64::MIN_POSITIVE);
+            sigmas.push(sigma);
             tolerances.push(MIN_EDGE_TOLERANCE_PX.max(EDGE_OUTLIER_SIGMAS * sigma));
         }
     }
@@ -812,6 +933,7 @@ fn measure(
         / kept.max(1) as f64)
         .sqrt();
     let outlier_fraction = 1.0 - kept as f64 / points.len() as f64;
+    let edge_dip_px = edge_dip(&ellipse, &points, &sigmas);
     // The pixels above the half level cover the silhouette's area (the
     // edge lies at the half level), however the sphere's shading falls
     // off towards its limb.
@@ -842,6 +964,9 @@ fn measure(
     if outlier_fraction > config.max_outlier_fraction {
         hidden_because.push("edge leaves the ellipse");
     }
+    if edge_dip_px > config.max_edge_dip_px {
+        hidden_because.push("edge dips inside the ellipse");
+    }
     if (sphere.axis_ratio - sphere.expected_axis_ratio).abs() > MAX_AXIS_RATIO_ERROR {
         hidden_because.push("axis ratio not a sphere's");
     }
@@ -859,6 +984,7 @@ fn measure(
         edge_points: points.len(),
         fit_residual_px,
         outlier_fraction,
+        edge_dip_px,
         filled_fraction,
         axis_ratio: sphere.axis_ratio,
         expected_axis_ratio: sphere.expected_axis_ratio,

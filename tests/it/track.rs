@@ -97,7 +97,8 @@ fn labels_correct(
 /// 0.1 px of the render's exact ones. In views with no sphere hidden: every
 /// blob found, the ellipse centres within 0.05 px RMS, correct labels
 /// wherever the identifiability model calls the view identifiable, and the
-/// pose within 0.01° (0.02° at 1000 mm).
+/// pose within 0.01° (0.02° at 1000 mm, where a background that steps
+/// behind two small discs moves their centres by 0.06–0.08 px).
 #[test]
 fn noise_free_renders_give_exact_labels_centres_and_poses() {
     let camera = Camera::paper();
@@ -181,8 +182,14 @@ fn noise_free_renders_give_exact_labels_centres_and_poses() {
                 );
             }
             let rotation = rotation_error_deg(&truth.rotation, &pose_of(tracked).rotation);
-            // 0.01° to 600 mm; at 1000 mm (13 px discs) one view's worst
-            // disc is off by 0.08 px and its pose by 0.017°.
+            // 0.01° to 600 mm. At 1000 mm (12 px discs) the second clean
+            // view (1062 mm) is off by 0.0125°, within its own predicted
+            // 1σ (0.017°): spheres P1 and P4 stand just in front of the
+            // base plate's edge, so the background behind their limbs
+            // steps from the plate's grey to the dark within the edge
+            // samples, and their ellipse centres are off by 0.083 and
+            // 0.059 px (every other disc by ≤ 0.023 px). 0.01° there
+            // would need every centre within about 0.03 px.
             let bound = if depth <= 600.0 { 0.01 } else { 0.02 };
             if correct {
                 assert!(
@@ -374,18 +381,25 @@ fn identifiable_views_are_labelled_correctly() {
 
 /// Renders of random views, head on to ±60°, where the part's supports and
 /// the spheres hide one another: a blob flagged as partly hidden is hidden
-/// per the render's truth (precision ≥ 95%). Recall is lower here than for
-/// an occluder that cuts across a sphere (next test): a support in front of
-/// the limb often hides a sliver that moves the outline by less than the
-/// edge tolerance; the example `track_accuracy -- hidden` measures it and
-/// the centre error of the hidden blobs left unflagged.
+/// per the render's truth (precision ≥ 95%), and of the blobs with ≥ 10%
+/// of their outline hidden whose support cuts a notch at least the edge
+/// tolerance deep ([`frames::support_reach_px`]), ≥ 90% are flagged. A
+/// shallower notch is not always seen (a round cone just past the angle
+/// where it covers the limb hides a tenth of the outline and bends the
+/// edge by a hundredth of a pixel), but what it leaves moves the ellipse
+/// centre by less than a quarter pixel. The example `track_accuracy --
+/// hidden` gives the large counts.
 #[test]
 fn blobs_flagged_behind_supports_are_hidden() {
     let camera = Camera::paper();
     let part = winner();
     let config = TrackConfig::new(&part.layout, camera);
     let render = frames::noisy(camera, 4);
-    let counts: Vec<[usize; 3]> = (0..30u64)
+    let reach_px = layout_opt::track::detect::MIN_EDGE_TOLERANCE_PX;
+    // Per frame: [flagged & hidden, flagged & whole, deep notch & flagged,
+    // deep notch & not], and the centre errors of unflagged ≥ 10% hidden
+    // blobs.
+    let counts: Vec<([usize; 4], Vec<f64>)> = (0..30u64)
         .into_par_iter()
         .filter_map(|k| {
             let mut rng = ChaCha8Rng::seed_from_u64(0x41D + k);
@@ -398,19 +412,45 @@ fn blobs_flagged_behind_supports_are_hidden() {
             );
             let rendered = part.render(&render, &truth);
             let analysis = analyse(&config, &rendered.expose(0x41D, k));
-            Some(flag_counts(
-                &analysis.detection.as_ref()?.blobs,
-                &rendered.truth,
-                &[0.0; 7],
-            ))
+            let blobs = &analysis.detection.as_ref()?.blobs;
+            let mut c = [0usize; 4];
+            let mut missed = Vec::new();
+            for (index, sphere) in rendered.truth.spheres.iter().enumerate() {
+                let Some(b) = blob_of_sphere(blobs, sphere).map(|i| &blobs[i]) else {
+                    continue;
+                };
+                let hidden = hidden_fraction(sphere);
+                if b.hidden() {
+                    c[usize::from(hidden == 0.0)] += 1;
+                }
+                if hidden < 0.1 {
+                    continue;
+                }
+                if !b.hidden() {
+                    missed
+                        .push((Vector2::from(b.ellipse_centre_px) - ellipse_centre(sphere)).norm());
+                }
+                if frames::support_reach_px(&part.scene, &truth, &camera, index, 128) >= reach_px {
+                    c[2 + usize::from(!b.hidden())] += 1;
+                }
+            }
+            Some((c, missed))
         })
         .collect();
-    let total = sum_counts(&counts);
+    let total = counts
+        .iter()
+        .fold([0; 4], |a, (c, _)| std::array::from_fn(|i| a[i] + c[i]));
+    let worst_missed = counts
+        .iter()
+        .flat_map(|c| c.1.iter().copied())
+        .fold(0.0, f64::max);
     let precision = total[0] as f64 / (total[0] + total[1]) as f64;
-    let recall = total[0] as f64 / (total[0] + total[2]) as f64;
-    eprintln!("supports: {} frames: {} flagged hidden, {} flagged whole, {} missed (≥10% hidden): precision {precision:.3}, recall {recall:.3}", counts.len(), total[0], total[1], total[2]);
-    assert!(total[0] >= 20, "{total:?}");
+    let recall = total[2] as f64 / (total[2] + total[3]) as f64;
+    eprintln!("supports: {} frames: {} flagged hidden, {} flagged whole, notch ≥ {reach_px} px: {} flagged, {} not: precision {precision:.3}, recall {recall:.3}; unflagged ≥ 10% hidden blobs' centres off by at most {worst_missed:.3} px", counts.len(), total[0], total[1], total[2], total[3]);
+    assert!(total[0] >= 20 && total[2] + total[3] >= 40, "{total:?}");
     assert!(precision >= 0.95, "{total:?}");
+    assert!(recall >= 0.90, "{total:?}");
+    assert!(worst_missed < 0.25, "{worst_missed} px");
 }
 
 /// `[flagged & hidden, flagged & whole, ≥ 10% hidden & unflagged]` over
@@ -634,6 +674,15 @@ fn malformed_frames_are_error_records_and_the_run_goes_on() {
             .unwrap()
             .to_png(),
     );
+    // The good frame with three more bright discs below the marker, near
+    // the principal point (where a sphere's image is round, so they pass
+    // as whole): ten whole blobs for seven spheres, one more than the two
+    // extra allowed.
+    let mut clutter = layout_opt::track::GreyFrame::from_png(&good_png).unwrap();
+    for (cx, cy) in [(420.0, 640.0), (880.0, 640.0), (653.0, 690.0)] {
+        paint_disc(&mut clutter, cx, cy, 8.0);
+    }
+    write("h-clutter.png", &clutter.to_png());
     let out = dir.path().join("out.jsonl");
     let outputs = TrackOutputs {
         json_lines: Some(out.clone()),
@@ -646,7 +695,7 @@ fn malformed_frames_are_error_records_and_the_run_goes_on() {
         .lines()
         .map(|l| serde_json::from_str(l).unwrap())
         .collect();
-    assert_eq!(lines.len(), 7);
+    assert_eq!(lines.len(), 8);
     assert_eq!(result.tracked(), 1);
     assert!(
         lines[0]["R"].is_array() && lines[0]["covariance"].as_array().unwrap().len() == 6,
@@ -663,6 +712,10 @@ fn malformed_frames_are_error_records_and_the_run_goes_on() {
         (4, "blobs"),
         (5, "the image is 64×48 px but the camera is 1280×720 px"),
         (6, "no blobs found"),
+        (
+            7,
+            "too many blobs: 10 whole blobs for 7 spheres, more than the 2 extra allowed",
+        ),
     ];
     for (index, needle) in expect {
         let error = lines[index]["error"]
@@ -673,7 +726,35 @@ fn malformed_frames_are_error_records_and_the_run_goes_on() {
     }
     assert!(dir.path().join("overlay/a-good.overlay.png").exists());
     let csv = std::fs::read_to_string(dir.path().join("out.csv")).unwrap();
-    assert_eq!(csv.lines().count(), 8);
+    assert_eq!(csv.lines().count(), 9);
+}
+
+/// Paints a bright disc of radius `radius_px` centred at `(cx, cy)` over
+/// `frame`, area-sampled on a 4×4 grid per pixel.
+fn paint_disc(frame: &mut layout_opt::track::GreyFrame, cx: f64, cy: f64, radius_px: f64) {
+    let (width, height) = (frame.width() as usize, frame.height() as usize);
+    let bright = 0.9 * f64::from(frame.full_scale());
+    let mut pixels = frame.pixels().to_vec();
+    for y in 0..height {
+        for x in 0..width {
+            if (x as f64 - cx).abs() > radius_px + 1.0 || (y as f64 - cy).abs() > radius_px + 1.0 {
+                continue;
+            }
+            let covered = (0..16u32)
+                .filter(|k| {
+                    let px = x as f64 - 0.5 + (f64::from(k % 4) + 0.5) / 4.0;
+                    let py = y as f64 - 0.5 + (f64::from(k / 4) + 0.5) / 4.0;
+                    (px - cx).hypot(py - cy) < radius_px
+                })
+                .count() as f64
+                / 16.0;
+            let v = &mut pixels[y * width + x];
+            *v = (f64::from(*v) * (1.0 - covered) + bright * covered).round() as u16;
+        }
+    }
+    *frame =
+        layout_opt::track::GreyFrame::new(frame.width(), frame.height(), frame.bit_depth(), pixels)
+            .unwrap();
 }
 
 /// An 8-bit noisy render of a clean view of the winner at 500 mm, as PNG.

@@ -116,3 +116,45 @@ fn bad_flags_and_inputs_fail_with_a_named_error() {
         .stdout(predicate::str::contains("cannot read the file"))
         .stderr(predicate::str::contains("tracked 0 of 1 frames"));
 }
+
+/// `solve` gives each pose the tracker's figures (OpenCV's rvec/tvec, a
+/// residual per point, σ and the 6×6 covariance), and where the unlabelled
+/// solver's labels cannot be trusted (`examples/shots.json`: ambiguity 1.0,
+/// a symmetric marker) it says so on stderr and in the JSON.
+#[test]
+fn solve_reports_rvec_covariance_and_untrusted_labels() {
+    let assert = layout_opt()
+        .args([
+            "solve",
+            "--quiet",
+            "--problems",
+            "examples/shots.json",
+            "--unlabelled",
+        ])
+        .assert()
+        .success()
+        .stderr(predicate::str::contains(
+            "warning: shot-001: labels cannot be trusted",
+        ));
+    let output: serde_json::Value = serde_json::from_slice(&assert.get_output().stdout).unwrap();
+    let results = output["results"].as_array().unwrap();
+    let solved: Vec<_> = results.iter().filter(|r| r["error"].is_null()).collect();
+    assert_eq!(solved.len(), 3, "{output}");
+    for result in solved {
+        for field in ["rvec", "tvec"] {
+            assert_eq!(result[field].as_array().unwrap().len(), 3, "{result}");
+        }
+        let covariance = result["covariance"].as_array().unwrap();
+        assert!(covariance
+            .iter()
+            .all(|row| row.as_array().unwrap().len() == 6));
+        assert_eq!(covariance.len(), 6);
+        assert_eq!(result["residuals_px"].as_array().unwrap().len(), 7);
+        assert!(result["sigma_rot_deg"].as_f64().unwrap() > 0.0);
+        assert!(result["wrong_label_probability"].as_f64().unwrap() > 0.1);
+        assert!(result["warning"]
+            .as_str()
+            .unwrap()
+            .starts_with("labels cannot be trusted"));
+    }
+}

@@ -244,3 +244,71 @@ pub fn blob_of_sphere(
         .min_by(|a, b| a.1.total_cmp(&b.1))
         .map(|(i, _)| i)
 }
+
+/// How far into sphere `index`'s silhouette the part's supports reach, px
+/// (0 when nothing of the part hides its outline). The render's hidden
+/// fractions count hidden outline; this is the depth of the notch an
+/// occluder cuts into the disc, which is what an image can show: a round
+/// cone seen just past the angle where it starts to cover the limb hides
+/// a tenth of the outline and bends the edge by a hundredth of a pixel.
+///
+/// Along each of `rays` limb rays whose first hit is a support, the aim is
+/// pulled towards the sphere's centre, in steps of a quarter pixel and
+/// then by bisection, until the ray meets the sphere's own coating; the
+/// reach is the largest distance moved, measured in the image.
+pub fn support_reach_px(
+    scene: &Scene,
+    pose: &Pose,
+    camera: &Camera,
+    index: usize,
+    rays: usize,
+) -> f64 {
+    use layout_opt::render::scene::Ray;
+    const STEP_PX: f64 = 0.25;
+    const BISECTIONS: usize = 4;
+    let (centre, radius) = scene.spheres()[index];
+    let c = pose.transform(&centre);
+    let inverse = pose.rotation.inverse();
+    let origin = -(inverse * pose.translation);
+    let all = scene.all_shapes();
+    let Some(centre_px) = camera.project(&c) else {
+        return f64::NAN;
+    };
+    let sphere_at = |aim: nalgebra::Vector3<f64>| {
+        scene.first_hit(
+            &Ray {
+                origin,
+                direction: inverse * aim.normalize(),
+            },
+            &all,
+        )
+    };
+    let mut reach: f64 = 0.0;
+    for limb in layout_opt::render::truth::limb_points(&c, radius, rays) {
+        let Some(limb_px) = camera.project(&limb) else {
+            continue;
+        };
+        let inset = |s: f64| c + (limb - c) * (1.0 - s);
+        let hidden_by_support = sphere_at(inset(1e-6)).is_some_and(|h| h.sphere.is_none());
+        if !hidden_by_support {
+            continue;
+        }
+        let own = |s: f64| sphere_at(inset(s)).is_some_and(|h| h.sphere == Some(index));
+        let steps = ((limb_px - centre_px).norm() / STEP_PX).ceil().max(1.0) as usize;
+        let Some(k) = (1..=steps).find(|&k| own(k as f64 / steps as f64)) else {
+            continue;
+        };
+        let (mut hidden, mut seen) = ((k - 1) as f64 / steps as f64, k as f64 / steps as f64);
+        for _ in 0..BISECTIONS {
+            let mid = 0.5 * (hidden + seen);
+            if own(mid) {
+                seen = mid;
+            } else {
+                hidden = mid;
+            }
+        }
+        let aim_px = camera.project(&inset(seen)).unwrap_or(limb_px);
+        reach = reach.max((limb_px - aim_px).norm());
+    }
+    reach
+}
