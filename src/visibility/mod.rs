@@ -8,9 +8,10 @@
 //! evenly over the disc it makes on a plane across the line of sight (a
 //! sunflower pattern) are followed to the sphere: a line that first meets
 //! another sphere is hidden by that sphere, one that first meets a support
-//! ([`Occluder`]: capsules, round cones, the plate's box, all intersected
-//! exactly) is hidden by the supports, and one whose point on the sphere
-//! projects outside the image is outside. Parts that cannot reach the cone
+//! ([`Occluder`]: capsules, round cones, the plate's box, intersected
+//! exactly, and the fillets where struts meet a sphere, traced) is hidden
+//! by the supports, and one whose point on the sphere projects outside the
+//! image is outside. Parts that cannot reach the cone
 //! (their bounding ball is off it, or no nearer than the sphere) are culled
 //! first, so a scenario costs little when nothing is in the way.
 //!
@@ -214,6 +215,13 @@ fn parts_in_cone(
                     capsule_may_cover(eye, axis, half_angle, front, a, b, radius_a.max(*radius_b))
                         && (!own || own_cone_may_cover(eye, a, *radius_a, b, *radius_b))
                 }
+                // A fillet lies within its pieces grown by its reach.
+                fillet @ Occluder::Fillet { pieces, .. } => {
+                    let reach = fillet.fillet_reach().unwrap_or(0.0);
+                    pieces.iter().any(|(a, b, radius)| {
+                        capsule_may_cover(eye, axis, half_angle, front, a, b, radius + reach)
+                    })
+                }
                 Occluder::Box { .. } => true,
             }
         })
@@ -405,6 +413,18 @@ fn sphere_hidden(
                 .filter(|(u, level)| (eye - centre).dot(u) <= *level)
         })
         .collect();
+    // The sphere's own fillet is grown by the mesh's error
+    // ([`occluders::FILLET_MARGIN_MM`]): it is seen edge-on at the rim.
+    let grow: Vec<f64> = parts
+        .iter()
+        .map(|&p| {
+            if supports.occluders[p].is_fillet_of(&centre) {
+                occluders::FILLET_MARGIN_MM
+            } else {
+                0.0
+            }
+        })
+        .collect();
     let rays = SILHOUETTE_RAYS;
     let (mut by_support, mut by_sphere, mut outside) = (0usize, 0usize, 0usize);
     for direction in silhouette_directions(eye, &centre, radius_mm) {
@@ -427,23 +447,28 @@ fn sphere_hidden(
             })
         {
             by_sphere += 1;
-        } else if parts.iter().zip(&planes).any(|(&p, plane)| {
-            if plane.is_some_and(|(u, level)| (on_sphere - centre).dot(&u) <= level) {
-                return false;
-            }
-            supports.occluders[p]
-                .ray_hit_before(eye, &direction, t_sphere - SURFACE_TOLERANCE_MM)
-                .is_some_and(|t| {
-                    // A hit on a sphere's surface (the round cone under a
-                    // sphere starts with the sphere's own ball) is the
-                    // sphere's, not a support's.
-                    let hit = eye + direction * t;
-                    t < t_sphere - SURFACE_TOLERANCE_MM
-                        && centres
-                            .iter()
-                            .all(|c| (hit - c).norm() > radius_mm + SURFACE_TOLERANCE_MM)
-                })
-        }) {
+        } else if parts
+            .iter()
+            .zip(&planes)
+            .enumerate()
+            .any(|(i, (&p, plane))| {
+                if plane.is_some_and(|(u, level)| (on_sphere - centre).dot(&u) <= level) {
+                    return false;
+                }
+                supports.occluders[p]
+                    .ray_hit_grown(eye, &direction, t_sphere - SURFACE_TOLERANCE_MM, grow[i])
+                    .is_some_and(|t| {
+                        // A hit on a sphere's surface (the round cone under a
+                        // sphere starts with the sphere's own ball) is the
+                        // sphere's, not a support's.
+                        let hit = eye + direction * t;
+                        t < t_sphere - SURFACE_TOLERANCE_MM
+                            && centres
+                                .iter()
+                                .all(|c| (hit - c).norm() > radius_mm + SURFACE_TOLERANCE_MM)
+                    })
+            })
+        {
             by_support += 1;
         }
     }
