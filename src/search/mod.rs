@@ -126,7 +126,9 @@ use crate::noise::NoiseModel;
 use crate::pnp::{parallel::reference_index, Solver};
 use crate::scenario::{sphere_images, visibility, visibility_margin_px, Scenario};
 use crate::sphere_image::{ellipse_centre_bias_px_into, Observation};
-use crate::visibility::{support_fractions, MaxHidden, Supports};
+use crate::visibility::{
+    spheres_hidden_by_supports, support_fractions, EyeCone, MaxHidden, Supports,
+};
 use nalgebra::Vector3;
 use serde::Serialize;
 use std::str::FromStr;
@@ -548,8 +550,13 @@ enum SupportRule {
     Fixed(std::sync::Arc<Supports>, MaxHidden),
     /// Every candidate's own straight supports
     /// ([`crate::mesh::straight_supports`] with these options,
-    /// [`Evaluator::with_candidate_supports`]).
-    Candidate(std::sync::Arc<crate::mesh::MarkerOptions>, MaxHidden),
+    /// [`Evaluator::with_candidate_supports`]), screened once per
+    /// candidate against the cone of the grid's eyes.
+    Candidate(
+        std::sync::Arc<crate::mesh::MarkerOptions>,
+        MaxHidden,
+        Option<EyeCone>,
+    ),
 }
 
 /// [`HeldOutCheck`] of `winner` and `paper` on `grid`, first order, with
@@ -795,7 +802,11 @@ impl Evaluator {
         reference: &[Vector3<f64>],
     ) -> Self {
         let mut evaluator = self.clone();
-        evaluator.supports = SupportRule::Candidate(std::sync::Arc::new(options), max_hidden);
+        evaluator.supports = SupportRule::Candidate(
+            std::sync::Arc::new(options),
+            max_hidden,
+            EyeCone::of(&evaluator.scenarios),
+        );
         let visible = evaluator
             .values(reference, &vec![None; reference.len()])
             .visible;
@@ -837,7 +848,7 @@ impl Evaluator {
             reference,
         );
         match &self.supports {
-            SupportRule::Candidate(options, max_hidden) => {
+            SupportRule::Candidate(options, max_hidden, _) => {
                 evaluator.with_candidate_supports((**options).clone(), *max_hidden, reference)
             }
             _ => evaluator,
@@ -882,17 +893,25 @@ impl Evaluator {
             .any(|(t, _)| matches!(t, Term::Crlb | Term::Transfer));
         let reference = reference_index(points);
         let mut image_bias = Vec::with_capacity(points.len());
+        let radius_mm = 0.5 * self.constraints.sphere_diameter_mm;
         let own;
+        let screen;
+        // The supports, and per sphere those that may hide it (all of
+        // them for a fixed part; a candidate's, screened once).
         let supports = match &self.supports {
             SupportRule::None => None,
-            SupportRule::Fixed(supports, max_hidden) => Some((&**supports, *max_hidden)),
-            SupportRule::Candidate(options, max_hidden) => {
+            SupportRule::Fixed(supports, max_hidden) => Some((&**supports, *max_hidden, None)),
+            SupportRule::Candidate(options, max_hidden, eyes) => {
                 own = crate::mesh::straight_supports(
                     points,
                     self.constraints.sphere_diameter_mm,
                     options,
                 );
-                Some((&own, *max_hidden))
+                screen = eyes.map(|eyes| eyes.screen(points, radius_mm, &own));
+                screen
+                    .as_ref()
+                    .is_none_or(|screen| screen.iter().any(|parts| !parts.is_empty()))
+                    .then_some((&own, *max_hidden, screen.as_deref()))
             }
         };
         for (s, scenario) in self.scenarios.iter().enumerate() {
@@ -904,14 +923,26 @@ impl Evaluator {
                 self.constraints.sphere_diameter_mm,
             );
             let mut v = visibility(&images, &self.camera);
-            if let Some((supports, max_hidden)) = supports {
+            if let Some((supports, max_hidden, screen)) = supports {
                 if v.is_visible() {
-                    let radius_mm = 0.5 * self.constraints.sphere_diameter_mm;
-                    let fractions =
-                        support_fractions(&self.camera, &pose, points, radius_mm, supports);
-                    v.hidden_by_support = (0..points.len())
-                        .filter(|&k| fractions[k] > max_hidden.fraction())
-                        .collect();
+                    v.hidden_by_support = match screen {
+                        Some(screen) => spheres_hidden_by_supports(
+                            &self.camera,
+                            &pose,
+                            points,
+                            radius_mm,
+                            supports,
+                            screen,
+                            max_hidden,
+                        ),
+                        None => {
+                            let fractions =
+                                support_fractions(&self.camera, &pose, points, radius_mm, supports);
+                            (0..points.len())
+                                .filter(|&k| fractions[k] > max_hidden.fraction())
+                                .collect()
+                        }
+                    };
                 }
             }
             values.occluded += usize::from(!v.occluded.is_empty());

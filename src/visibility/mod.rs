@@ -8,9 +8,10 @@
 //! evenly over the disc it makes on a plane across the line of sight (a
 //! sunflower pattern) are followed to the sphere: a line that first meets
 //! another sphere is hidden by that sphere, one that first meets a support
-//! ([`Occluder`]: capsules, round cones, the plate's box, all intersected
-//! exactly) is hidden by the supports, and one whose point on the sphere
-//! projects outside the image is outside. Parts that cannot reach the cone
+//! ([`Occluder`]: capsules, round cones, the plate's box, intersected
+//! exactly, and the fillets where struts meet a sphere, traced) is hidden
+//! by the supports, and one whose point on the sphere projects outside the
+//! image is outside. Parts that cannot reach the cone
 //! (their bounding ball is off it, or no nearer than the sphere) are culled
 //! first, so a scenario costs little when nothing is in the way.
 //!
@@ -148,7 +149,20 @@ pub fn hidden_fractions(
     let rotation = pose.rotation.matrix();
     let eye = -(rotation.transpose() * pose.translation);
     (0..centres.len())
-        .map(|k| sphere_hidden(camera, pose, &eye, centres, k, radius_mm, supports, false))
+        .map(|k| {
+            Trace {
+                camera,
+                pose,
+                eye: &eye,
+                centres,
+                radius_mm,
+                supports,
+                visible: false,
+                among: None,
+                stop_above: usize::MAX,
+            }
+            .sphere(k)
+        })
         .collect()
 }
 
@@ -178,11 +192,13 @@ fn may_cover(
 
 /// The supports that may hide part of the sphere (`centre`, `radius_mm`)
 /// whose cone of sight lines from `eye` has `axis` and `half_angle`, and
-/// whose silhouette rim lies `front` away: culled by bounding ball, a
+/// whose silhouette rim lies `front` away, among `among` (all when
+/// `None`): culled by bounding ball, a
 /// capsule by its axis seen through the cone, and the sphere's own cone
 /// (a round cone that starts with the sphere's ball) when the camera sees
 /// none of the sphere on the cone's side of the circle where its flank
 /// leaves the ball. Conservative: a part left out hides nothing.
+#[allow(clippy::too_many_arguments)]
 fn parts_in_cone(
     eye: &Vector3<f64>,
     axis: &Vector3<f64>,
@@ -191,8 +207,19 @@ fn parts_in_cone(
     centre: &Vector3<f64>,
     radius_mm: f64,
     supports: &Supports,
+    among: Option<&[usize]>,
 ) -> Vec<usize> {
-    (0..supports.occluders.len())
+    let all: Vec<usize>;
+    let among = match among {
+        Some(among) => among,
+        None => {
+            all = (0..supports.occluders.len()).collect();
+            &all
+        }
+    };
+    among
+        .iter()
+        .copied()
         .filter(|&p| {
             let (c, r) = supports.bounds[p];
             if !may_cover(eye, axis, half_angle, front, &c, r) {
@@ -213,6 +240,13 @@ fn parts_in_cone(
                     let own = (a - centre).norm() < 1e-9 && (radius_a - radius_mm).abs() < 1e-9;
                     capsule_may_cover(eye, axis, half_angle, front, a, b, radius_a.max(*radius_b))
                         && (!own || own_cone_may_cover(eye, a, *radius_a, b, *radius_b))
+                }
+                // A fillet lies within its pieces grown by its reach.
+                fillet @ Occluder::Fillet { pieces, .. } => {
+                    let reach = fillet.fillet_reach().unwrap_or(0.0);
+                    pieces.iter().any(|(a, b, radius)| {
+                        capsule_may_cover(eye, axis, half_angle, front, a, b, radius + reach)
+                    })
                 }
                 Occluder::Box { .. } => true,
             }
@@ -356,103 +390,166 @@ pub fn support_fractions(
             let axis = to_centre / distance;
             let half_angle = (radius_mm / distance).asin();
             let front = (distance * distance - radius_mm * radius_mm).sqrt();
-            let parts = parts_in_cone(&eye, &axis, half_angle, front, &centre, radius_mm, supports);
+            let parts = parts_in_cone(
+                &eye, &axis, half_angle, front, &centre, radius_mm, supports, None,
+            );
             if parts.is_empty() {
                 return 0.0;
             }
-            sphere_hidden(camera, pose, &eye, centres, k, radius_mm, supports, true)
-                .map_or(0.0, |f| f.support)
+            let trace = Trace {
+                camera,
+                pose,
+                eye: &eye,
+                centres,
+                radius_mm,
+                supports,
+                visible: true,
+                among: None,
+                stop_above: usize::MAX,
+            };
+            trace.sphere(k).map_or(0.0, |f| f.support)
         })
         .collect()
 }
 
-#[allow(clippy::too_many_arguments)]
-fn sphere_hidden(
-    camera: &Camera,
-    pose: &Pose,
-    eye: &Vector3<f64>,
-    centres: &[Vector3<f64>],
-    k: usize,
+/// One scenario's sight lines: what [`Trace::sphere`] follows them with.
+struct Trace<'a> {
+    camera: &'a Camera,
+    pose: &'a Pose,
+    /// The camera centre in the marker frame.
+    eye: &'a Vector3<f64>,
+    centres: &'a [Vector3<f64>],
     radius_mm: f64,
-    supports: &Supports,
+    supports: &'a Supports,
+    /// Whether the scenario is visible (every disc inside the image and
+    /// clear of the nearer ones): no line is then outside or hidden by a
+    /// sphere, and those checks are skipped.
     visible: bool,
-) -> Option<HiddenFractions> {
-    let centre = centres[k];
-    if pose.transform(&centre).z <= 0.0 {
-        return None;
-    }
-    let to_centre = centre - eye;
-    let distance = to_centre.norm();
-    if distance <= radius_mm {
-        return None;
-    }
-    let axis = to_centre / distance;
-    let half_angle = (radius_mm / distance).asin();
-    // Sight lines enter the ball no further than the silhouette's rim.
-    let front = (distance * distance - radius_mm * radius_mm).sqrt();
-    let spheres: Vec<usize> = (0..centres.len())
-        .filter(|&j| j != k && may_cover(eye, &axis, half_angle, front, &centres[j], radius_mm))
-        .collect();
-    let parts = parts_in_cone(eye, &axis, half_angle, front, &centre, radius_mm, supports);
-    // The sphere's own cone adds to its ball only beyond a plane across
-    // the cone's axis (`own_cone_plane`): a sight line whose both ends, the
-    // camera and its point on the sphere, lie before that plane cannot
-    // meet the cone before the sphere, and is not traced.
-    let planes: Vec<Option<(Vector3<f64>, f64)>> = parts
-        .iter()
-        .map(|&p| {
-            own_cone_plane(&supports.occluders[p], &centre, radius_mm)
-                .filter(|(u, level)| (eye - centre).dot(u) <= *level)
-        })
-        .collect();
-    let rays = SILHOUETTE_RAYS;
-    let (mut by_support, mut by_sphere, mut outside) = (0usize, 0usize, 0usize);
-    for direction in silhouette_directions(eye, &centre, radius_mm) {
-        let t_sphere = occluders::ray_ball(eye, &direction, &centre, radius_mm)
-            .unwrap_or_else(|| (centre - eye).dot(&direction));
-        let on_sphere = eye + direction * t_sphere;
-        // In a visible scenario (`visible`) every disc lies inside the
-        // image and clear of the nearer ones, so no sight line is outside
-        // or hidden by a sphere; those checks are skipped.
-        let in_image = visible
-            || camera
-                .project(&pose.transform(&on_sphere))
-                .is_some_and(|px: Vector2<f64>| camera.contains(&px, 0.0));
-        if !in_image {
-            outside += 1;
-        } else if !visible
-            && spheres.iter().any(|&j| {
-                occluders::ray_ball(eye, &direction, &centres[j], radius_mm)
-                    .is_some_and(|t| t < t_sphere)
-            })
-        {
-            by_sphere += 1;
-        } else if parts.iter().zip(&planes).any(|(&p, plane)| {
-            if plane.is_some_and(|(u, level)| (on_sphere - centre).dot(&u) <= level) {
-                return false;
-            }
-            supports.occluders[p]
-                .ray_hit_before(eye, &direction, t_sphere - SURFACE_TOLERANCE_MM)
-                .is_some_and(|t| {
-                    // A hit on a sphere's surface (the round cone under a
-                    // sphere starts with the sphere's own ball) is the
-                    // sphere's, not a support's.
-                    let hit = eye + direction * t;
-                    t < t_sphere - SURFACE_TOLERANCE_MM
-                        && centres
-                            .iter()
-                            .all(|c| (hit - c).norm() > radius_mm + SURFACE_TOLERANCE_MM)
-                })
-        }) {
-            by_support += 1;
+    /// The only supports that may hide the sphere, if known.
+    among: Option<&'a [usize]>,
+    /// Stop following lines once more than this many are hidden by the
+    /// supports (the fractions are then those of the lines followed).
+    stop_above: usize,
+}
+
+impl Trace<'_> {
+    /// The fractions of sphere `k`'s silhouette hidden by each cause, or
+    /// `None` for a sphere not in front of the camera.
+    fn sphere(&self, k: usize) -> Option<HiddenFractions> {
+        let Trace {
+            camera,
+            pose,
+            eye,
+            centres,
+            radius_mm,
+            supports,
+            visible,
+            among,
+            stop_above,
+        } = *self;
+        let centre = centres[k];
+        if pose.transform(&centre).z <= 0.0 {
+            return None;
         }
+        let to_centre = centre - eye;
+        let distance = to_centre.norm();
+        if distance <= radius_mm {
+            return None;
+        }
+        let axis = to_centre / distance;
+        let half_angle = (radius_mm / distance).asin();
+        // Sight lines enter the ball no further than the silhouette's rim.
+        let front = (distance * distance - radius_mm * radius_mm).sqrt();
+        let spheres: Vec<usize> = (0..centres.len())
+            .filter(|&j| j != k && may_cover(eye, &axis, half_angle, front, &centres[j], radius_mm))
+            .collect();
+        let parts = parts_in_cone(
+            eye, &axis, half_angle, front, &centre, radius_mm, supports, among,
+        );
+        if visible && parts.is_empty() {
+            // Nothing can hide it: no sight line to follow.
+            return Some(HiddenFractions::default());
+        }
+        // The sphere's own cone adds to its ball only beyond a plane across
+        // the cone's axis (`own_cone_plane`): a sight line whose both ends, the
+        // camera and its point on the sphere, lie before that plane cannot
+        // meet the cone before the sphere, and is not traced.
+        let planes: Vec<Option<(Vector3<f64>, f64)>> = parts
+            .iter()
+            .map(|&p| {
+                own_cone_plane(&supports.occluders[p], &centre, radius_mm)
+                    .filter(|(u, level)| (eye - centre).dot(u) <= *level)
+            })
+            .collect();
+        // The sphere's own fillet is grown by the mesh's error
+        // ([`occluders::FILLET_MARGIN_MM`]): it is seen edge-on at the rim.
+        let grow: Vec<f64> = parts
+            .iter()
+            .map(|&p| {
+                if supports.occluders[p].is_fillet_of(&centre) {
+                    occluders::FILLET_MARGIN_MM
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        let rays = SILHOUETTE_RAYS;
+        let (mut by_support, mut by_sphere, mut outside) = (0usize, 0usize, 0usize);
+        for direction in silhouette_directions(eye, &centre, radius_mm) {
+            let t_sphere = occluders::ray_ball(eye, &direction, &centre, radius_mm)
+                .unwrap_or_else(|| (centre - eye).dot(&direction));
+            let on_sphere = eye + direction * t_sphere;
+            // In a visible scenario (`visible`) every disc lies inside the
+            // image and clear of the nearer ones, so no sight line is outside
+            // or hidden by a sphere; those checks are skipped.
+            let in_image = visible
+                || camera
+                    .project(&pose.transform(&on_sphere))
+                    .is_some_and(|px: Vector2<f64>| camera.contains(&px, 0.0));
+            if !in_image {
+                outside += 1;
+            } else if !visible
+                && spheres.iter().any(|&j| {
+                    occluders::ray_ball(eye, &direction, &centres[j], radius_mm)
+                        .is_some_and(|t| t < t_sphere)
+                })
+            {
+                by_sphere += 1;
+            } else if parts
+                .iter()
+                .zip(&planes)
+                .enumerate()
+                .any(|(i, (&p, plane))| {
+                    if plane.is_some_and(|(u, level)| (on_sphere - centre).dot(&u) <= level) {
+                        return false;
+                    }
+                    supports.occluders[p]
+                        .ray_hit_grown(eye, &direction, t_sphere - SURFACE_TOLERANCE_MM, grow[i])
+                        .is_some_and(|t| {
+                            // A hit on a sphere's surface (the round cone under a
+                            // sphere starts with the sphere's own ball) is the
+                            // sphere's, not a support's.
+                            let hit = eye + direction * t;
+                            t < t_sphere - SURFACE_TOLERANCE_MM
+                                && centres
+                                    .iter()
+                                    .all(|c| (hit - c).norm() > radius_mm + SURFACE_TOLERANCE_MM)
+                        })
+                })
+            {
+                by_support += 1;
+                if by_support > stop_above {
+                    break;
+                }
+            }
+        }
+        let share = |n: usize| n as f64 / rays as f64;
+        Some(HiddenFractions {
+            support: share(by_support),
+            sphere: share(by_sphere),
+            outside: share(outside),
+        })
     }
-    let share = |n: usize| n as f64 / rays as f64;
-    Some(HiddenFractions {
-        support: share(by_support),
-        sphere: share(by_sphere),
-        outside: share(outside),
-    })
 }
 
 /// The [`SILHOUETTE_RAYS`] unit directions from `eye` that the model
@@ -519,6 +616,224 @@ pub fn visibility_with_supports(
         }
     }
     result
+}
+
+/// The camera centres of a set of scenarios, in the marker frame, held as
+/// a cone of directions from the frame's origin: what a candidate's
+/// supports are screened against once, before any scenario
+/// ([`EyeCone::screen`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EyeCone {
+    /// Mean direction to the eyes.
+    axis: Vector3<f64>,
+    /// Largest angle between it and the direction to an eye, radians.
+    half_angle: f64,
+    /// Nearest and farthest eye from the origin, mm.
+    nearest_mm: f64,
+    farthest_mm: f64,
+}
+
+impl EyeCone {
+    /// The cone of the camera centres of `scenarios`; `None` for none.
+    pub fn of(scenarios: &[Scenario]) -> Option<EyeCone> {
+        let eyes: Vec<Vector3<f64>> = scenarios
+            .iter()
+            .map(|s| {
+                let pose = s.pose();
+                -(pose.rotation.matrix().transpose() * pose.translation)
+            })
+            .collect();
+        let nearest_mm = eyes.iter().map(|e| e.norm()).fold(f64::INFINITY, f64::min);
+        let farthest_mm = eyes.iter().map(|e| e.norm()).fold(0.0, f64::max);
+        if eyes.is_empty() || nearest_mm <= 0.0 {
+            return None;
+        }
+        let sum: Vector3<f64> = eyes.iter().map(|e| e / e.norm()).sum();
+        let (axis, half_angle) = if sum.norm() < 1e-9 * eyes.len() as f64 {
+            (Vector3::z(), std::f64::consts::PI)
+        } else {
+            let axis = sum.normalize();
+            let widest = eyes
+                .iter()
+                .map(|e| (e.dot(&axis) / e.norm()).clamp(-1.0, 1.0).acos())
+                .fold(0.0, f64::max);
+            (axis, widest)
+        };
+        Some(EyeCone {
+            axis,
+            half_angle,
+            nearest_mm,
+            farthest_mm,
+        })
+    }
+
+    /// Per sphere (`centres`, `radius_mm`), the supports that may hide
+    /// some of it from some eye of the cone; conservative: a part left out
+    /// hides nothing of that sphere from any of them. A part may hide a
+    /// sphere only where a point of it lies within the sphere's sight-line
+    /// cone from an eye: seen from the sphere's centre, within the angle
+    /// asin(r/(distance − part radius)) + asin(part radius/distance) of the
+    /// direction to that eye (for a part nearer than the sphere), and
+    /// every such direction lies within the cone's half-angle plus the
+    /// parallax of the centre (asin(|centre|/nearest eye)) of its axis.
+    /// The sphere's own cone may hide it only where an eye sees the
+    /// sphere beyond the circle its flank leaves from.
+    pub fn screen(
+        &self,
+        centres: &[Vector3<f64>],
+        radius_mm: f64,
+        supports: &Supports,
+    ) -> Vec<Vec<usize>> {
+        centres
+            .iter()
+            .map(|centre| {
+                let parallax = (centre.norm() / self.nearest_mm).min(1.0).asin();
+                let spread = self.half_angle + parallax;
+                (0..supports.occluders.len())
+                    .filter(|&p| self.may_hide(centre, radius_mm, spread, &supports.occluders[p]))
+                    .collect()
+            })
+            .collect()
+    }
+
+    fn may_hide(
+        &self,
+        centre: &Vector3<f64>,
+        radius_mm: f64,
+        spread: f64,
+        occluder: &Occluder,
+    ) -> bool {
+        if spread >= std::f64::consts::PI {
+            return true;
+        }
+        let (a, b, radius) = match occluder {
+            Occluder::Capsule { a, b, radius } => (*a, *b, *radius),
+            Occluder::RoundCone {
+                a,
+                radius_a,
+                b,
+                radius_b,
+            } => {
+                if (a - centre).norm() < 1e-9 && (radius_a - radius_mm).abs() < 1e-9 {
+                    return self.own_cone_may_hide(a, *radius_a, b, *radius_b, spread);
+                }
+                (*a, *b, radius_a.max(*radius_b))
+            }
+            other => {
+                let (c, r) = other.bounding_ball();
+                (c, c, r + other.fillet_reach().unwrap_or(0.0))
+            }
+        };
+        let (from_a, along) = (a - centre, b - a);
+        let nearest = (centre - occluders::closest_on_segment(centre, &a, &b)).norm();
+        let reach = radius_mm + radius;
+        if nearest <= reach {
+            return true;
+        }
+        // The least angle between the cone's axis and a point of the
+        // segment seen from the centre: at an end or where d(cos)/dt = 0.
+        let cosine = |t: f64| {
+            let v = from_a + along * t;
+            v.dot(&self.axis) / v.norm()
+        };
+        let (alpha0, alpha1) = (from_a.dot(&self.axis), along.dot(&self.axis));
+        let (p00, p01, p11) = (
+            from_a.norm_squared(),
+            from_a.dot(&along),
+            along.norm_squared(),
+        );
+        let denominator = alpha1 * p01 - alpha0 * p11;
+        let mut best = cosine(0.0).max(cosine(1.0));
+        if denominator.abs() > 1e-12 {
+            let t = (alpha0 * p01 - alpha1 * p00) / denominator;
+            if (0.0..=1.0).contains(&t) {
+                best = best.max(cosine(t));
+            }
+        }
+        // A point of the part within `radius` of the axis point q lies
+        // within asin(radius/|q|) of q's direction and no nearer than
+        // |q| − radius; the line through it to the ball, within
+        // asin(radius_mm/(|q| − radius)) of the eye's.
+        let least = best.clamp(-1.0, 1.0).acos();
+        least
+            <= spread
+                + (radius_mm / (nearest - radius)).min(1.0).asin()
+                + (radius / nearest).min(1.0).asin()
+    }
+
+    /// Whether an eye of the cone may see the sphere (`a`, `radius_a`)
+    /// beyond the circle where its own cone's flank (towards `b`,
+    /// `radius_b`) leaves it, as in `own_cone_may_cover` with the eye's
+    /// direction anywhere within `spread` of the axis.
+    fn own_cone_may_hide(
+        &self,
+        a: &Vector3<f64>,
+        radius_a: f64,
+        b: &Vector3<f64>,
+        radius_b: f64,
+        spread: f64,
+    ) -> bool {
+        let along = b - a;
+        let length = along.norm();
+        if length <= radius_a - radius_b || length == 0.0 {
+            return false;
+        }
+        let u = along / length;
+        if self.nearest_mm - a.norm() <= radius_a {
+            return true;
+        }
+        let sine = (radius_a - radius_b) / length;
+        let psi = (self.axis.dot(&u).clamp(-1.0, 1.0).acos() - spread).max(0.0);
+        // The seen cap is widest from the farthest eye.
+        let cap = (radius_a / (self.farthest_mm + a.norm())).min(1.0).acos();
+        let reach = if psi - cap <= 0.0 {
+            1.0
+        } else {
+            (psi - cap).cos()
+        };
+        reach > sine - 1e-12 || psi < std::f64::consts::FRAC_PI_2
+    }
+}
+
+/// The spheres whose support-hidden fraction exceeds `max_hidden` under
+/// `pose`, in a scenario in which every sphere is in front, inside the
+/// image and clear of the others: the decision of
+/// [`visibility_with_supports`], with each sphere's supports taken from
+/// `screen` ([`EyeCone::screen`] for a cone that holds this scenario's
+/// eye) and its sight lines followed only until the decision is known.
+pub fn spheres_hidden_by_supports(
+    camera: &Camera,
+    pose: &Pose,
+    centres: &[Vector3<f64>],
+    radius_mm: f64,
+    supports: &Supports,
+    screen: &[Vec<usize>],
+    max_hidden: MaxHidden,
+) -> Vec<usize> {
+    let rotation = pose.rotation.matrix();
+    let eye = -(rotation.transpose() * pose.translation);
+    let stop_above = (max_hidden.fraction() * SILHOUETTE_RAYS as f64).floor() as usize;
+    (0..centres.len())
+        .filter(|&k| {
+            if screen[k].is_empty() {
+                return false;
+            }
+            let trace = Trace {
+                camera,
+                pose,
+                eye: &eye,
+                centres,
+                radius_mm,
+                supports,
+                visible: true,
+                among: Some(&screen[k]),
+                stop_above,
+            };
+            trace
+                .sphere(k)
+                .is_some_and(|f| f.support > max_hidden.fraction())
+        })
+        .collect()
 }
 
 /// The views of a working range that the spheres alone leave usable: the

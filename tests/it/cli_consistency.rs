@@ -202,8 +202,14 @@ fn visibility_counts_are_a_partition_and_every_occlusion_is_listed() {
         .success();
     let v = &summary(dir.path())["visibility"];
     let count = |key: &str| v[key].as_u64().unwrap();
+    // validate counts the part's supports by default: a scenario they hide
+    // a sphere in is a class of its own.
     assert_eq!(
-        count("visible") + count("occluded") + count("outside_image") + count("behind_camera"),
+        count("visible")
+            + count("occluded")
+            + count("outside_image")
+            + count("behind_camera")
+            + count("hidden_by_support"),
         count("scenarios")
     );
     assert!(count("occluded") > 0 && count("outside_image") > 0, "{v}");

@@ -14,7 +14,8 @@ use layout_opt::mesh::{
 use layout_opt::scenario::{sphere_images, visibility, Range, Scenario, ScenarioGrid};
 use layout_opt::search::{Evaluator, SearchConfig};
 use layout_opt::visibility::{
-    hidden_fractions, silhouette_directions, support_fractions, MaxHidden, Supports, WorkingRange,
+    hidden_fractions, silhouette_directions, spheres_hidden_by_supports, support_fractions,
+    EyeCone, MaxHidden, Supports, WorkingRange,
 };
 use nalgebra::Vector3;
 use rayon::prelude::*;
@@ -424,6 +425,13 @@ fn the_culled_support_fractions_equal_the_full_model_in_visible_scenarios() {
     let options = MarkerOptions::default();
     let routed = supports_for_range(&layout, &options, &range).unwrap();
     let straight = straight_supports(&centres, layout.sphere_diameter_mm, &options);
+    // The search's decision, from the supports screened once against the
+    // grid's eyes and sight lines followed until it is known.
+    let eyes = EyeCone::of(&scenarios).unwrap();
+    let screens = [&routed, &straight].map(|s| eyes.screen(&centres, radius, s));
+    let pairs = centres.len() * straight.occluders().len();
+    let screened: usize = screens[1].iter().map(Vec::len).sum();
+    assert!(screened < pairs, "{screened} of {pairs}");
     let (mut compared, mut hidden) = (0, 0);
     for scenario in &scenarios {
         let pose = scenario.pose();
@@ -431,13 +439,23 @@ fn the_culled_support_fractions_equal_the_full_model_in_visible_scenarios() {
         if !visibility(&images, &camera).is_visible() {
             continue;
         }
-        for supports in [&routed, &straight] {
+        for (supports, screen) in [&routed, &straight].into_iter().zip(&screens) {
             let full = hidden_fractions(&camera, &pose, &centres, radius, supports);
             let fast = support_fractions(&camera, &pose, &centres, radius, supports);
             for (f, s) in full.iter().zip(&fast) {
                 assert_eq!(f.expect("in front").support, *s, "{scenario:?}");
                 compared += 1;
                 hidden += usize::from(*s > 0.0);
+            }
+            for max_hidden in [0.0, 0.01, 0.1] {
+                let max_hidden = MaxHidden::new(max_hidden).unwrap();
+                let decided = spheres_hidden_by_supports(
+                    &camera, &pose, &centres, radius, supports, screen, max_hidden,
+                );
+                let expected: Vec<usize> = (0..centres.len())
+                    .filter(|&k| fast[k] > max_hidden.fraction())
+                    .collect();
+                assert_eq!(decided, expected, "{scenario:?}");
             }
         }
     }

@@ -434,6 +434,48 @@ mod tests {
     }
 
     #[test]
+    fn fillet_occluders_hold_the_swell_at_the_spheres() {
+        use crate::visibility::Occluder;
+        let marker = Marker::design(&Layout::paper_biprism(), &MarkerOptions::default()).unwrap();
+        let occluders = marker.occluders();
+        let (fillets, parts): (Vec<&Occluder>, Vec<&Occluder>) = occluders
+            .iter()
+            .partition(|o| matches!(o, Occluder::Fillet { .. }));
+        assert!(!fillets.is_empty());
+        // Points of the solid within a sphere's diameter of its centre that
+        // no sphere, strut, cone or plate holds lie in the fillet where its
+        // support leaves it; every one must be inside a fillet occluder.
+        let mut swell = 0;
+        for s in &marker.spheres {
+            let step = 0.25;
+            for i in -48..=48 {
+                for j in -48..=48 {
+                    for k in 0..=48 {
+                        let p = s.centre + Vector3::new(i as f64, j as f64, k as f64) * step;
+                        if (p - s.centre).norm() > 2.0 * s.radius
+                            || marker.signed_distance(&p) > 0.0
+                            || marker
+                                .spheres
+                                .iter()
+                                .any(|o| (p - o.centre).norm() <= o.radius)
+                            || parts.iter().any(|o| o.distance(&p) == 0.0)
+                        {
+                            continue;
+                        }
+                        swell += 1;
+                        assert!(
+                            fillets.iter().any(|f| f.distance(&p) == 0.0),
+                            "{} {p:?}",
+                            s.name
+                        );
+                    }
+                }
+            }
+        }
+        assert!(swell > 100, "{swell}");
+    }
+
+    #[test]
     fn error_messages() {
         let layout = Layout::paper_biprism();
         let options = |f: &dyn Fn(&mut MarkerOptions)| {

@@ -216,7 +216,10 @@ impl Marker {
 
     /// The supports as analytic occluders for the visibility model
     /// ([`crate::visibility`]): every strut a capsule, the cone under each
-    /// sphere a round cone, the base plate a box. The spheres themselves
+    /// sphere a round cone, the base plate a box, and the fillet of each
+    /// junction that holds a sphere (its smooth union of the spheres' hulls
+    /// and strut pieces, as [`Marker::sample`] blends them; a junction's
+    /// plate, behind every sphere, is left out). The spheres themselves
     /// are not included.
     pub fn occluders(&self) -> Vec<Occluder> {
         let struts = self.struts.iter().map(|s| Occluder::Capsule {
@@ -240,7 +243,29 @@ impl Marker {
             centre: self.plate.centre,
             half_extents: self.plate.half_extents,
         };
-        struts.chain(cones).chain([plate]).collect()
+        let fillets = self
+            .junctions
+            .iter()
+            .filter(|j| !j.spheres.is_empty() && !j.pieces.is_empty())
+            .map(|j| Occluder::Fillet {
+                hulls: j
+                    .spheres
+                    .iter()
+                    .map(|&i| {
+                        let sphere = &self.spheres[i];
+                        let (tip, tip_radius) = self
+                            .teardrops
+                            .get(i)
+                            .copied()
+                            .flatten()
+                            .unwrap_or((sphere.centre, sphere.radius));
+                        (sphere.centre, sphere.radius, tip, tip_radius)
+                    })
+                    .collect(),
+                pieces: j.pieces.clone(),
+                blend_mm: self.blend_mm,
+            });
+        struts.chain(cones).chain(fillets).chain([plate]).collect()
     }
 
     /// A readable name of a strut, e.g. "post P1", "link P3-O0", "back strut
