@@ -559,7 +559,7 @@ enum SupportRule {
 /// cannot be built.
 pub fn held_out_with_supports(
     evaluator: &Evaluator,
-    grid: &crate::scenario::ScenarioGrid,
+    volume: &crate::volume::WorkingVolume,
     winner: &crate::layout::Layout,
     paper: &crate::layout::Layout,
 ) -> Result<HeldOutCheck, crate::mesh::GeometryError> {
@@ -569,7 +569,7 @@ pub fn held_out_with_supports(
         max_hidden: MaxHidden::default(),
     };
     let first_order = evaluator
-        .on_scenarios(grid.scenarios(), &paper.positions())
+        .on_scenarios(volume.scenarios(&evaluator.camera), &paper.positions())
         .first_order(&paper.positions());
     let options = crate::mesh::MarkerOptions::default();
     let evaluate = |layout: &crate::layout::Layout| {
@@ -580,7 +580,7 @@ pub fn held_out_with_supports(
         })
     };
     Ok(HeldOutCheck::new(
-        grid,
+        volume,
         &evaluate(winner)?,
         &evaluate(paper)?,
     ))

@@ -8,6 +8,7 @@ use super::summary::{
 };
 use crate::error_model::fabrication::FabricationRun;
 use crate::report::{significant, Table};
+use crate::volume::WorkingVolume;
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -65,7 +66,7 @@ pub fn console(validation: &ValidateSummary, out: &Path) -> String {
             f.scenarios,
             show(t.predicted_rms_rotation_deg, "°"),
             t.scenarios,
-            if h.grid.sigma_px.values.contains(&0.0) {
+            if h.volume.sigma_values_px().contains(&0.0) {
                 " (the models predict nothing at σ = 0)"
             } else {
                 ""
@@ -223,14 +224,21 @@ pub(super) fn markdown(summary: &Overview) -> String {
     );
 
     let _ = writeln!(out, "## Scenarios\n");
-    let mut grid = Table::new(["axis", "values"]);
-    for (name, range) in h.grid.named_ranges() {
-        grid.row([
-            format!("{name} ({})", axis_unit(name)),
-            range_text(&range.values),
-        ]);
+    let _ = writeln!(
+        out,
+        "Working volume: {}. Availability below is a share of these viewpoints.\n",
+        h.volume_text
+    );
+    if let WorkingVolume::Grid(grid) = &h.volume {
+        let mut table = Table::new(["axis", "values"]);
+        for (name, range) in grid.named_ranges() {
+            table.row([
+                format!("{name} ({})", axis_unit(name)),
+                range_text(&range.values),
+            ]);
+        }
+        out.push_str(&table.markdown());
     }
-    out.push_str(&grid.markdown());
     let _ = writeln!(
         out,
         "\n{} scenarios: **{} visible** (availability {:.1}%), {} occluded, {} with a sphere outside the image (margin 5 px), {} with a sphere behind the camera (no trials), {} with a sphere hidden by the part's supports; {} + {} + {} + {} + {} = {}.",

@@ -11,7 +11,8 @@ use crate::error_model::fabrication::FabricationRun;
 use crate::identifiability::{self, ScenarioIdentifiability};
 use crate::layout::Layout;
 use crate::montecarlo::{Pooled, PoseErrorVector, ScenarioOutcome};
-use crate::scenario::{Scenario, ScenarioGrid, Visibility};
+use crate::scenario::{Scenario, Visibility};
+use crate::volume::WorkingVolume;
 use serde::Serialize;
 
 /// A finished validation: the pooled overview and every scenario's
@@ -71,8 +72,10 @@ pub struct Header {
     /// The feature used as paraperspective reference (and as the transfer
     /// model's segment origin).
     pub reference_point: String,
-    /// The scenario grid.
-    pub grid: ScenarioGrid,
+    /// The working volume.
+    pub volume: WorkingVolume,
+    /// The volume in words and numbers.
+    pub volume_text: String,
 }
 
 /// Why a scenario is not pooled, or that it is: one class per scenario, so
@@ -401,19 +404,6 @@ pub(super) fn occluded_pairs(layout: &Layout, outcome: &ScenarioOutcome) -> Stri
         })
         .collect::<Vec<_>>()
         .join(", ")
-}
-
-/// A scenario's value on a named grid axis.
-pub(super) fn axis_value(s: &Scenario, axis: &str) -> f64 {
-    match axis {
-        "depth" => s.depth_mm,
-        "offset-x" => s.offset_x_mm,
-        "offset-y" => s.offset_y_mm,
-        "tilt" => s.tilt_deg,
-        "pan" => s.pan_deg,
-        "roll" => s.roll_deg,
-        _ => s.sigma_px,
-    }
 }
 
 /// The unit of a named grid axis.
