@@ -174,6 +174,8 @@ pub fn monte_carlo_until(config: Checked, hooks: Hooks) -> Result<ValidateSummar
         curves: curves(&axes, &outcomes, monte_carlo),
         systematic: systematic(&outcomes, monte_carlo),
         identifiability: identifiability_summary(&axes, &outcomes, &identified, &settings),
+        pairs: super::pairs::pairwise(&axes, &outcomes, monte_carlo.solvers[0].name()),
+        worst: super::pairs::worst(&outcomes),
     };
     Ok(ValidateSummary {
         layout: layout.clone(),

@@ -352,7 +352,48 @@ pub(super) fn markdown(summary: &Overview) -> String {
             );
         }
     }
+    out.push_str(&pairs_markdown(summary));
     let _ = writeln!(out, "## Marker\n\n![three views](marker_views.svg)\n");
+    out
+}
+
+/// The pairwise heatmap page and the worst viewpoints.
+fn pairs_markdown(summary: &Overview) -> String {
+    let mut out = String::new();
+    let pairs = &summary.pairs;
+    if !pairs.panels.is_empty() {
+        let _ = writeln!(out, "## Error over pairs of axes\n");
+        let _ = writeln!(
+            out,
+            "{} panels, one per pair of the {} axes that vary; each cell pools `{}`'s trials over the visible viewpoints in it, on one colour scale{} (viridis; grey: no visible viewpoint).\n\n![error over pairs of axes](error_pairs.svg)\n",
+            pairs.panels.len(),
+            pairs.axes.len(),
+            pairs.solver,
+            pairs
+                .range_deg
+                .map_or(String::new(), |(lo, hi)| format!(" from {lo:.3}° to {hi:.3}°"))
+        );
+    }
+    if !summary.worst.is_empty() {
+        let _ = writeln!(
+            out,
+            "## The {} worst viewpoints ({})\n",
+            summary.worst.len(),
+            pairs.solver
+        );
+        let mut table = Table::new(["rank", "viewpoint", "RMS rotation (°)", "first order (°)"]);
+        for (rank, w) in summary.worst.iter().enumerate() {
+            table.row([
+                (rank + 1).to_string(),
+                w.description.clone(),
+                format!("{:.4}", w.rms_rotation_deg),
+                w.first_order_rotation_deg
+                    .map_or("—".into(), |v| format!("{v:.4}")),
+            ]);
+        }
+        out.push_str(&table.markdown());
+        let _ = writeln!(out, "\n[worst_viewpoints.csv](worst_viewpoints.csv)\n");
+    }
     out
 }
 

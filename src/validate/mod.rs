@@ -34,6 +34,7 @@
 pub mod analysis;
 pub mod config;
 pub mod markdown;
+pub mod pairs;
 pub mod report;
 pub mod summary;
 pub mod workflow;

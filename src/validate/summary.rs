@@ -238,6 +238,10 @@ pub struct Overview {
     /// How often the unlabelled solver would label the visible scenarios
     /// wrongly, predicted and measured.
     pub identifiability: IdentifiabilitySummary,
+    /// The first solver's error over every pair of varying axes.
+    pub pairs: super::pairs::PairwiseErrors,
+    /// The visible viewpoints with the first solver's largest errors.
+    pub worst: Vec<super::pairs::WorstViewpoint>,
 }
 
 /// Identifiability over the visible scenarios (module
@@ -386,8 +390,25 @@ pub(super) fn visible(outcome: &ScenarioOutcome) -> bool {
 pub(super) fn describe_scenario(s: &Scenario) -> String {
     format!(
         "depth {} mm, offset ({}, {}) mm, tilt {}°, pan {}°, roll {}°, σ {} px",
-        s.depth_mm, s.offset_x_mm, s.offset_y_mm, s.tilt_deg, s.pan_deg, s.roll_deg, s.sigma_px
+        hundredths(s.depth_mm),
+        hundredths(s.offset_x_mm),
+        hundredths(s.offset_y_mm),
+        hundredths(s.tilt_deg),
+        hundredths(s.pan_deg),
+        hundredths(s.roll_deg),
+        hundredths(s.sigma_px)
     )
+}
+
+/// A value to two decimals at most (a grid's values print as given; a
+/// sampled one does not print 15 digits).
+fn hundredths(value: f64) -> f64 {
+    let rounded = (value * 100.0).round() / 100.0;
+    if rounded == 0.0 {
+        0.0
+    } else {
+        rounded
+    }
 }
 
 /// Which sphere hides which in a scenario, in words.
