@@ -105,7 +105,17 @@ fn short(value: f64) -> String {
 /// The page as SVG text.
 pub fn heatmap_matrix_svg(matrix: &HeatmapMatrix) -> String {
     let grid = matrix.axes.len().saturating_sub(1).max(1) as f64;
-    let width = MARGIN_PX * 2.0 + grid * (PANEL_PX + GAP_PX) + BAR_ROOM_PX;
+    let note = format!(
+        "colour: {} (one scale for every panel; grey: no visible viewpoint)",
+        matrix.quantity
+    );
+    // Wide enough for the title and the note (0.64 font sizes a character,
+    // as the plots reserve).
+    let text_width = (matrix.title.chars().count() as f64 * 15.0)
+        .max(note.chars().count() as f64 * FONT_PX)
+        * 0.64;
+    let width = (MARGIN_PX * 2.0 + grid * (PANEL_PX + GAP_PX) + BAR_ROOM_PX)
+        .max(MARGIN_PX * 2.0 + text_width);
     let height = TITLE_PX + MARGIN_PX + grid * (PANEL_PX + GAP_PX);
     let values = matrix
         .panels
@@ -125,10 +135,7 @@ pub fn heatmap_matrix_svg(matrix: &HeatmapMatrix) -> String {
         svg,
         r#"<rect width="100%" height="100%" fill="white"/><text x="{MARGIN_PX}" y="22" font-size="15">{}</text><text x="{MARGIN_PX}" y="40">{}</text>"#,
         escape(&matrix.title),
-        escape(&format!(
-            "colour: {} (one scale for every panel; grey: no visible viewpoint)",
-            matrix.quantity
-        ))
+        escape(&note)
     );
     for panel in &matrix.panels {
         let (column, row) = (panel.x as f64, (panel.y - 1) as f64);

@@ -72,7 +72,7 @@
 //! let paper = Layout::paper_biprism();
 //! let evaluator = Evaluator::new(
 //!     config.camera,
-//!     config.grid.scenarios(),
+//!     config.volume.scenarios(&config.camera),
 //!     config.objective.clone(),
 //!     config.constraints,
 //!     &paper.positions(),
