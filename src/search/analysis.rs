@@ -875,3 +875,32 @@ impl SearchObserver for IterationCount {
         self.listener.finished(start);
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The checkpoint key holds the whole volume: another sample count or
+    /// seed of the scrambling is another key; the grid form keeps the
+    /// `grid` key it always had.
+    #[test]
+    fn the_checkpoint_key_includes_the_volume() {
+        let dir = std::path::Path::new("unused");
+        let base = SearchConfig::new("t", dir);
+        let key = |config: &SearchConfig| Analysis::new(config).unwrap().checkpoint_key();
+        let reference = key(&base);
+        assert_eq!(reference["volume"]["samples"], 256);
+        assert!(reference.get("grid").is_none());
+        let mut other = base.clone();
+        other.volume = super::super::config::default_volume(8);
+        assert_ne!(key(&other), reference);
+        let mut grid = base.clone();
+        grid.volume = WorkingVolume::Grid(super::super::config::default_grid());
+        let grid_key = key(&grid);
+        assert_eq!(
+            grid_key["grid"],
+            serde_json::json!(super::super::config::default_grid())
+        );
+        assert!(grid_key.get("volume").is_none());
+    }
+}
