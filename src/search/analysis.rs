@@ -372,6 +372,15 @@ impl Run<'_, '_> {
                 objective: config.objective.clone(),
                 search: config.search.clone(),
                 volume: config.volume.clone(),
+                grid: match &config.volume {
+                    WorkingVolume::Grid(grid) => Some(grid.clone()),
+                    WorkingVolume::Sampled(_) => None,
+                },
+                sampled_volume: match &config.volume {
+                    WorkingVolume::Sampled(volume) => Some(*volume),
+                    WorkingVolume::Grid(_) => None,
+                },
+                volume_text: config.volume.describe(),
                 camera: config.camera,
                 comparison_solver: config.compare_solver.name().to_string(),
                 comparison_trials: config.compare_trials,

@@ -29,8 +29,18 @@ pub struct SearchHeader {
     pub objective: ObjectiveSettings,
     /// The optimiser.
     pub search: SearchSettings,
-    /// The working volume.
+    /// The working volume (in `summary.json` as `grid` for a grid, as
+    /// before the volume existed, or as `sampled_volume`).
+    #[serde(skip)]
     pub volume: WorkingVolume,
+    /// The grid, when the volume is one.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub grid: Option<ScenarioGrid>,
+    /// The sampled volume, when the volume is one.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sampled_volume: Option<crate::volume::SampledVolume>,
+    /// The volume in words and numbers.
+    pub volume_text: String,
     /// The camera.
     pub camera: Camera,
     /// Solver of the Monte-Carlo comparison.

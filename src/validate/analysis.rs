@@ -30,7 +30,7 @@ use crate::observer::{relay, watch, Observer};
 use crate::pnp::parallel::reference_index;
 use crate::report::significant;
 use crate::visibility::{support_fractions, MaxHidden, Supports, WorkingRange};
-use crate::volume::VolumeAxis;
+use crate::volume::{VolumeAxis, WorkingVolume};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 
 /// Why a validation's analysis could not run.
@@ -275,6 +275,14 @@ fn header(config: &ValidateConfig, object: &[nalgebra::Vector3<f64>]) -> Header 
         observation: monte_carlo.observation.name().to_string(),
         reference_point: layout.points[reference_index(object)].name.clone(),
         volume: config.volume.clone(),
+        grid: match &config.volume {
+            WorkingVolume::Grid(grid) => Some(grid.clone()),
+            WorkingVolume::Sampled(_) => None,
+        },
+        sampled_volume: match &config.volume {
+            WorkingVolume::Sampled(volume) => Some(*volume),
+            WorkingVolume::Grid(_) => None,
+        },
         volume_text: config.volume.describe(),
     }
 }

@@ -72,8 +72,16 @@ pub struct Header {
     /// The feature used as paraperspective reference (and as the transfer
     /// model's segment origin).
     pub reference_point: String,
-    /// The working volume.
+    /// The working volume (in `summary.json` as `grid` for a grid, as
+    /// before the volume existed, or as `sampled_volume`).
+    #[serde(skip)]
     pub volume: WorkingVolume,
+    /// The grid, when the volume is one.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub grid: Option<crate::scenario::ScenarioGrid>,
+    /// The sampled volume, when the volume is one.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sampled_volume: Option<crate::volume::SampledVolume>,
     /// The volume in words and numbers.
     pub volume_text: String,
 }
