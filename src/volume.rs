@@ -485,9 +485,13 @@ impl WorkingVolume {
         Ok(volume)
     }
 
-    /// Refuses a volume from which no viewpoint sees every sphere of
-    /// `object` (centres, mm) with spheres of `sphere_diameter_mm`: the
-    /// visibility rules of [`crate::scenario::visibility`], spheres alone.
+    /// Refuses a volume from which no viewpoint has every sphere of
+    /// `object` (centres, mm; spheres of `sphere_diameter_mm`) in front of
+    /// the camera and inside the image (the rules of
+    /// [`crate::scenario::visibility`] but occlusion: a volume that never
+    /// has the marker in view is misdrawn, while one in which its spheres
+    /// hide each other is a finding about the layout, which the reports
+    /// give).
     pub fn check_seen(
         &self,
         camera: &Camera,
@@ -498,7 +502,8 @@ impl WorkingVolume {
         let seen = self.scenarios(camera).iter().any(|s| {
             let images =
                 crate::scenario::sphere_images(camera, &s.pose(), object, sphere_diameter_mm);
-            crate::scenario::visibility(&images, camera).is_visible()
+            let visibility = crate::scenario::visibility(&images, camera);
+            visibility.behind.is_empty() && visibility.outside.is_empty()
         });
         if seen {
             Ok(())
@@ -506,7 +511,7 @@ impl WorkingVolume {
             Err(ConfigError::new(
                 "volume",
                 format!(
-                    "no viewpoint of it sees every sphere of {what} (each is behind the camera, leaves the image or is hidden by another): {}",
+                    "no viewpoint of it has every sphere of {what} in view (in each, one is behind the camera or leaves the image): {}",
                     self.describe()
                 ),
             ))
@@ -986,6 +991,23 @@ mod tests {
             .unwrap_err();
         assert_eq!(error.field, "volume");
         assert!(error.to_string().contains("no viewpoint"), "{error}");
+        // Spheres that hide each other are in view: head on, the biprism's
+        // P3 hides O0 and P1, and the volume stands.
+        let head_on = WorkingVolume::Grid(
+            ScenarioGrid::new(
+                Range::single(500.0),
+                Range::single(0.0),
+                Range::single(0.0),
+                Range::single(0.0),
+                Range::single(0.0),
+                Range::single(0.0),
+                Range::single(0.5),
+            )
+            .unwrap(),
+        );
+        assert!(head_on
+            .check_seen(&Camera::paper(), &object, 10.0, "the paper's biprism")
+            .is_ok());
         assert!(WorkingVolume::Sampled(volume(angles(), 32))
             .check_seen(&Camera::paper(), &object, 10.0, "the paper's biprism")
             .is_ok());

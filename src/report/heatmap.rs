@@ -29,7 +29,7 @@ pub const VIRIDIS: [[u8; 3]; 11] = [
 pub const EMPTY_FILL: &str = "#e6e6e6";
 
 const PANEL_PX: f64 = 150.0;
-const GAP_PX: f64 = 56.0;
+const GAP_PX: f64 = 70.0;
 const MARGIN_PX: f64 = 24.0;
 const TITLE_PX: f64 = 48.0;
 const BAR_WIDTH_PX: f64 = 18.0;
@@ -92,14 +92,9 @@ fn escape(text: &str) -> String {
         .replace('>', "&gt;")
 }
 
+/// A tick or scale label: three significant digits.
 fn short(value: f64) -> String {
-    let text = format!("{:.3}", value);
-    let text = text.trim_end_matches('0').trim_end_matches('.');
-    if text == "-0" {
-        "0".into()
-    } else {
-        text.to_string()
-    }
+    super::significant(Some(value), 3)
 }
 
 /// The page as SVG text.
@@ -133,7 +128,7 @@ pub fn heatmap_matrix_svg(matrix: &HeatmapMatrix) -> String {
     );
     let _ = writeln!(
         svg,
-        r#"<rect width="100%" height="100%" fill="white"/><text x="{MARGIN_PX}" y="22" font-size="15">{}</text><text x="{MARGIN_PX}" y="40">{}</text>"#,
+        r#"<rect width="100%" height="100%" fill="white"/><text x="{MARGIN_PX}" y="22" font-size="15">{}</text><text x="{MARGIN_PX}" y="40" font-size="{FONT_PX}">{}</text>"#,
         escape(&matrix.title),
         escape(&note)
     );
@@ -185,9 +180,10 @@ pub fn heatmap_matrix_svg(matrix: &HeatmapMatrix) -> String {
         let (x_first, x_last) = ends(x_axis);
         let (y_first, y_last) = ends(y_axis);
         let bottom = top + PANEL_PX;
+        let (label_x, label_y) = (left - 56.0, top + 0.5 * PANEL_PX);
         let _ = writeln!(
             svg,
-            r#"<text x="{left:.2}" y="{:.2}">{}</text><text x="{:.2}" y="{:.2}" text-anchor="end">{}</text><text x="{:.2}" y="{:.2}" text-anchor="middle">{}</text>"#,
+            r#"<text x="{left:.2}" y="{:.2}" font-size="{FONT_PX}">{}</text><text x="{:.2}" y="{:.2}" font-size="{FONT_PX}" text-anchor="end">{}</text><text x="{:.2}" y="{:.2}" font-size="{FONT_PX}" text-anchor="middle">{}</text>"#,
             bottom + 13.0,
             escape(&x_first),
             left + PANEL_PX,
@@ -199,14 +195,12 @@ pub fn heatmap_matrix_svg(matrix: &HeatmapMatrix) -> String {
         );
         let _ = writeln!(
             svg,
-            r#"<text x="{:.2}" y="{bottom:.2}" text-anchor="end">{}</text><text x="{:.2}" y="{:.2}" text-anchor="end">{}</text><text transform="translate({:.2},{:.2}) rotate(-90)" text-anchor="middle">{}</text>"#,
+            r#"<text x="{:.2}" y="{bottom:.2}" font-size="{FONT_PX}" text-anchor="end">{}</text><text x="{:.2}" y="{:.2}" font-size="{FONT_PX}" text-anchor="end">{}</text><text x="{label_x:.2}" y="{label_y:.2}" font-size="{FONT_PX}" transform="rotate(-90 {label_x:.2} {label_y:.2})" text-anchor="middle">{}</text>"#,
             left - 3.0,
             escape(&y_first),
             left - 3.0,
             top + FONT_PX,
             escape(&y_last),
-            left - 40.0,
-            top + 0.5 * PANEL_PX,
             escape(&y_axis.label)
         );
     }
@@ -228,7 +222,7 @@ pub fn heatmap_matrix_svg(matrix: &HeatmapMatrix) -> String {
         for (t, value) in [(0.0, low), (0.5, 0.5 * (low + high)), (1.0, high)] {
             let _ = writeln!(
                 svg,
-                r#"<text x="{:.2}" y="{:.2}">{}</text>"#,
+                r#"<text x="{:.2}" y="{:.2}" font-size="{FONT_PX}">{}</text>"#,
                 left + BAR_WIDTH_PX + 4.0,
                 top + bar_height * (1.0 - t) + 4.0,
                 escape(&short(value))

@@ -246,10 +246,64 @@ pub struct Overview {
     /// How often the unlabelled solver would label the visible scenarios
     /// wrongly, predicted and measured.
     pub identifiability: IdentifiabilitySummary,
-    /// The first solver's error over every pair of varying axes.
-    pub pairs: super::pairs::PairwiseErrors,
+    /// The first solver's error over every pair of varying axes
+    /// ([`super::pairs`]).
+    pub pairs: PairwiseErrors,
     /// The visible viewpoints with the first solver's largest errors.
-    pub worst: Vec<super::pairs::WorstViewpoint>,
+    pub worst: Vec<WorstViewpoint>,
+}
+
+/// One axis of the pairwise matrix.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PairAxis {
+    /// The axis's name.
+    pub axis: String,
+    /// Its unit.
+    pub unit: String,
+    /// Its values (grid values or bin centres).
+    pub values: Vec<f64>,
+}
+
+/// The pooled error over one pair of axes.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PairPanel {
+    /// Index of the horizontal axis in [`PairwiseErrors::axes`].
+    pub x: usize,
+    /// Index of the vertical axis.
+    pub y: usize,
+    /// RMS rotation error of the first solver, degrees, per cell
+    /// (`[y bin][x bin]`); None where no visible viewpoint falls.
+    pub rms_rotation_deg: Vec<Vec<Option<f64>>>,
+    /// Visible viewpoints per cell.
+    pub visible: Vec<Vec<usize>>,
+    /// Viewpoints per cell.
+    pub viewpoints: Vec<Vec<usize>>,
+}
+
+/// Error against every pair of varying axes.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PairwiseErrors {
+    /// The solver whose Monte-Carlo error the cells hold (the first one).
+    pub solver: String,
+    /// The varying axes, in grid order.
+    pub axes: Vec<PairAxis>,
+    /// Every pair `x < y` of them.
+    pub panels: Vec<PairPanel>,
+    /// Smallest and largest cell value, degrees (one colour scale for all).
+    pub range_deg: Option<(f64, f64)>,
+}
+
+/// A viewpoint among the worst.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct WorstViewpoint {
+    /// The viewpoint.
+    pub scenario: Scenario,
+    /// It in words.
+    pub description: String,
+    /// The first solver's RMS rotation error there, degrees.
+    pub rms_rotation_deg: f64,
+    /// The first-order (Cramér–Rao) RMS rotation there, degrees.
+    pub first_order_rotation_deg: Option<f64>,
 }
 
 /// Identifiability over the visible scenarios (module

@@ -196,7 +196,7 @@ fn bad_volumes_are_refused_before_any_work() {
         (&["--samples", "0"], "--samples is 0"),
         (
             &["--samples", "8", "--offset-x", "5000"],
-            "no viewpoint of it sees every sphere",
+            "no viewpoint of it has every sphere of",
         ),
         (&["--placement-cone", "90"], "--placement-cone must be"),
         (
