@@ -66,15 +66,16 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     // 3. The validation's numbers (no files) of the same layout on six
     //    scenarios: every solver's Monte-Carlo error beside the limit.
     let mut check = ValidateConfig::new(layout.clone(), vec![Solver::Ml, Solver::Epnp]);
-    check.grid = layout_opt::scenario::ScenarioGrid::new(
-        "400,700".parse()?,
-        layout_opt::scenario::Range::single(0.0),
-        layout_opt::scenario::Range::single(0.0),
-        "-30,0,30".parse()?,
-        layout_opt::scenario::Range::single(0.0),
-        layout_opt::scenario::Range::single(0.0),
-        layout_opt::scenario::Range::single(sigma_px),
-    )?;
+    check.volume =
+        layout_opt::volume::WorkingVolume::Grid(layout_opt::scenario::ScenarioGrid::new(
+            "400,700".parse()?,
+            layout_opt::scenario::Range::single(0.0),
+            layout_opt::scenario::Range::single(0.0),
+            "-30,0,30".parse()?,
+            layout_opt::scenario::Range::single(0.0),
+            layout_opt::scenario::Range::single(0.0),
+            layout_opt::scenario::Range::single(sigma_px),
+        )?);
     check.monte_carlo.trials = 50;
     check.identifiability.trials = 0;
     let validation = validate::analyse(&check, &mut layout_opt::observer::Silent)?;
@@ -92,15 +93,16 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     //    temporary directory.
     let dir = std::env::temp_dir().join(format!("layout-opt-library-{}", std::process::id()));
     let mut config = SearchConfig::new("example", &dir);
-    config.grid = layout_opt::scenario::ScenarioGrid::new(
-        "300,800".parse()?,
-        "0,60".parse()?,
-        layout_opt::scenario::Range::single(0.0),
-        "-40..40:20".parse()?,
-        layout_opt::scenario::Range::single(0.0),
-        layout_opt::scenario::Range::single(0.0),
-        layout_opt::scenario::Range::single(sigma_px),
-    )?;
+    config.volume =
+        layout_opt::volume::WorkingVolume::Grid(layout_opt::scenario::ScenarioGrid::new(
+            "300,800".parse()?,
+            "0,60".parse()?,
+            layout_opt::scenario::Range::single(0.0),
+            "-40..40:20".parse()?,
+            layout_opt::scenario::Range::single(0.0),
+            layout_opt::scenario::Range::single(0.0),
+            layout_opt::scenario::Range::single(sigma_px),
+        )?);
     config.search.starts = 2;
     config.search.iterations = 150;
     config.compare_trials = 20;

@@ -40,3 +40,4 @@ pub mod synthetic;
 pub mod track;
 pub mod validate;
 pub mod visibility;
+pub mod volume;

@@ -6,6 +6,7 @@
 mod flags;
 
 use super::common::{command_line, duration_text, naming_file, parse_solvers, SLOW_RUN_SECONDS};
+use super::volume::{volume_flag, VolumeDefaults};
 use super::{progress, GlobalOptions};
 use anyhow::Context;
 use clap::ValueEnum;
@@ -15,7 +16,8 @@ use layout_opt::config::ConfigError;
 use layout_opt::family::{Constraints, FamilyKind};
 use layout_opt::layout::Layout;
 use layout_opt::search::config::{
-    checkpoint_dir_beside, default_grid, default_polish_iterations, report_dir_beside,
+    checkpoint_dir_beside, default_grid, default_polish_iterations, default_volume,
+    report_dir_beside,
 };
 use layout_opt::search::{
     estimate, workflow, FrontOutput, FrontSettings, IdentifiabilityFloor, MeshExport,
@@ -27,7 +29,14 @@ use std::path::{Path, PathBuf};
 /// the working directory.
 fn config(args: SearchArgs, global: &GlobalOptions) -> anyhow::Result<SearchConfig> {
     let camera = args.camera.camera()?;
-    let grid = args.grid.grid(&default_grid())?;
+    let volume = args.volume.volume(
+        &args.grid,
+        VolumeDefaults {
+            grid: default_grid(),
+            volume: default_volume(global.seed),
+        },
+        global.seed,
+    )?;
     let min_identifiability = match (args.min_identifiability.0, args.identify_criterion.0) {
         (None, _) => None,
         (Some(_), None) => anyhow::bail!(
@@ -106,7 +115,7 @@ fn config(args: SearchArgs, global: &GlobalOptions) -> anyhow::Result<SearchConf
             min_distance_diff_mm: args.min_distance_diff,
         },
         camera,
-        grid,
+        volume,
         objective: ObjectiveSettings {
             objective: args.objective,
             aggregate: args.aggregate,
@@ -151,6 +160,9 @@ fn config(args: SearchArgs, global: &GlobalOptions) -> anyhow::Result<SearchConf
 /// A configuration error in the command line's words: the field's flag,
 /// then what is wrong with its value.
 fn flag_error(error: ConfigError) -> anyhow::Error {
+    if let Some(flag) = volume_flag(&error) {
+        return anyhow::anyhow!("{flag} {}", error.reason);
+    }
     let flag = match error.field {
         "sigma_px" => "--noise".to_string(),
         "sphere_diameter_mm" => "--sphere-diameter".to_string(),

@@ -1,6 +1,7 @@
 //! `layout-opt validate`: a layout's sensitivity report.
 
 use super::common::{command_line, naming_file, parse_solvers, CameraArgs, GridArgs};
+use super::volume::{volume_flag, VolumeArgs, VolumeDefaults};
 use super::{progress, GlobalOptions};
 use anyhow::Context;
 use clap::Args;
@@ -19,6 +20,7 @@ use layout_opt::validate::{
     self, IdentifiabilityCheck, ValidateConfig, ValidateError, DEFAULT_TILT_STEP_DEG,
     POLYNOMIAL_TILT_STEP_DEG,
 };
+use layout_opt::volume::WorkingVolume;
 use std::path::PathBuf;
 
 /// Flags of `validate`.
@@ -28,6 +30,8 @@ pub struct ValidateArgs {
     layout: Option<PathBuf>,
     #[command(flatten)]
     grid: GridArgs,
+    #[command(flatten)]
+    volume: VolumeArgs,
     #[command(flatten)]
     camera: CameraArgs,
     /// Solvers: `all` or a comma list of stable names (see `solve --list`).
@@ -98,8 +102,19 @@ pub fn run(args: ValidateArgs, global: &GlobalOptions) -> anyhow::Result<()> {
     let camera = args.camera.camera()?;
     let solvers = parse_solvers(&args.solvers)?;
     let tilt_step = default_tilt_step_deg(&solvers);
-    let grid = args.grid.grid(&ScenarioGrid::paper_protocol(tilt_step))?;
-    let grid_note = (tilt_step != DEFAULT_TILT_STEP_DEG && args.grid.tilt.is_none()).then(|| {
+    let paper = ScenarioGrid::paper_protocol(tilt_step);
+    let volume = args.volume.volume(
+        &args.grid,
+        VolumeDefaults {
+            grid: paper.clone(),
+            volume: WorkingVolume::Grid(paper),
+        },
+        global.seed,
+    )?;
+    let grid_note = (tilt_step != DEFAULT_TILT_STEP_DEG
+        && args.grid.tilt.is_none()
+        && matches!(volume, WorkingVolume::Grid(_)))
+    .then(|| {
         format!(
             "default tilt step {POLYNOMIAL_TILT_STEP_DEG}° instead of the paper's {DEFAULT_TILT_STEP_DEG}° because the solvers include dls or opnp; pass --tilt -90..90:{DEFAULT_TILT_STEP_DEG} for the full protocol"
         )
@@ -114,7 +129,7 @@ pub fn run(args: ValidateArgs, global: &GlobalOptions) -> anyhow::Result<()> {
         validate: ValidateConfig {
             layout,
             camera,
-            grid,
+            volume,
             monte_carlo: MonteCarloConfig {
                 trials: args.trials,
                 seed: global.seed,
@@ -174,6 +189,9 @@ pub fn run(args: ValidateArgs, global: &GlobalOptions) -> anyhow::Result<()> {
 /// A configuration error in the words of the command line: the field's
 /// flag, or the layout's name.
 fn flag_error(error: ConfigError, layout: &str) -> anyhow::Error {
+    if let Some(flag) = volume_flag(&error) {
+        return anyhow::anyhow!("{flag} {}", error.reason);
+    }
     let flag = match error.field {
         "layout" => return anyhow::anyhow!("layout {layout}: {}", error.reason),
         "solvers" => "--solvers",

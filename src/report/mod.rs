@@ -3,6 +3,7 @@
 //! SVG (docs/formats.md, "Report files"); the commands that build them own
 //! their content, this module only draws and formats.
 
+pub mod heatmap;
 pub mod plots;
 
 use std::path::Path;

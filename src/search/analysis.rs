@@ -39,6 +39,7 @@ use crate::layout::Layout;
 use crate::montecarlo::{MonteCarloConfig, MonteCarloError, DEFAULT_GROSS_THRESHOLD_DEG};
 use crate::observer::{watch, Observer};
 use crate::validate::{self, ValidateConfig, ValidateError};
+use crate::volume::WorkingVolume;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Arc;
 use std::time::Instant;
@@ -250,13 +251,14 @@ impl<'c> Analysis<'c> {
     pub fn provenance(&self) -> serde_json::Value {
         let config = self.config;
         let range: serde_json::Map<String, serde_json::Value> = config
-            .grid
-            .named_ranges()
+            .volume
+            .axis_ranges(&config.camera)
             .iter()
             .map(|(name, range)| (name.to_string(), serde_json::json!(range.values)))
             .collect();
         serde_json::json!({
             "range": range,
+            "volume": config.volume.describe(),
             "command": config.command,
             "seed": config.search.seed,
             "objective": config.objective.objective.to_string(),
@@ -280,10 +282,15 @@ impl<'c> Analysis<'c> {
             "sphere_diameter_mm": config.constraints.sphere_diameter_mm,
             "constraints": config.constraints,
             "camera": config.camera,
-            "grid": config.grid,
             "objective": config.objective,
             "search": config.search,
         });
+        // A grid keeps the key it always had, so that its checkpoints
+        // resume; a sampled volume is keyed by all of it, seed included.
+        match &config.volume {
+            WorkingVolume::Grid(grid) => key["grid"] = serde_json::json!(grid),
+            WorkingVolume::Sampled(volume) => key["volume"] = serde_json::json!(volume),
+        }
         // Only when asked for, so that earlier checkpoints keep their key.
         if let Some(max_hidden) = config.count_supports {
             key["count_supports"] = serde_json::json!(max_hidden.fraction());
@@ -300,7 +307,7 @@ impl<'c> Analysis<'c> {
             hand_designs(&constraints.envelope, constraints.sphere_diameter_mm).swap_remove(0);
         let evaluator = Evaluator::new(
             config.camera,
-            config.grid.scenarios(),
+            config.volume.scenarios(&config.camera),
             config.objective.clone(),
             constraints,
             &paper.positions(),
@@ -364,7 +371,16 @@ impl Run<'_, '_> {
                 constraints: config.constraints,
                 objective: config.objective.clone(),
                 search: config.search.clone(),
-                grid: config.grid.clone(),
+                volume: config.volume.clone(),
+                grid: match &config.volume {
+                    WorkingVolume::Grid(grid) => Some(grid.clone()),
+                    WorkingVolume::Sampled(_) => None,
+                },
+                sampled_volume: match &config.volume {
+                    WorkingVolume::Sampled(volume) => Some(*volume),
+                    WorkingVolume::Grid(_) => None,
+                },
+                volume_text: config.volume.describe(),
                 camera: config.camera,
                 comparison_solver: config.compare_solver.name().to_string(),
                 comparison_trials: config.compare_trials,
@@ -621,14 +637,14 @@ impl Run<'_, '_> {
     /// held-out grid (midpoints of the search grid's values).
     fn held_out(&self, winner: &Layout) -> HeldOutCheck {
         let paper = &self.hand[0];
-        let grid = held_out_grid(&self.config().grid);
+        let volume = self.config().volume.held_out(held_out_grid);
         let first_order = self
             .evaluator
             .without_supports(&paper.positions())
-            .on_scenarios(grid.scenarios(), &paper.positions())
+            .on_scenarios(volume.scenarios(&self.config().camera), &paper.positions())
             .first_order(&paper.positions());
         HeldOutCheck::new(
-            &grid,
+            &volume,
             &first_order.evaluate(&winner.positions(), &winner.point_sigmas()),
             &first_order.evaluate(&paper.positions(), &paper.point_sigmas()),
         )
@@ -638,8 +654,8 @@ impl Run<'_, '_> {
     /// winner and the paper's biprism counted as occluders (`None`: a part
     /// could not be built).
     fn held_out_with_supports(&self, winner: &Layout) -> Option<HeldOutCheck> {
-        let grid = held_out_grid(&self.config().grid);
-        super::held_out_with_supports(&self.evaluator, &grid, winner, &self.hand[0]).ok()
+        let volume = self.config().volume.held_out(held_out_grid);
+        super::held_out_with_supports(&self.evaluator, &volume, winner, &self.hand[0]).ok()
     }
 
     /// The Pareto front's sweep ([`PHASE_FRONT`]), when asked for; `hand`
@@ -719,7 +735,7 @@ impl Run<'_, '_> {
         let validation_config = ValidateConfig {
             layout: winner.clone(),
             camera: config.camera,
-            grid: config.grid.clone(),
+            volume: config.volume.clone(),
             monte_carlo,
             identifiability: config.identifiability_check(),
             fabrication_sigma_mm: 0.0,
@@ -737,7 +753,7 @@ impl Run<'_, '_> {
         let validation = watch(
             observer,
             PHASE_VALIDATE,
-            2 * config.grid.scenarios().len() as u64,
+            2 * config.volume.len() as u64,
             || scenarios_done.load(Ordering::Relaxed),
             Some(&self.stop),
             || {
@@ -866,5 +882,34 @@ impl SearchObserver for IterationCount {
             slot.finished = true;
         }
         self.listener.finished(start);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The checkpoint key holds the whole volume: another sample count or
+    /// seed of the scrambling is another key; the grid form keeps the
+    /// `grid` key it always had.
+    #[test]
+    fn the_checkpoint_key_includes_the_volume() {
+        let dir = std::path::Path::new("unused");
+        let base = SearchConfig::new("t", dir);
+        let key = |config: &SearchConfig| Analysis::new(config).unwrap().checkpoint_key();
+        let reference = key(&base);
+        assert_eq!(reference["volume"]["samples"], 256);
+        assert!(reference.get("grid").is_none());
+        let mut other = base.clone();
+        other.volume = super::super::config::default_volume(8);
+        assert_ne!(key(&other), reference);
+        let mut grid = base.clone();
+        grid.volume = WorkingVolume::Grid(super::super::config::default_grid());
+        let grid_key = key(&grid);
+        assert_eq!(
+            grid_key["grid"],
+            serde_json::json!(super::super::config::default_grid())
+        );
+        assert!(grid_key.get("volume").is_none());
     }
 }

@@ -14,6 +14,7 @@ use crate::noise::NoiseModel;
 use crate::pnp::Solver;
 use crate::scenario::{Range, ScenarioGrid};
 use crate::validate;
+use crate::volume::{Interval, Orientation, Placement, SampledVolume, WorkingVolume};
 use std::path::{Path, PathBuf};
 
 /// Default Monte-Carlo trials of the unlabelled solver per visible scenario
@@ -28,7 +29,31 @@ pub fn default_polish_iterations(iterations: u64) -> u64 {
     (u128::from(iterations) * 2 / 3) as u64
 }
 
-/// The default scenario grid: depths 200…1000 mm (5 values), X offsets
+/// The default working volume, scrambled with `seed` (the search's seed):
+/// [`crate::volume::DEFAULT_SAMPLES`] Sobol viewpoints over depths
+/// 200…1000 mm, X offsets 0…100 mm and tilts −60°…60° (what
+/// [`default_grid`] spans), plus Y offsets −50…50 mm, pans −20°…20° and
+/// rolls −20°…20°, at σ 0.5 px. Fewer viewpoints than the grid's 325, so
+/// the default search costs no more than it did on the grid.
+pub fn default_volume(seed: u64) -> WorkingVolume {
+    WorkingVolume::Sampled(SampledVolume {
+        depth_mm: Interval::new(200.0, 1000.0),
+        placement: Placement::Offsets {
+            x_mm: Interval::new(0.0, 100.0),
+            y_mm: Interval::new(-50.0, 50.0),
+        },
+        orientation: Orientation::Angles {
+            tilt_deg: Interval::new(-60.0, 60.0),
+            pan_deg: Interval::new(-20.0, 20.0),
+            roll_deg: Interval::new(-20.0, 20.0),
+        },
+        sigma_px: Interval::point(0.5),
+        samples: crate::volume::DEFAULT_SAMPLES,
+        seed,
+    })
+}
+
+/// The scenario grid of `--samples grid`: depths 200…1000 mm (5 values), X offsets
 /// 0…100 mm, tilt −60°…60° in 10° steps, σ 0.5 px.
 pub fn default_grid() -> ScenarioGrid {
     ScenarioGrid::new(
@@ -101,8 +126,8 @@ pub struct SearchConfig {
     pub constraints: Constraints,
     /// The simulated camera.
     pub camera: Camera,
-    /// The scenarios the objective is computed over.
-    pub grid: ScenarioGrid,
+    /// The working volume the objective is computed over.
+    pub volume: WorkingVolume,
     /// The objective (its seed is the seed of its common random numbers).
     pub objective: ObjectiveSettings,
     /// Optimiser and budget. `search.seed` is also the run's seed: the
@@ -149,7 +174,7 @@ pub struct SearchConfig {
 
 impl SearchConfig {
     /// The command line's defaults for a biprism search named `name` on
-    /// [`default_grid`] with seed 7, writing `<dir>/<name>.json`, the report
+    /// [`default_volume`] with seed 7, writing `<dir>/<name>.json`, the report
     /// in `<dir>/<name>-report/` and checkpoints in `<dir>/.<name>.checkpoints/`.
     pub fn new(name: &str, dir: &Path) -> Self {
         let seed = 7;
@@ -168,7 +193,7 @@ impl SearchConfig {
                 min_distance_diff_mm: 0.0,
             },
             camera: Camera::paper(),
-            grid: default_grid(),
+            volume: default_volume(seed),
             objective: ObjectiveSettings {
                 objective: "crlb".parse().expect("a valid objective"),
                 aggregate: Aggregate::Mean,
@@ -228,7 +253,8 @@ impl SearchConfig {
     /// themselves, once, before anything is built or written: the first bad
     /// one is named by its field.
     pub fn check(&self) -> Result<(), ConfigError> {
-        if let Some(&sigma) = self.grid.sigma_px.values.iter().find(|&&s| s <= 0.0) {
+        self.volume.check()?;
+        if let Some(&sigma) = self.volume.sigma_values_px().iter().find(|&&s| s <= 0.0) {
             return Err(ConfigError::new(
                 "sigma_px",
                 format!("must be > 0 px, got {sigma}: search needs σ > 0 px; without noise every layout's error is zero, so the objective cannot tell layouts apart (and its ratio to the paper's biprism is 0/0)"),
@@ -282,6 +308,14 @@ impl SearchConfig {
         if let Some(front) = &self.front {
             at_least_one("front_levels", front.settings.levels)?;
         }
+        let reference =
+            super::compare::hand_designs(&c.envelope, c.sphere_diameter_mm).swap_remove(0);
+        self.volume.check_seen(
+            &self.camera,
+            &reference.positions(),
+            c.sphere_diameter_mm,
+            "the paper's biprism scaled to the envelope",
+        )?;
         Ok(())
     }
 }
@@ -360,7 +394,12 @@ mod tests {
             }),
             ("trials", |c| c.objective.trials = 0),
             ("compare_trials", |c| c.compare_trials = 0),
-            ("sigma_px", |c| c.grid.sigma_px = Range::single(0.0)),
+            ("sigma_px", |c| {
+                c.volume = WorkingVolume::Grid(ScenarioGrid {
+                    sigma_px: Range::single(0.0),
+                    ..default_grid()
+                })
+            }),
         ];
         for (field, spoil) in cases {
             let mut config = base.clone();

@@ -79,7 +79,7 @@ pub fn estimate(config: &SearchConfig) -> Option<SearchEstimate> {
     let started = Instant::now();
     let evaluator = Evaluator::new(
         config.camera,
-        config.grid.scenarios(),
+        config.volume.scenarios(&config.camera),
         settings.clone(),
         constraints,
         &positions,
@@ -101,7 +101,7 @@ pub fn estimate(config: &SearchConfig) -> Option<SearchEstimate> {
         per_evaluation_seconds: per_evaluation,
         evaluations,
         objective: settings.objective.to_string(),
-        scenarios: config.grid.len(),
+        scenarios: config.volume.len(),
         starts: config.search.starts,
         threads: rayon::current_num_threads(),
     })

@@ -72,7 +72,7 @@
 //! let paper = Layout::paper_biprism();
 //! let evaluator = Evaluator::new(
 //!     config.camera,
-//!     config.grid.scenarios(),
+//!     config.volume.scenarios(&config.camera),
 //!     config.objective.clone(),
 //!     config.constraints,
 //!     &paper.positions(),
@@ -566,7 +566,7 @@ enum SupportRule {
 /// cannot be built.
 pub fn held_out_with_supports(
     evaluator: &Evaluator,
-    grid: &crate::scenario::ScenarioGrid,
+    volume: &crate::volume::WorkingVolume,
     winner: &crate::layout::Layout,
     paper: &crate::layout::Layout,
 ) -> Result<HeldOutCheck, crate::mesh::GeometryError> {
@@ -576,7 +576,7 @@ pub fn held_out_with_supports(
         max_hidden: MaxHidden::default(),
     };
     let first_order = evaluator
-        .on_scenarios(grid.scenarios(), &paper.positions())
+        .on_scenarios(volume.scenarios(&evaluator.camera), &paper.positions())
         .first_order(&paper.positions());
     let options = crate::mesh::MarkerOptions::default();
     let evaluate = |layout: &crate::layout::Layout| {
@@ -587,7 +587,7 @@ pub fn held_out_with_supports(
         })
     };
     Ok(HeldOutCheck::new(
-        grid,
+        volume,
         &evaluate(winner)?,
         &evaluate(paper)?,
     ))

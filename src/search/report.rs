@@ -11,7 +11,7 @@
 use super::analysis::Finished;
 use super::error::SearchError;
 use super::front::{self, FrontFiles, FrontReport};
-use super::summary::{grid_text, SearchSummary};
+use super::summary::{volume_text, SearchSummary};
 use super::{AvailabilityFloor, IdentifiabilityFigures, AVAILABILITY_PENALTY};
 use crate::report::{percent_lower, plots, significant, write_text, ReportError, Table};
 use crate::validate;
@@ -241,8 +241,8 @@ fn markdown(summary: &SearchSummary, table: &Table) -> String {
     let _ = writeln!(
         out,
         "| scenarios | {} ({}) |",
-        h.grid.len(),
-        grid_text(&h.grid)
+        h.volume.len(),
+        volume_text(&h.volume)
     );
     let _ = writeln!(
         out,
@@ -263,7 +263,7 @@ fn markdown(summary: &SearchSummary, table: &Table) -> String {
     let _ = writeln!(
         out,
         "Books of the winner's objective: {} scenarios, {} with every sphere in front ({} behind the camera), {} left out for unusable noise, {} scored by every term; {}. Accuracy is aggregated over the scenarios every term scored, never over different subsets per term.\n",
-        h.grid.len(),
+        h.volume.len(),
         b.in_front,
         b.behind,
         b.unusable_noise,

@@ -11,6 +11,7 @@ use super::{Evaluation, IdentifiabilityFigures, IdentifiabilityFloor, ObjectiveS
 use crate::camera::Camera;
 use crate::family::Constraints;
 use crate::scenario::ScenarioGrid;
+use crate::volume::WorkingVolume;
 use serde::Serialize;
 
 /// Provenance of a search.
@@ -28,8 +29,18 @@ pub struct SearchHeader {
     pub objective: ObjectiveSettings,
     /// The optimiser.
     pub search: SearchSettings,
-    /// The scenario grid.
-    pub grid: ScenarioGrid,
+    /// The working volume (in `summary.json` as `grid` for a grid, as
+    /// before the volume existed, or as `sampled_volume`).
+    #[serde(skip)]
+    pub volume: WorkingVolume,
+    /// The grid, when the volume is one.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub grid: Option<ScenarioGrid>,
+    /// The sampled volume, when the volume is one.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sampled_volume: Option<crate::volume::SampledVolume>,
+    /// The volume in words and numbers.
+    pub volume_text: String,
     /// The camera.
     pub camera: Camera,
     /// Solver of the Monte-Carlo comparison.
@@ -83,7 +94,7 @@ pub struct Verdicts {
 /// grid: scenarios the search never saw.
 #[derive(Debug, Clone, Serialize)]
 pub struct HeldOutCheck {
-    /// The held-out grid, in words.
+    /// The held-out volume, in words.
     pub grid: String,
     /// Its scenarios.
     pub scenarios: usize,
@@ -110,12 +121,12 @@ pub struct HeldOutCheck {
 impl HeldOutCheck {
     /// The check from first-order evaluations of the winner and the paper's
     /// biprism on `grid`.
-    pub fn new(grid: &ScenarioGrid, winner: &Evaluation, paper: &Evaluation) -> Self {
+    pub fn new(volume: &WorkingVolume, winner: &Evaluation, paper: &Evaluation) -> Self {
         let rotation = |e: &Evaluation| e.terms.first().and_then(|t| t.rotation_deg);
         let translation = |e: &Evaluation| e.terms.first().and_then(|t| t.translation_mm);
         Self {
-            grid: grid_text(grid),
-            scenarios: grid.len(),
+            grid: volume_text(volume),
+            scenarios: volume.len(),
             winner_rotation_rms_deg: rotation(winner),
             paper_rotation_rms_deg: rotation(paper),
             rotation_reduction_percent: rotation(winner)
@@ -237,7 +248,16 @@ pub struct IdentifyBooks {
     pub seconds: f64,
 }
 
-pub(crate) fn grid_text(grid: &ScenarioGrid) -> String {
+/// A volume in words: a grid's varying axes (as reports have always
+/// named them), or a sampled volume's description.
+pub(crate) fn volume_text(volume: &WorkingVolume) -> String {
+    match volume {
+        WorkingVolume::Grid(grid) => grid_text(grid),
+        WorkingVolume::Sampled(_) => volume.describe(),
+    }
+}
+
+fn grid_text(grid: &ScenarioGrid) -> String {
     grid.named_ranges()
         .iter()
         .filter(|(_, r)| r.values.len() > 1 || r.values[0] != 0.0)

@@ -13,8 +13,8 @@
 
 use super::config::{Checked, ValidateConfig};
 use super::summary::{
-    axis_unit, axis_value, describe_scenario, occluded_pairs, visible, AxisErrors, AxisVisibility,
-    Curve, CurveSolver, Header, IdentifiabilityCurve, IdentifiabilitySummary, Overview, SolverRow,
+    axis_unit, describe_scenario, occluded_pairs, visible, AxisErrors, AxisVisibility, Curve,
+    CurveSolver, Header, IdentifiabilityCurve, IdentifiabilitySummary, Overview, SolverRow,
     Systematic, ValidateSummary, VisibilityClass, VisibilityCounts,
 };
 use crate::config::ConfigError;
@@ -29,8 +29,8 @@ use crate::montecarlo::{
 use crate::observer::{relay, watch, Observer};
 use crate::pnp::parallel::reference_index;
 use crate::report::significant;
-use crate::scenario::ScenarioGrid;
 use crate::visibility::{support_fractions, MaxHidden, Supports, WorkingRange};
+use crate::volume::{VolumeAxis, WorkingVolume};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 
 /// Why a validation's analysis could not run.
@@ -93,7 +93,7 @@ pub fn monte_carlo(
     watch(
         observer,
         PHASE,
-        2 * config.grid.len() as u64,
+        2 * config.volume.len() as u64,
         || done.load(Ordering::Relaxed),
         Some(&stop),
         || {
@@ -111,7 +111,7 @@ pub fn monte_carlo(
 /// [`monte_carlo`] for a caller with its own progress display (the
 /// search's validation of its winner).
 pub fn monte_carlo_until(config: Checked, hooks: Hooks) -> Result<ValidateSummary, ValidateError> {
-    let (layout, grid) = (&config.layout, &config.grid);
+    let layout = &config.layout;
     let monte_carlo = &config.monte_carlo;
     let object = layout.positions();
     let sigmas = layout.point_sigmas();
@@ -121,7 +121,8 @@ pub fn monte_carlo_until(config: Checked, hooks: Hooks) -> Result<ValidateSummar
         sphere_diameter_mm: layout.sphere_diameter_mm,
         point_sigma_px: &sigmas,
     };
-    let scenarios = grid.scenarios();
+    let scenarios = config.volume.scenarios(&config.camera);
+    let axes = config.volume.axes(&scenarios);
     let max_hidden = config.max_hidden()?;
     let supports = match &config.structure {
         Some(options) => {
@@ -166,13 +167,15 @@ pub fn monte_carlo_until(config: Checked, hooks: Hooks) -> Result<ValidateSummar
         visibility: visibility_counts(
             supports.is_some().then_some(max_hidden.fraction()),
             layout,
-            grid,
+            &axes,
             &outcomes,
         ),
         solvers: solver_rows(&outcomes, monte_carlo.solvers.len()),
-        curves: curves(grid, &outcomes, monte_carlo),
+        curves: curves(&axes, &outcomes, monte_carlo),
         systematic: systematic(&outcomes, monte_carlo),
-        identifiability: identifiability_summary(grid, &outcomes, &identified, &settings),
+        identifiability: identifiability_summary(&axes, &outcomes, &identified, &settings),
+        pairs: super::pairs::pairwise(&axes, &outcomes, monte_carlo.solvers[0].name()),
+        worst: super::pairs::worst(&outcomes),
     };
     Ok(ValidateSummary {
         layout: layout.clone(),
@@ -240,7 +243,7 @@ pub fn fabrication(
         seed: config.monte_carlo.seed,
         solver: config.monte_carlo.solvers[0],
     };
-    let scenarios = config.grid.scenarios();
+    let scenarios = config.volume.scenarios(&config.camera);
     let stop = AtomicBool::new(false);
     let run = relay(
         observer,
@@ -271,7 +274,16 @@ fn header(config: &ValidateConfig, object: &[nalgebra::Vector3<f64>]) -> Header 
         sphere_diameter_mm: layout.sphere_diameter_mm,
         observation: monte_carlo.observation.name().to_string(),
         reference_point: layout.points[reference_index(object)].name.clone(),
-        grid: config.grid.clone(),
+        volume: config.volume.clone(),
+        grid: match &config.volume {
+            WorkingVolume::Grid(grid) => Some(grid.clone()),
+            WorkingVolume::Sampled(_) => None,
+        },
+        sampled_volume: match &config.volume {
+            WorkingVolume::Sampled(volume) => Some(*volume),
+            WorkingVolume::Grid(_) => None,
+        },
+        volume_text: config.volume.describe(),
     }
 }
 
@@ -340,7 +352,7 @@ fn systematic(outcomes: &[ScenarioOutcome], config: &MonteCarloConfig) -> System
 
 /// The identifiability summary of the visible scenarios.
 fn identifiability_summary(
-    grid: &ScenarioGrid,
+    axes: &[VolumeAxis],
     outcomes: &[ScenarioOutcome],
     identified: &[Option<ScenarioIdentifiability>],
     settings: &IdentifiabilitySettings,
@@ -403,26 +415,23 @@ fn identifiability_summary(
             format!("{}: {what}", describe_scenario(&o.scenario))
         })
         .collect();
-    let curves = grid
-        .named_ranges()
+    let curves = axes
         .iter()
-        .filter(|(_, range)| range.values.len() > 1)
-        .map(|(axis, range)| {
-            let groups: Vec<Vec<&(&ScenarioOutcome, &ScenarioIdentifiability)>> = range
-                .values
-                .iter()
-                .map(|&value| {
-                    pairs
-                        .iter()
-                        .filter(|(o, _)| axis_value(&o.scenario, axis) == value)
-                        .collect()
-                })
-                .collect();
+        .map(|axis| {
+            let groups: Vec<Vec<&(&ScenarioOutcome, &ScenarioIdentifiability)>> =
+                (0..axis.values.len())
+                    .map(|bin| {
+                        pairs
+                            .iter()
+                            .filter(|(o, _)| axis.bin(&o.scenario) == Some(bin))
+                            .collect()
+                    })
+                    .collect();
             let per_value: Vec<_> = groups.iter().map(|g| (g.len(), stats(g))).collect();
             IdentifiabilityCurve {
-                axis: axis.to_string(),
-                unit: axis_unit(axis).to_string(),
-                values: range.values.clone(),
+                axis: axis.name.to_string(),
+                unit: axis_unit(axis.name).to_string(),
+                values: axis.values.clone(),
                 visible: per_value.iter().map(|(n, _)| *n).collect(),
                 identifiable_share: per_value
                     .iter()
@@ -476,7 +485,7 @@ fn count_classes<'a>(outcomes: impl Iterator<Item = &'a ScenarioOutcome>) -> [us
 fn visibility_counts(
     max_hidden: Option<f64>,
     layout: &Layout,
-    grid: &ScenarioGrid,
+    axes: &[VolumeAxis],
     outcomes: &[ScenarioOutcome],
 ) -> VisibilityCounts {
     let with_occlusion: Vec<&ScenarioOutcome> = outcomes
@@ -495,22 +504,18 @@ fn visibility_counts(
             )
         })
         .collect();
-    let by_axis = grid
-        .named_ranges()
+    let by_axis = axes
         .iter()
-        .filter(|(_, range)| range.values.len() > 1)
-        .map(|(axis, range)| AxisVisibility {
-            axis: axis.to_string(),
-            unit: axis_unit(axis).to_string(),
-            values: range.values.clone(),
-            counts: range
-                .values
-                .iter()
-                .map(|&value| {
+        .map(|axis| AxisVisibility {
+            axis: axis.name.to_string(),
+            unit: axis_unit(axis.name).to_string(),
+            values: axis.values.clone(),
+            counts: (0..axis.values.len())
+                .map(|bin| {
                     count_classes(
                         outcomes
                             .iter()
-                            .filter(|o| axis_value(&o.scenario, axis) == value),
+                            .filter(|o| axis.bin(&o.scenario) == Some(bin)),
                     )
                 })
                 .collect(),
@@ -563,21 +568,17 @@ fn solver_rows(outcomes: &[ScenarioOutcome], solver_count: usize) -> Vec<SolverR
 }
 
 fn curves(
-    grid: &ScenarioGrid,
+    axes: &[VolumeAxis],
     outcomes: &[ScenarioOutcome],
     config: &MonteCarloConfig,
 ) -> Vec<Curve> {
-    grid.named_ranges()
-        .iter()
-        .filter(|(_, range)| range.values.len() > 1)
-        .map(|(axis, range)| {
-            let groups: Vec<Vec<&ScenarioOutcome>> = range
-                .values
-                .iter()
-                .map(|&value| {
+    axes.iter()
+        .map(|axis| {
+            let groups: Vec<Vec<&ScenarioOutcome>> = (0..axis.values.len())
+                .map(|bin| {
                     outcomes
                         .iter()
-                        .filter(|o| axis_value(&o.scenario, axis) == value)
+                        .filter(|o| axis.bin(&o.scenario) == Some(bin))
                         .collect()
                 })
                 .collect();
@@ -607,9 +608,9 @@ fn curves(
                     .collect()
             };
             Curve {
-                axis: axis.to_string(),
-                unit: axis_unit(axis).to_string(),
-                values: range.values.clone(),
+                axis: axis.name.to_string(),
+                unit: axis_unit(axis.name).to_string(),
+                values: axis.values.clone(),
                 availability: groups
                     .iter()
                     .map(|g| g.iter().filter(|o| visible(o)).count() as f64 / g.len().max(1) as f64)
@@ -646,16 +647,18 @@ mod tests {
 
     fn config() -> ValidateConfig {
         let mut config = ValidateConfig::new(Layout::paper_biprism(), vec![Solver::Ml]);
-        config.grid = ScenarioGrid::new(
-            "300,600".parse().unwrap(),
-            Range::single(0.0),
-            Range::single(0.0),
-            "-20,20".parse().unwrap(),
-            Range::single(0.0),
-            Range::single(0.0),
-            Range::single(0.5),
-        )
-        .unwrap();
+        config.volume = crate::volume::WorkingVolume::Grid(
+            crate::scenario::ScenarioGrid::new(
+                "300,600".parse().unwrap(),
+                Range::single(0.0),
+                Range::single(0.0),
+                "-20,20".parse().unwrap(),
+                Range::single(0.0),
+                Range::single(0.0),
+                Range::single(0.5),
+            )
+            .unwrap(),
+        );
         config.monte_carlo.trials = 5;
         config.identifiability.trials = 2;
         config

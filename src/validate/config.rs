@@ -14,6 +14,7 @@ use crate::montecarlo::MonteCarloConfig;
 use crate::pnp::Solver;
 use crate::scenario::ScenarioGrid;
 use crate::visibility::{MaxHidden, DEFAULT_MAX_HIDDEN};
+use crate::volume::WorkingVolume;
 use serde::Serialize;
 
 /// Default Monte-Carlo trials of the unlabelled solver per visible scenario.
@@ -68,8 +69,8 @@ pub struct ValidateConfig {
     pub layout: Layout,
     /// The simulated camera.
     pub camera: Camera,
-    /// The scenarios.
-    pub grid: ScenarioGrid,
+    /// The working volume: the viewpoints and noise levels.
+    pub volume: WorkingVolume,
     /// Trials, seed, solvers, noise and gross-failure threshold.
     pub monte_carlo: MonteCarloConfig,
     /// How identifiability is checked.
@@ -100,7 +101,9 @@ impl ValidateConfig {
         ValidateConfig {
             layout,
             camera: Camera::paper(),
-            grid: ScenarioGrid::paper_protocol(default_tilt_step_deg(&solvers)),
+            volume: WorkingVolume::Grid(ScenarioGrid::paper_protocol(default_tilt_step_deg(
+                &solvers,
+            ))),
             monte_carlo: MonteCarloConfig {
                 trials: 200,
                 seed: 7,
@@ -124,8 +127,9 @@ impl ValidateConfig {
 
     /// Checks every value once, naming the first bad field: `layout` (its
     /// [`Layout::validate`] reason), `solvers`, `trials`,
-    /// `gross_threshold_deg`, `min_correct`, `fabrication_sigma_mm` and
-    /// `max_hidden`.
+    /// `gross_threshold_deg`, `min_correct`, `fabrication_sigma_mm`,
+    /// `max_hidden`, then the volume's fields ([`WorkingVolume::check`]) and
+    /// `volume` when no viewpoint of it sees every sphere.
     ///
     /// ```
     /// use layout_opt::layout::Layout;
@@ -169,6 +173,13 @@ impl ValidateConfig {
             ));
         }
         self.max_hidden()?;
+        self.volume.check()?;
+        self.volume.check_seen(
+            &self.camera,
+            &self.layout.positions(),
+            self.layout.sphere_diameter_mm,
+            &format!("layout {}", self.layout.name),
+        )?;
         Ok(Checked(self))
     }
 }

@@ -8,6 +8,7 @@ use super::summary::{
 };
 use crate::error_model::fabrication::FabricationRun;
 use crate::report::{significant, Table};
+use crate::volume::WorkingVolume;
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -65,7 +66,7 @@ pub fn console(validation: &ValidateSummary, out: &Path) -> String {
             f.scenarios,
             show(t.predicted_rms_rotation_deg, "°"),
             t.scenarios,
-            if h.grid.sigma_px.values.contains(&0.0) {
+            if h.volume.sigma_values_px().contains(&0.0) {
                 " (the models predict nothing at σ = 0)"
             } else {
                 ""
@@ -223,14 +224,21 @@ pub(super) fn markdown(summary: &Overview) -> String {
     );
 
     let _ = writeln!(out, "## Scenarios\n");
-    let mut grid = Table::new(["axis", "values"]);
-    for (name, range) in h.grid.named_ranges() {
-        grid.row([
-            format!("{name} ({})", axis_unit(name)),
-            range_text(&range.values),
-        ]);
+    let _ = writeln!(
+        out,
+        "Working volume: {}. Availability below is a share of these viewpoints.\n",
+        h.volume_text
+    );
+    if let WorkingVolume::Grid(grid) = &h.volume {
+        let mut table = Table::new(["axis", "values"]);
+        for (name, range) in grid.named_ranges() {
+            table.row([
+                format!("{name} ({})", axis_unit(name)),
+                range_text(&range.values),
+            ]);
+        }
+        out.push_str(&table.markdown());
     }
-    out.push_str(&grid.markdown());
     let _ = writeln!(
         out,
         "\n{} scenarios: **{} visible** (availability {:.1}%), {} occluded, {} with a sphere outside the image (margin 5 px), {} with a sphere behind the camera (no trials), {} with a sphere hidden by the part's supports; {} + {} + {} + {} + {} = {}.",
@@ -344,7 +352,48 @@ pub(super) fn markdown(summary: &Overview) -> String {
             );
         }
     }
+    out.push_str(&pairs_markdown(summary));
     let _ = writeln!(out, "## Marker\n\n![three views](marker_views.svg)\n");
+    out
+}
+
+/// The pairwise heatmap page and the worst viewpoints.
+fn pairs_markdown(summary: &Overview) -> String {
+    let mut out = String::new();
+    let pairs = &summary.pairs;
+    if !pairs.panels.is_empty() {
+        let _ = writeln!(out, "## Error over pairs of axes\n");
+        let _ = writeln!(
+            out,
+            "{} panels, one per pair of the {} axes that vary; each cell pools `{}`'s trials over the visible viewpoints in it, on one colour scale{} (viridis; grey: no visible viewpoint).\n\n![error over pairs of axes](error_pairs.svg)\n",
+            pairs.panels.len(),
+            pairs.axes.len(),
+            pairs.solver,
+            pairs
+                .range_deg
+                .map_or(String::new(), |(lo, hi)| format!(" from {lo:.3}° to {hi:.3}°"))
+        );
+    }
+    if !summary.worst.is_empty() {
+        let _ = writeln!(
+            out,
+            "## The {} worst viewpoints ({})\n",
+            summary.worst.len(),
+            pairs.solver
+        );
+        let mut table = Table::new(["rank", "viewpoint", "RMS rotation (°)", "first order (°)"]);
+        for (rank, w) in summary.worst.iter().enumerate() {
+            table.row([
+                (rank + 1).to_string(),
+                w.description.clone(),
+                format!("{:.4}", w.rms_rotation_deg),
+                w.first_order_rotation_deg
+                    .map_or("—".into(), |v| format!("{v:.4}")),
+            ]);
+        }
+        out.push_str(&table.markdown());
+        let _ = writeln!(out, "\n[worst_viewpoints.csv](worst_viewpoints.csv)\n");
+    }
     out
 }
 

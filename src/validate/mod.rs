@@ -35,6 +35,7 @@ pub mod analysis;
 pub mod config;
 pub mod images;
 pub mod markdown;
+pub mod pairs;
 pub mod report;
 pub mod summary;
 pub mod workflow;

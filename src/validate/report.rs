@@ -70,8 +70,74 @@ pub fn write(dir: &Path, validation: &ValidateSummary) -> Result<(), ReportError
         &named,
         layout.sphere_diameter_mm,
     )?;
+    write_pairs(dir, summary)?;
     write_text(&dir.join("report.md"), &markdown(summary))?;
     Ok(())
+}
+
+/// `error_pairs.svg` (the pairwise heatmap matrix, when two or more axes
+/// vary) and `worst_viewpoints.csv`.
+fn write_pairs(dir: &Path, summary: &super::summary::Overview) -> Result<(), ReportError> {
+    use crate::report::heatmap::{heatmap_matrix, HeatmapAxis, HeatmapMatrix, HeatmapPanel};
+    let pairs = &summary.pairs;
+    if !pairs.panels.is_empty() {
+        let matrix = HeatmapMatrix {
+            title: format!(
+                "{}: RMS rotation error over every pair of the volume's axes",
+                summary.header.layout
+            ),
+            quantity: format!("{} Monte-Carlo RMS rotation (°)", pairs.solver),
+            axes: pairs
+                .axes
+                .iter()
+                .map(|a| HeatmapAxis {
+                    label: format!("{} ({})", a.axis, a.unit),
+                    values: a.values.clone(),
+                })
+                .collect(),
+            panels: pairs
+                .panels
+                .iter()
+                .map(|p| HeatmapPanel {
+                    x: p.x,
+                    y: p.y,
+                    cells: p.rms_rotation_deg.clone(),
+                })
+                .collect(),
+        };
+        heatmap_matrix(&dir.join("error_pairs.svg"), &matrix)?;
+    }
+    let mut table = Table::new([
+        "rank",
+        "depth_mm",
+        "offset_x_mm",
+        "offset_y_mm",
+        "tilt_deg",
+        "pan_deg",
+        "roll_deg",
+        "sigma_px",
+        "rms_rot_deg",
+        "first_order_rms_rot_deg",
+    ]);
+    for (rank, w) in summary.worst.iter().enumerate() {
+        let s = &w.scenario;
+        table.row([
+            (rank + 1).to_string(),
+            s.depth_mm.to_string(),
+            s.offset_x_mm.to_string(),
+            s.offset_y_mm.to_string(),
+            s.tilt_deg.to_string(),
+            s.pan_deg.to_string(),
+            s.roll_deg.to_string(),
+            s.sigma_px.to_string(),
+            format!("{:.6e}", w.rms_rotation_deg),
+            w.first_order_rotation_deg
+                .map_or(String::new(), |v| format!("{v:.6e}")),
+        ]);
+    }
+    let path = dir.join("worst_viewpoints.csv");
+    let csv = table.csv().map_err(|e| ReportError::write(&path, e))?;
+    write_text(&path, &csv)
 }
 
 fn write_curve(dir: &Path, curve: &Curve) -> Result<(), ReportError> {

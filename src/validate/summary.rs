@@ -11,7 +11,8 @@ use crate::error_model::fabrication::FabricationRun;
 use crate::identifiability::{self, ScenarioIdentifiability};
 use crate::layout::Layout;
 use crate::montecarlo::{Pooled, PoseErrorVector, ScenarioOutcome};
-use crate::scenario::{Scenario, ScenarioGrid, Visibility};
+use crate::scenario::{Scenario, Visibility};
+use crate::volume::WorkingVolume;
 use serde::Serialize;
 
 /// A finished validation: the pooled overview and every scenario's
@@ -71,8 +72,18 @@ pub struct Header {
     /// The feature used as paraperspective reference (and as the transfer
     /// model's segment origin).
     pub reference_point: String,
-    /// The scenario grid.
-    pub grid: ScenarioGrid,
+    /// The working volume (in `summary.json` as `grid` for a grid, as
+    /// before the volume existed, or as `sampled_volume`).
+    #[serde(skip)]
+    pub volume: WorkingVolume,
+    /// The grid, when the volume is one.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub grid: Option<crate::scenario::ScenarioGrid>,
+    /// The sampled volume, when the volume is one.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sampled_volume: Option<crate::volume::SampledVolume>,
+    /// The volume in words and numbers.
+    pub volume_text: String,
 }
 
 /// Why a scenario is not pooled, or that it is: one class per scenario, so
@@ -235,6 +246,64 @@ pub struct Overview {
     /// How often the unlabelled solver would label the visible scenarios
     /// wrongly, predicted and measured.
     pub identifiability: IdentifiabilitySummary,
+    /// The first solver's error over every pair of varying axes
+    /// ([`super::pairs`]).
+    pub pairs: PairwiseErrors,
+    /// The visible viewpoints with the first solver's largest errors.
+    pub worst: Vec<WorstViewpoint>,
+}
+
+/// One axis of the pairwise matrix.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PairAxis {
+    /// The axis's name.
+    pub axis: String,
+    /// Its unit.
+    pub unit: String,
+    /// Its values (grid values or bin centres).
+    pub values: Vec<f64>,
+}
+
+/// The pooled error over one pair of axes.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PairPanel {
+    /// Index of the horizontal axis in [`PairwiseErrors::axes`].
+    pub x: usize,
+    /// Index of the vertical axis.
+    pub y: usize,
+    /// RMS rotation error of the first solver, degrees, per cell
+    /// (`[y bin][x bin]`); None where no visible viewpoint falls.
+    pub rms_rotation_deg: Vec<Vec<Option<f64>>>,
+    /// Visible viewpoints per cell.
+    pub visible: Vec<Vec<usize>>,
+    /// Viewpoints per cell.
+    pub viewpoints: Vec<Vec<usize>>,
+}
+
+/// Error against every pair of varying axes.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PairwiseErrors {
+    /// The solver whose Monte-Carlo error the cells hold (the first one).
+    pub solver: String,
+    /// The varying axes, in grid order.
+    pub axes: Vec<PairAxis>,
+    /// Every pair `x < y` of them.
+    pub panels: Vec<PairPanel>,
+    /// Smallest and largest cell value, degrees (one colour scale for all).
+    pub range_deg: Option<(f64, f64)>,
+}
+
+/// A viewpoint among the worst.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct WorstViewpoint {
+    /// The viewpoint.
+    pub scenario: Scenario,
+    /// It in words.
+    pub description: String,
+    /// The first solver's RMS rotation error there, degrees.
+    pub rms_rotation_deg: f64,
+    /// The first-order (Cramér–Rao) RMS rotation there, degrees.
+    pub first_order_rotation_deg: Option<f64>,
 }
 
 /// Identifiability over the visible scenarios (module
@@ -383,8 +452,25 @@ pub(super) fn visible(outcome: &ScenarioOutcome) -> bool {
 pub(super) fn describe_scenario(s: &Scenario) -> String {
     format!(
         "depth {} mm, offset ({}, {}) mm, tilt {}°, pan {}°, roll {}°, σ {} px",
-        s.depth_mm, s.offset_x_mm, s.offset_y_mm, s.tilt_deg, s.pan_deg, s.roll_deg, s.sigma_px
+        hundredths(s.depth_mm),
+        hundredths(s.offset_x_mm),
+        hundredths(s.offset_y_mm),
+        hundredths(s.tilt_deg),
+        hundredths(s.pan_deg),
+        hundredths(s.roll_deg),
+        hundredths(s.sigma_px)
     )
+}
+
+/// A value to two decimals at most (a grid's values print as given; a
+/// sampled one does not print 15 digits).
+fn hundredths(value: f64) -> f64 {
+    let rounded = (value * 100.0).round() / 100.0;
+    if rounded == 0.0 {
+        0.0
+    } else {
+        rounded
+    }
 }
 
 /// Which sphere hides which in a scenario, in words.
@@ -401,19 +487,6 @@ pub(super) fn occluded_pairs(layout: &Layout, outcome: &ScenarioOutcome) -> Stri
         })
         .collect::<Vec<_>>()
         .join(", ")
-}
-
-/// A scenario's value on a named grid axis.
-pub(super) fn axis_value(s: &Scenario, axis: &str) -> f64 {
-    match axis {
-        "depth" => s.depth_mm,
-        "offset-x" => s.offset_x_mm,
-        "offset-y" => s.offset_y_mm,
-        "tilt" => s.tilt_deg,
-        "pan" => s.pan_deg,
-        "roll" => s.roll_deg,
-        _ => s.sigma_px,
-    }
 }
 
 /// The unit of a named grid axis.

@@ -159,7 +159,7 @@ fn estimate(validate: Checked, observer: &mut impl Observer) -> Result<RunEstima
             estimate.calibration_scenarios,
             estimate.calibration_trials,
             estimate.calibration_seconds,
-            validate.grid.len(),
+            validate.volume.len(),
             validate.monte_carlo.trials
         ));
     }
@@ -223,7 +223,7 @@ pub struct RunEstimate {
 /// the whole grid and trial count. The calibration uses its own noise streams' results only
 /// for timing; the run's results do not depend on it.
 pub fn estimate_seconds(validate: Checked) -> Result<RunEstimate, ValidateError> {
-    let (layout, grid, config) = (&validate.layout, &validate.grid, &validate.monte_carlo);
+    let (layout, config) = (&validate.layout, &validate.monte_carlo);
     let object = layout.positions();
     let sigmas = layout.point_sigmas();
     let target = Target {
@@ -232,7 +232,7 @@ pub fn estimate_seconds(validate: Checked) -> Result<RunEstimate, ValidateError>
         sphere_diameter_mm: layout.sphere_diameter_mm,
         point_sigma_px: &sigmas,
     };
-    let scenarios = grid.scenarios();
+    let scenarios = validate.volume.scenarios(&validate.camera);
     let trials = config.trials.min(CALIBRATION_TRIALS);
     let calibration = MonteCarloConfig {
         trials,
@@ -282,7 +282,7 @@ mod tests {
     ) -> WorkflowConfig {
         let mut validate = ValidateConfig::new(Layout::paper_biprism(), solvers);
         validate.camera = Camera::paper();
-        validate.grid = grid;
+        validate.volume = crate::volume::WorkingVolume::Grid(grid);
         validate.monte_carlo.trials = trials;
         validate.monte_carlo.seed = 1;
         validate.identifiability = IdentifiabilityCheck::default();

@@ -43,3 +43,5 @@ mod search_runs;
 mod sphere_cli;
 #[cfg(feature = "cli")]
 mod validate;
+#[cfg(feature = "cli")]
+mod volume;

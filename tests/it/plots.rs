@@ -218,16 +218,18 @@ fn write_reports(dir: &Path) {
     let validate = ValidateConfig {
         layout: Layout::paper_biprism(),
         camera: Camera::paper(),
-        grid: ScenarioGrid::new(
-            "200,400,700".parse().unwrap(),
-            "0,50,100".parse().unwrap(),
-            Range::single(0.0),
-            "-40,0,40".parse().unwrap(),
-            Range::single(0.0),
-            Range::single(0.0),
-            Range::single(0.5),
-        )
-        .unwrap(),
+        volume: layout_opt::volume::WorkingVolume::Grid(
+            ScenarioGrid::new(
+                "200,400,700".parse().unwrap(),
+                "0,50,100".parse().unwrap(),
+                Range::single(0.0),
+                "-40,0,40".parse().unwrap(),
+                Range::single(0.0),
+                Range::single(0.0),
+                Range::single(0.5),
+            )
+            .unwrap(),
+        ),
         monte_carlo: MonteCarloConfig {
             trials: 4,
             seed: 3,
@@ -262,16 +264,18 @@ fn write_reports(dir: &Path) {
     layout_opt::reproduce::workflow::run(&reproduce, &mut Silent).unwrap();
 
     let mut search = SearchConfig::new("tiny", &dir.join("search"));
-    search.grid = ScenarioGrid::new(
-        "200,500,800".parse().unwrap(),
-        "0,60".parse().unwrap(),
-        Range::single(0.0),
-        "-40..40:20".parse().unwrap(),
-        Range::single(0.0),
-        Range::single(0.0),
-        Range::single(0.5),
-    )
-    .unwrap();
+    search.volume = layout_opt::volume::WorkingVolume::Grid(
+        ScenarioGrid::new(
+            "200,500,800".parse().unwrap(),
+            "0,60".parse().unwrap(),
+            Range::single(0.0),
+            "-40..40:20".parse().unwrap(),
+            Range::single(0.0),
+            Range::single(0.0),
+            Range::single(0.5),
+        )
+        .unwrap(),
+    );
     search.search.starts = 2;
     search.search.iterations = 40;
     search.compare_trials = 3;

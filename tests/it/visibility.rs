@@ -289,7 +289,7 @@ fn validate_counts_the_scenarios_the_supports_hide() {
         let config = ValidateConfig {
             layout: layout.clone(),
             camera: Camera::paper(),
-            grid: grid.clone(),
+            volume: layout_opt::volume::WorkingVolume::Grid(grid.clone()),
             monte_carlo: MonteCarloConfig {
                 trials: 2,
                 seed: 3,

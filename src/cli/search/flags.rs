@@ -1,6 +1,7 @@
 //! The flags of `layout-opt search`, with their help text.
 
 use super::super::common::{CameraArgs, GridArgs};
+use super::super::volume::VolumeArgs;
 use clap::{Args, ValueEnum};
 use layout_opt::family::Envelope;
 use layout_opt::mesh::Format;
@@ -80,6 +81,8 @@ pub struct SearchArgs {
     pub(super) identify_trials: usize,
     #[command(flatten)]
     pub(super) grid: GridArgs,
+    #[command(flatten)]
+    pub(super) volume: VolumeArgs,
     #[command(flatten)]
     pub(super) camera: CameraArgs,
     /// Objective: crlb, transfer, mc:<solver>, or a blend like crlb:0.7+mc:parallel-weighted:0.3.

@@ -17,16 +17,18 @@ use crate::search::{FrontSettings, IdentifiabilityFloor};
 
 fn small(dir: &Path) -> SearchConfig {
     let mut config = SearchConfig::new("t", dir);
-    config.grid = ScenarioGrid::new(
-        "300,800".parse().unwrap(),
-        "0,60".parse().unwrap(),
-        Range::single(0.0),
-        "-40..40:20".parse().unwrap(),
-        Range::single(0.0),
-        Range::single(0.0),
-        Range::single(0.5),
-    )
-    .unwrap();
+    config.volume = crate::volume::WorkingVolume::Grid(
+        ScenarioGrid::new(
+            "300,800".parse().unwrap(),
+            "0,60".parse().unwrap(),
+            Range::single(0.0),
+            "-40..40:20".parse().unwrap(),
+            Range::single(0.0),
+            Range::single(0.0),
+            Range::single(0.5),
+        )
+        .unwrap(),
+    );
     config.search.starts = 2;
     config.search.iterations = 100;
     config.compare_trials = 10;
