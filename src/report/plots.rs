@@ -18,6 +18,11 @@ use nalgebra::Vector3;
 use std::fmt::Write as _;
 use std::path::Path;
 
+mod legend;
+mod panels;
+use legend::{draw_legend, legend_width, Entry};
+pub use panels::{panel_plot, BandedSeries, LinePanel, MAX_SERIES_PER_PANEL};
+
 /// Estimated width of one character, in units of the font size (the layout
 /// uses a little more, [`LAYOUT_WIDTH_EM`], to leave room for wide glyphs).
 pub const TEXT_WIDTH_EM: f64 = 0.6;
@@ -95,9 +100,9 @@ const fn solver_style(colour: &'static str, dash: Option<&'static str>, marker: 
     }
 }
 
-/// Every solver's style: fourteen colours from Paul Tol's muted (and one
-/// medium-contrast) and the
-/// Okabe–Ito palettes (both chosen to stay apart under colour-vision
+/// Every solver's style: fourteen colours from Paul Tol's muted, bright and
+/// high-contrast and the Okabe–Ito palettes (all chosen to stay apart
+/// under colour-vision
 /// deficiency), each with its own marker–dash pair so that even series of
 /// similar hue differ in shape.
 const SOLVER_STYLES: [(&str, Style); 14] = [
@@ -105,7 +110,7 @@ const SOLVER_STYLES: [(&str, Style); 14] = [
         "parallel-weighted",
         solver_style("#332288", SOLID, Marker::Circle),
     ),
-    ("parallel", solver_style("#88CCEE", SOLID, Marker::Square)),
+    ("parallel", solver_style("#4477AA", SOLID, Marker::Square)),
     (
         "parallel-init",
         solver_style("#6699CC", DOTTED, Marker::Circle),
@@ -117,7 +122,7 @@ const SOLVER_STYLES: [(&str, Style); 14] = [
     ("epnp", solver_style("#E69F00", SOLID, Marker::Diamond)),
     ("epnp-gn", solver_style("#117733", DASHED, Marker::Square)),
     ("iepnp", solver_style("#999933", DASHED, Marker::Circle)),
-    ("dlt", solver_style("#CCBB44", SOLID, Marker::TriangleDown)),
+    ("dlt", solver_style("#997700", SOLID, Marker::TriangleDown)),
     ("dls", solver_style("#CC6677", DASHED, Marker::Diamond)),
     ("lhm", solver_style("#882255", SOLID, Marker::Plus)),
     ("rpnp", solver_style("#AA4499", DOTTED, Marker::TriangleUp)),
@@ -322,6 +327,14 @@ fn log_ticks(lo: f64, hi: f64) -> Vec<Tick> {
             }
         }
         if ticks.len() >= fewest {
+            // One notation per axis: "1e4 … 1e7", never "10000 … 1e7".
+            if ticks.iter().any(|t| t.label.contains('e')) {
+                for t in &mut ticks {
+                    let exponent = t.value.log10().floor() as i32;
+                    let mantissa = (t.value / 10f64.powi(exponent)).round() as u32;
+                    t.label = format!("{mantissa}e{exponent}");
+                }
+            }
             return ticks;
         }
     }
@@ -700,61 +713,6 @@ fn widest_label(scale: &Scale, target: f64) -> f64 {
         .iter()
         .map(|t| text_width(&t.label, TICK_SIZE))
         .fold(0.0, f64::max)
-}
-
-/// A legend entry: name and style.
-struct Entry<'a> {
-    name: &'a str,
-    style: Style,
-    line: bool,
-}
-
-const LEGEND_ROW: f64 = 18.0;
-const LEGEND_SWATCH: f64 = 30.0;
-
-fn legend_width(entries: &[Entry]) -> f64 {
-    entries
-        .iter()
-        .map(|e| text_width(e.name, LEGEND_SIZE))
-        .fold(0.0, f64::max)
-        + LEGEND_SWATCH
-        + 24.0
-}
-
-/// Draws the legend with its top-left corner at (`left`, `top`); returns its
-/// bottom.
-fn draw_legend(svg: &mut Svg, entries: &[Entry], left: f64, top: f64) -> f64 {
-    let height = LEGEND_ROW * entries.len() as f64 + 8.0;
-    let frame = Rect {
-        left,
-        top,
-        right: left + legend_width(entries) - 6.0,
-        bottom: top + height,
-    };
-    svg.rect(frame, "#FFFFFF", Some("#999999"));
-    for (row, entry) in entries.iter().enumerate() {
-        let y = top + 4.0 + LEGEND_ROW * (row as f64 + 0.5);
-        let (a, b) = (left + 6.0, left + 6.0 + LEGEND_SWATCH);
-        if entry.line {
-            svg.polyline(&[(a, y), (b, y)], &entry.style);
-        }
-        svg.marker(
-            entry.style.marker,
-            (0.5 * (a + b), y),
-            3.5,
-            entry.style.colour,
-        );
-        let baseline = y + 0.5 * (TEXT_ASCENT_EM - TEXT_DESCENT_EM) * LEGEND_SIZE;
-        svg.text(
-            "legend",
-            entry.name,
-            b + 6.0,
-            baseline,
-            LEGEND_SIZE,
-            Anchor::Start,
-        );
-    }
-    frame.bottom
 }
 
 /// Title and notes centred over the picture; returns the bottom of the text.
