@@ -31,7 +31,10 @@ use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
 /// A geodesic rotation error above this is a gross failure (degrees).
-pub const GROSS_ERROR_DEG: f64 = 5.0;
+/// It is the crate's one threshold, shared with `validate`, `search` and the
+/// solver conformance sweep, so a gross failure means the same in every
+/// report.
+pub const GROSS_ERROR_DEG: f64 = crate::montecarlo::DEFAULT_GROSS_THRESHOLD_DEG;
 
 /// Shared settings of one run.
 pub(crate) struct Context<'a> {
