@@ -161,7 +161,12 @@ fn summing_up(claims: &[&claims::Claim]) -> String {
     let count = |v: Verdict| claims.iter().filter(|c| c.verdict == v).count();
     let judged = claims
         .iter()
-        .filter(|c| matches!(c.verdict, Verdict::Holds | Verdict::Indistinguishable | Verdict::DoesNotHold))
+        .filter(|c| {
+            matches!(
+                c.verdict,
+                Verdict::Holds | Verdict::Indistinguishable | Verdict::DoesNotHold
+            )
+        })
         .count();
     let ids = |k: &str| -> Vec<String> {
         claims
@@ -192,7 +197,11 @@ fn summing_up(claims: &[&claims::Claim]) -> String {
         let _ = write!(
             out,
             " A faithful simulation contradicts {}: {}.",
-            if contradicted.len() == 1 { "one".to_string() } else { contradicted.len().to_string() },
+            if contradicted.len() == 1 {
+                "one".to_string()
+            } else {
+                contradicted.len().to_string()
+            },
             contradicted.join(", ")
         );
     }
@@ -202,7 +211,11 @@ fn summing_up(claims: &[&claims::Claim]) -> String {
             out,
             " {} more {} on how the paper is read ({}): {}.",
             ambiguous.len(),
-            if ambiguous.len() == 1 { "turns" } else { "turn" },
+            if ambiguous.len() == 1 {
+                "turns"
+            } else {
+                "turn"
+            },
             ambiguities.join("; "),
             ambiguous.join(", ")
         );
@@ -384,7 +397,7 @@ fn markdown(reproduction: &Reproduction) -> String {
     let _ = writeln!(out, "\n## Files\n");
     let _ = writeln!(out, "- `summary.json`: every deterministic number above (header, curves, claims); `claims.csv`: every claim above, with its verdict and, for each that does not hold, the kind of reason and the reason (its timing rows are machine-dependent);");
     let _ = writeln!(out, "- `<experiment>.csv`: long format, one row per (panel, x, solver) with trials, poses, errors, gross failures, mean and median E_rot, mean and RMS geodesic error, mean and median E_t, and the first-order limit;");
-    let _ = writeln!(out, "- `<figure>_rotation.svg`, `<figure>_translation.svg`: one plot per figure of the paper, log y axis;");
+    let _ = writeln!(out, "- `<figure>_rotation.svg`, `<figure>_translation.svg`: one plot per figure of the paper in three panels on one log y scale (the paper's method and its variants, the other closed-form solvers, the other iterative ones): each solver's RMS error with its 95% band against the first-order limit, which is an RMS too (the tables give the paper's mean E_rot);");
     let _ = writeln!(out, "- `timing.csv`, `timing_claims.csv`, `timing.json`, `run.json`: machine-dependent (timings, wall times); everything else is bit-identical for the same seed at any thread count.");
     let walls: Vec<String> = reproduction
         .wall_seconds
@@ -452,22 +465,32 @@ fn csv_header() -> Table {
     ])
 }
 
-/// Writes `<id>_rotation.svg` and `<id>_translation.svg`.
+/// The three panels of a paper figure, in order: the paper's method and
+/// its variants, the other closed-form solvers, the other iterative ones.
+const SOLVER_PANELS: [&str; 3] = [
+    "the paper's method and its variants",
+    "other closed-form solvers",
+    "other iterative solvers",
+];
+
+/// Which of [`SOLVER_PANELS`] `solver` is drawn in.
+fn solver_panel(solver: Solver) -> usize {
+    match solver.name() {
+        name if name.starts_with("parallel") => 0,
+        "epnp-gn" | "iepnp" | "lhm" | "ml" => 2,
+        _ => 1,
+    }
+}
+
+/// Writes `<id>_rotation.svg` and `<id>_translation.svg`: the RMS error
+/// of every solver with its 95% band, against the first-order limit (an
+/// RMS too), split into [`SOLVER_PANELS`] on one y scale.
 fn write_plots(panel: &Panel, dir: &Path) -> Result<(), ReportError> {
     for metric in [Metric::Rotation, Metric::Translation] {
-        let mut series: Vec<plots::Series> = panel
-            .solvers
-            .iter()
-            .map(|&solver| plots::Series {
-                name: solver.name().to_string(),
-                points: panel
-                    .curve(solver, metric)
-                    .into_iter()
-                    .map(|(x, s)| (x, s.mean))
-                    .collect(),
-                dashed: false,
-            })
-            .collect();
+        let stat_of = |cell: &super::panel::Cell| match metric {
+            Metric::Rotation => cell.geodesic_deg,
+            Metric::Translation => cell.translation_percent,
+        };
         let limit: Vec<(f64, f64)> = panel
             .x
             .iter()
@@ -479,26 +502,70 @@ fn write_plots(panel: &Panel, dir: &Path) -> Result<(), ReportError> {
                 })
             })
             .collect();
-        if !limit.is_empty() {
-            series.push(plots::Series {
-                name: "first-order limit (RMS)".into(),
-                points: limit,
-                dashed: true,
-            });
+        let mut panels: Vec<plots::LinePanel> = SOLVER_PANELS
+            .iter()
+            .map(|heading| plots::LinePanel {
+                heading: heading.to_string(),
+                series: Vec::new(),
+            })
+            .collect();
+        for (j, &solver) in panel.solvers.iter().enumerate() {
+            let cells: Vec<(f64, super::stats::Stat)> = panel
+                .x
+                .iter()
+                .zip(&panel.cells)
+                .filter(|(_, row)| row[j].applicable && stat_of(&row[j]).count > 0)
+                .map(|(&x, row)| (x, stat_of(&row[j])))
+                .collect();
+            panels[solver_panel(solver)]
+                .series
+                .push(plots::BandedSeries {
+                    series: plots::Series {
+                        name: solver.name().to_string(),
+                        points: cells.iter().map(|(x, s)| (*x, s.rms)).collect(),
+                        dashed: false,
+                    },
+                    band: cells
+                        .iter()
+                        .filter_map(|(x, s)| s.rms_interval().map(|(lo, hi)| (*x, lo, hi)))
+                        .collect(),
+                });
         }
-        if let (Metric::Rotation, Some((name, points))) = (metric, &panel.model_rotation) {
-            series.push(plots::Series {
-                name: name.clone(),
-                points: points.clone(),
-                dashed: true,
-            });
+        for (k, drawn) in panels.iter_mut().enumerate() {
+            if !limit.is_empty() {
+                drawn.series.push(plots::BandedSeries {
+                    series: plots::Series {
+                        name: "first-order limit (RMS)".into(),
+                        points: limit.clone(),
+                        dashed: true,
+                    },
+                    band: Vec::new(),
+                });
+            }
+            if let (Metric::Rotation, Some((name, points)), 0) = (metric, &panel.model_rotation, k)
+            {
+                drawn.series.push(plots::BandedSeries {
+                    series: plots::Series {
+                        name: name.clone(),
+                        points: points.clone(),
+                        dashed: true,
+                    },
+                    band: Vec::new(),
+                });
+            }
         }
-        plots::line_plot(
+        panels.retain(|p| p.series.iter().any(|s| !s.series.dashed));
+        let (what, label) = match metric {
+            Metric::Rotation => ("rotation", "RMS geodesic rotation error (deg)"),
+            Metric::Translation => ("translation", "RMS E_t (%)"),
+        };
+        plots::panel_plot(
             &dir.join(format!("{}_{}.svg", panel.id, metric.file_suffix())),
-            &format!("{} ({})", panel.title, panel.figure),
+            &format!("{}: {what} ({})", panel.title, panel.figure),
+            &["RMS over the trials, shaded: its 95% interval where the trials' errors were kept; dashed black: the first-order limit, an RMS too".to_string()],
             &panel.x_label,
-            metric.label(),
-            &series,
+            label,
+            &panels,
         )?;
     }
     Ok(())
@@ -570,20 +637,32 @@ fn write_timing(timing: &TimingResult, dir: &Path) -> Result<(), ReportError> {
             names.push(&r.solver);
         }
     }
-    let series: Vec<plots::Series> = names
+    let mut panels: Vec<plots::LinePanel> = SOLVER_PANELS
         .iter()
-        .filter_map(|name| Solver::from_name(name))
-        .map(|s| plots::Series {
-            name: s.name().to_string(),
-            points: timing.curve(s),
-            dashed: false,
+        .map(|heading| plots::LinePanel {
+            heading: heading.to_string(),
+            series: Vec::new(),
         })
         .collect();
-    plots::line_plot(
+    for solver in names.iter().filter_map(|name| Solver::from_name(name)) {
+        panels[solver_panel(solver)]
+            .series
+            .push(plots::BandedSeries {
+                series: plots::Series {
+                    name: solver.name().to_string(),
+                    points: timing.curve(solver),
+                    dashed: false,
+                },
+                band: Vec::new(),
+            });
+    }
+    panels.retain(|p| !p.series.is_empty());
+    plots::panel_plot(
         &dir.join("fig10_timing.svg"),
         "Median time per solve without the shared input checks, one thread (Fig. 10)",
+        &[],
         "number of points n",
         "median method time per solve (µs)",
-        &series,
+        &panels,
     )
 }
