@@ -749,6 +749,10 @@ pub struct Availability {
     pub axis: String,
     /// The unit of x.
     pub unit: String,
+    /// What the panel shows ("share of scenarios with every sphere visible").
+    pub label: String,
+    /// What a share of zero means, for the note ("nothing visible").
+    pub empty: String,
 }
 
 /// A line plot with a logarithmic y axis (errors span decades).
@@ -822,7 +826,8 @@ pub fn line_plot_with_availability(
     if let (Some(a), false) = (availability, empty.is_empty()) {
         let values: Vec<String> = empty.iter().map(|v| format!("{v}")).collect();
         notes.push(format!(
-            "nothing visible at {} {} {} (shaded): no error to plot there",
+            "{} at {} {} {} (shaded): nothing to plot there",
+            a.empty,
             a.axis,
             values.join(", "),
             a.unit
@@ -931,7 +936,7 @@ pub fn line_plot_with_availability(
         let caption_y = area.bottom + 8.0 + TEXT_ASCENT_EM * TICK_SIZE;
         svg.text(
             "note",
-            "share of scenarios with every sphere visible",
+            &a.label,
             area.left,
             caption_y,
             TICK_SIZE,
