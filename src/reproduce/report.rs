@@ -465,26 +465,9 @@ fn csv_header() -> Table {
     ])
 }
 
-/// The three panels of a paper figure, in order: the paper's method and
-/// its variants, the other closed-form solvers, the other iterative ones.
-const SOLVER_PANELS: [&str; 3] = [
-    "the paper's method and its variants",
-    "other closed-form solvers",
-    "other iterative solvers",
-];
-
-/// Which of [`SOLVER_PANELS`] `solver` is drawn in.
-fn solver_panel(solver: Solver) -> usize {
-    match solver.name() {
-        name if name.starts_with("parallel") => 0,
-        "epnp-gn" | "iepnp" | "lhm" | "ml" => 2,
-        _ => 1,
-    }
-}
-
 /// Writes `<id>_rotation.svg` and `<id>_translation.svg`: the RMS error
 /// of every solver with its 95% band, against the first-order limit (an
-/// RMS too), split into [`SOLVER_PANELS`] on one y scale.
+/// RMS too), split into [`plots::SOLVER_GROUPS`] on one y scale.
 fn write_plots(panel: &Panel, dir: &Path) -> Result<(), ReportError> {
     for metric in [Metric::Rotation, Metric::Translation] {
         let stat_of = |cell: &super::panel::Cell| match metric {
@@ -502,7 +485,7 @@ fn write_plots(panel: &Panel, dir: &Path) -> Result<(), ReportError> {
                 })
             })
             .collect();
-        let mut panels: Vec<plots::LinePanel> = SOLVER_PANELS
+        let mut panels: Vec<plots::LinePanel> = plots::SOLVER_GROUPS
             .iter()
             .map(|heading| plots::LinePanel {
                 heading: heading.to_string(),
@@ -517,7 +500,7 @@ fn write_plots(panel: &Panel, dir: &Path) -> Result<(), ReportError> {
                 .filter(|(_, row)| row[j].applicable && stat_of(&row[j]).count > 0)
                 .map(|(&x, row)| (x, stat_of(&row[j])))
                 .collect();
-            panels[solver_panel(solver)]
+            panels[plots::solver_group(solver.name())]
                 .series
                 .push(plots::BandedSeries {
                     series: plots::Series {
@@ -566,6 +549,7 @@ fn write_plots(panel: &Panel, dir: &Path) -> Result<(), ReportError> {
             &panel.x_label,
             label,
             &panels,
+            None,
         )?;
     }
     Ok(())
@@ -637,7 +621,7 @@ fn write_timing(timing: &TimingResult, dir: &Path) -> Result<(), ReportError> {
             names.push(&r.solver);
         }
     }
-    let mut panels: Vec<plots::LinePanel> = SOLVER_PANELS
+    let mut panels: Vec<plots::LinePanel> = plots::SOLVER_GROUPS
         .iter()
         .map(|heading| plots::LinePanel {
             heading: heading.to_string(),
@@ -645,7 +629,7 @@ fn write_timing(timing: &TimingResult, dir: &Path) -> Result<(), ReportError> {
         })
         .collect();
     for solver in names.iter().filter_map(|name| Solver::from_name(name)) {
-        panels[solver_panel(solver)]
+        panels[plots::solver_group(solver.name())]
             .series
             .push(plots::BandedSeries {
                 series: plots::Series {
@@ -664,5 +648,6 @@ fn write_timing(timing: &TimingResult, dir: &Path) -> Result<(), ReportError> {
         "number of points n",
         "median method time per solve (µs)",
         &panels,
+        None,
     )
 }

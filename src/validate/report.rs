@@ -152,14 +152,49 @@ fn write_curve(dir: &Path, curve: &Curve) -> Result<(), ReportError> {
         label: "share of scenarios with every sphere visible".into(),
         empty: "nothing visible".into(),
     };
-    plots::line_plot_with_availability(
-        &dir.join(format!("error_vs_{}.svg", curve.axis)),
-        &format!("RMS rotation error vs {} (visible scenarios)", curve.axis),
-        &format!("{} ({})", curve.axis, curve.unit),
-        "RMS rotation error (deg)",
-        &series,
-        Some(&availability),
-    )?;
+    let path = dir.join(format!("error_vs_{}.svg", curve.axis));
+    let title = format!("RMS rotation error vs {} (visible scenarios)", curve.axis);
+    let x_label = format!("{} ({})", curve.axis, curve.unit);
+    if series.len() <= plots::MAX_SERIES_PER_PANEL {
+        plots::line_plot_with_availability(
+            &path,
+            &title,
+            &x_label,
+            "RMS rotation error (deg)",
+            &series,
+            Some(&availability),
+        )?;
+    } else {
+        // Too many solvers for one panel: one per solver group, each with
+        // the model lines, on one y scale.
+        let (models, solvers): (Vec<_>, Vec<_>) = series.into_iter().partition(|s| s.dashed);
+        let panels: Vec<plots::LinePanel> = plots::SOLVER_GROUPS
+            .iter()
+            .enumerate()
+            .map(|(g, heading)| plots::LinePanel {
+                heading: heading.to_string(),
+                series: solvers
+                    .iter()
+                    .filter(|s| plots::solver_group(&s.name) == g)
+                    .chain(&models)
+                    .map(|s| plots::BandedSeries {
+                        series: s.clone(),
+                        band: Vec::new(),
+                    })
+                    .collect(),
+            })
+            .filter(|p| p.series.iter().any(|s| !s.series.dashed))
+            .collect();
+        plots::panel_plot(
+            &path,
+            &title,
+            &[],
+            &x_label,
+            "RMS rotation error (deg)",
+            &panels,
+            Some(&availability),
+        )?;
+    }
     Ok(())
 }
 

@@ -21,6 +21,24 @@ const PANEL_AREA_HEIGHT: f64 = 240.0;
 /// Most series one panel may hold (the plot test checks every SVG).
 pub const MAX_SERIES_PER_PANEL: usize = 8;
 
+/// The panels a figure with too many solvers is split into, in order: the
+/// paper's method and its variants, the other closed-form solvers, the
+/// other iterative ones.
+pub const SOLVER_GROUPS: [&str; 3] = [
+    "the paper's method and its variants",
+    "other closed-form solvers",
+    "other iterative solvers",
+];
+
+/// Which of [`SOLVER_GROUPS`] the solver called `name` belongs to.
+pub fn solver_group(name: &str) -> usize {
+    match name {
+        name if name.starts_with("parallel") => 0,
+        "epnp-gn" | "iepnp" | "lhm" | "ml" => 2,
+        _ => 1,
+    }
+}
+
 /// A series with an optional 95% band: (x, low, high) at each x.
 #[derive(Debug, Clone)]
 pub struct BandedSeries {
@@ -73,7 +91,9 @@ fn clip_segment(
 }
 
 /// Writes a stack of panels under one title. `notes` go under the title;
-/// a note on clipped model lines is added when one is clipped.
+/// a note on clipped model lines is added when one is clipped. With
+/// `availability`, its panel goes under the last one and the x values with
+/// nothing available are shaded in every panel.
 pub fn panel_plot(
     path: &Path,
     title: &str,
@@ -81,6 +101,7 @@ pub fn panel_plot(
     x_label: &str,
     y_label: &str,
     panels: &[LinePanel],
+    availability: Option<&super::Availability>,
 ) -> Result<(), ReportError> {
     let measured = |s: &&BandedSeries| !s.series.dashed;
     let values = panels
@@ -109,6 +130,11 @@ pub fn panel_plot(
         .iter()
         .flat_map(|p| &p.series)
         .flat_map(|s| s.series.points.iter().map(|p| p.0))
+        .chain(
+            availability
+                .iter()
+                .flat_map(|a| a.points.iter().map(|p| p.0)),
+        )
         .filter(|x| x.is_finite())
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), x| {
             (lo.min(x), hi.max(x))
@@ -128,6 +154,7 @@ pub fn panel_plot(
                 .any(|&(x, y)| drawable(x, y) && (y < y_lo || y > y_hi))
     });
     let mut notes = notes.to_vec();
+    notes.extend(availability.and_then(super::availability::empty_note));
     if clipped {
         notes.push("model lines are clipped at the frame, whose range the measurements set".into());
     }
@@ -199,7 +226,17 @@ pub fn panel_plot(
             first_top = area.top;
         }
         let last = k + 1 == panels.len();
-        draw_axes(&mut svg, &x_scale, &y_scale, area, last);
+        let spans = availability.map_or(Vec::new(), |a| {
+            super::availability::empty_spans(a, &x_scale, area)
+        });
+        super::availability::shade(&mut svg, &spans, area.top, area.bottom);
+        draw_axes(
+            &mut svg,
+            &x_scale,
+            &y_scale,
+            area,
+            last && availability.is_none(),
+        );
         // Bands first, under every line.
         for (series, style) in row {
             let band: Vec<(f64, f64, f64)> = series
@@ -263,8 +300,14 @@ pub fn panel_plot(
                 svg.marker(marker, p, 3.0, style.colour);
             }
         }
-        draw_legend(&mut svg, &entries[k], area.right + 16.0, area.top);
+        let legend_bottom = draw_legend(&mut svg, &entries[k], area.right + 16.0, area.top);
         bottom = area.bottom;
+        if let (true, Some(a)) = (last, availability) {
+            bottom = super::availability::draw_panel(&mut svg, a, &x_scale, area, &spans);
+        }
+        if last {
+            bottom = bottom.max(legend_bottom);
+        }
         top = area.bottom + if last { 0.0 } else { 14.0 };
     }
     svg.vertical_text(
