@@ -78,7 +78,7 @@ fn designs_table(summary: &SearchSummary) -> Table {
         "design".into(),
         "points".into(),
         "objective".into(),
-        "accuracy (1 = paper biprism)".into(),
+        "accuracy (1 = the paper's biprism)".into(),
         "availability %".into(),
         "occluded scenarios".into(),
         "scored scenarios (of in front)".into(),
@@ -599,7 +599,7 @@ pub fn console(summary: &SearchSummary) -> String {
     let seeds = &header.comparison_seeds;
     let _ = writeln!(
         out,
-        "winner vs paper biprism ({} Monte-Carlo, {} trials, seeds {} and {}, scenarios both see): RMS rotation {} / {}; availability {:+.1} points",
+        "winner vs the paper's biprism ({} Monte-Carlo, {} trials, seeds {} and {}, scenarios both see): RMS rotation {} / {}; availability {:+.1} points",
         header.comparison_solver,
         header.comparison_trials,
         seeds[0],
@@ -611,7 +611,7 @@ pub fn console(summary: &SearchSummary) -> String {
     let held = &summary.held_out;
     let _ = writeln!(
         out,
-        "held-out grid ({} scenarios), first order: RMS rotation {:.4}° vs the paper biprism's {:.4}° ({:.1}% lower); availability {:.1}% vs {:.1}%; occluded {} vs {}",
+        "held-out grid ({} scenarios), first order: RMS rotation {:.4}° vs the paper's biprism's {:.4}° ({:.1}% lower); availability {:.1}% vs {:.1}%; occluded {} vs {}",
         held.scenarios,
         held.winner_rotation_rms_deg.unwrap_or(f64::NAN),
         held.paper_rotation_rms_deg.unwrap_or(f64::NAN),
@@ -624,7 +624,7 @@ pub fn console(summary: &SearchSummary) -> String {
     if let Some(supported) = &summary.held_out_with_supports {
         let _ = writeln!(
             out,
-            "held-out grid with the printed supports counted: availability {:.1}% vs the paper biprism's {:.1}%; RMS rotation {:.4}° vs {:.4}°",
+            "held-out grid with the printed supports counted: availability {:.1}% vs the paper's biprism's {:.1}%; RMS rotation {:.4}° vs {:.4}°",
             100.0 * supported.winner_availability,
             100.0 * supported.paper_availability,
             supported.winner_rotation_rms_deg.unwrap_or(f64::NAN),
