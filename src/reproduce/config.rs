@@ -406,11 +406,14 @@ mod tests {
 
     #[test]
     fn estimate_scales_with_trials_and_threads() {
+        // The reference time itself, half of it on twice the threads, a
+        // tenth of it at a tenth of the trials.
+        let reference = Experiment::Noise.reference_seconds();
         let full = config("noise", None, false);
-        assert!((full.estimate_seconds(2) - 16.3).abs() < 1e-9);
-        assert!((full.estimate_seconds(4) - 8.15).abs() < 1e-9);
+        assert!((full.estimate_seconds(2) - reference).abs() < 1e-9);
+        assert!((full.estimate_seconds(4) - reference / 2.0).abs() < 1e-9);
         let fewer = config("noise", Some(50), false);
-        assert!((fewer.estimate_seconds(2) - 1.63).abs() < 1e-9);
+        assert!((fewer.estimate_seconds(2) - reference / 10.0).abs() < 1e-9);
         // Timing runs on one thread whatever the pool.
         let timing = config("timing", None, false);
         assert_eq!(timing.estimate_seconds(2), timing.estimate_seconds(8));

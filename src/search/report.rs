@@ -509,7 +509,7 @@ fn write_front(report_dir: &Path, files: &FrontFiles) -> Result<(), ReportError>
     }
     plots::line_plot(
         &report_dir.join("front.svg"),
-        "Accuracy against availability: the front and the hand designs",
+        "Accuracy against availability: the front and the hand designs (better is lower and further right)",
         "availability (% of the grid's scenarios)",
         "first-order RMS rotation (°), search grid",
         &series,
