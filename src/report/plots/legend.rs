@@ -51,7 +51,7 @@ pub(super) fn draw_legend(svg: &mut Svg, entries: &[Entry], left: f64, top: f64)
         );
         let _ = writeln!(
             svg.body,
-            r#"<g class="legend-entry" data-legend="{top:.1}" data-dash="{}" data-marker="{}"/>"#,
+            r#"<g class="legend-entry" data-legend="{left:.1} {top:.1}" data-dash="{}" data-marker="{}"/>"#,
             entry.style.dash.unwrap_or("solid"),
             marker_name(entry.style.marker)
         );
