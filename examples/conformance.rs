@@ -1100,21 +1100,28 @@ fn blend(a: RGBColor, b: RGBColor, t: f64) -> RGBColor {
     RGBColor(mix(a.0, b.0), mix(a.1, b.1), mix(a.2, b.2))
 }
 
-/// Green at or below `good`, yellow half way (log scale), red at or above `bad`.
+/// A sequential scale safe under colour-vision deficiency (ColorBrewer's
+/// YlOrBr): pale yellow at or below `good`, orange half way (log scale),
+/// dark brown at or above `bad`. Lightness alone orders it, so it reads in
+/// grey too; there is no red against green.
 fn heat(value: f64, good: f64, bad: f64) -> RGBColor {
-    const GREEN: RGBColor = RGBColor(99, 190, 123);
-    const YELLOW: RGBColor = RGBColor(255, 235, 132);
-    const RED: RGBColor = RGBColor(248, 105, 107);
+    const GOOD: RGBColor = RGBColor(255, 255, 212);
+    const MIDDLE: RGBColor = RGBColor(254, 153, 41);
+    const BAD: RGBColor = RGBColor(153, 52, 4);
     if value <= 0.0 {
-        return GREEN;
+        return GOOD;
     }
     let t = ((value.ln() - good.ln()) / (bad.ln() - good.ln())).clamp(0.0, 1.0);
     if t < 0.5 {
-        blend(GREEN, YELLOW, 2.0 * t)
+        blend(GOOD, MIDDLE, 2.0 * t)
     } else {
-        blend(YELLOW, RED, 2.0 * t - 1.0)
+        blend(MIDDLE, BAD, 2.0 * t - 1.0)
     }
 }
+
+/// Every empty cell, whatever the reason, is drawn in this grey; its text
+/// says why ("n/a" or "—").
+const EMPTY: RGBColor = RGBColor(225, 225, 225);
 
 fn heatmap(
     path: &Path,
@@ -1130,7 +1137,15 @@ fn heatmap(
     const TOP: i32 = 96;
     let columns = ["gross %", "errors %", "RMS/CRLB", "noise-free °"];
     let width = LABEL + COLUMN * columns.len() as i32 + 20;
-    let height = TOP + ROW * cells.len() as i32 + 60;
+    // One row per cell and one heading row per group of the design.
+    let mut rows = Vec::new();
+    for c in cells {
+        if rows.last().map(|(group, _)| group) != Some(&Some(c.def.group.as_str())) {
+            rows.push((Some(c.def.group.as_str()), None));
+        }
+        rows.push((Some(c.def.group.as_str()), Some(c)));
+    }
+    let height = TOP + ROW * rows.len() as i32 + 100;
     let root = SVGBackend::new(path, (width as u32, height as u32)).into_drawing_area();
     let draw = || -> Result<(), Box<dyn std::error::Error>> {
         root.fill(&WHITE)?;
@@ -1162,8 +1177,23 @@ fn heatmap(
                 font(15),
             ))?;
         }
-        for (row, c) in cells.iter().enumerate() {
+        for (row, (group, c)) in rows.iter().enumerate() {
             let y = TOP + ROW * row as i32;
+            let Some(c) = c else {
+                root.draw(&Rectangle::new(
+                    [(0, y + ROW - 3), (width, y + ROW - 2)],
+                    BLACK.filled(),
+                ))?;
+                root.draw(&Text::new(
+                    group.unwrap_or_default().to_string(),
+                    (6, y),
+                    ("sans-serif", 13)
+                        .into_font()
+                        .style(FontStyle::Bold)
+                        .color(&BLACK),
+                ))?;
+                continue;
+            };
             root.draw(&Text::new(
                 format!("{} {}", c.id, label(&c.def.cell)),
                 (6, y + 1),
@@ -1198,11 +1228,11 @@ fn heatmap(
             for (k, (value, text, good, bad)) in values.into_iter().enumerate() {
                 let x = LABEL + COLUMN * k as i32;
                 let (fill, text) = if s.not_applicable.is_some() {
-                    (RGBColor(205, 205, 205), "n/a".to_string())
+                    (EMPTY, "n/a".to_string())
                 } else {
                     match value {
                         Some(v) => (heat(v, good, bad), text),
-                        None => (WHITE, text),
+                        None => (EMPTY, "—".to_string()),
                     }
                 };
                 root.draw(&Rectangle::new(
@@ -1212,17 +1242,24 @@ fn heatmap(
                 root.draw(&Text::new(text, (x + 6, y + 1), font(13)))?;
             }
         }
-        let bottom = TOP + ROW * cells.len() as i32 + 10;
-        root.draw(&Text::new(
-            "Colour (log scale): gross/errors green 0, yellow ≈3%, red ≥30%; RMS/CRLB green ≤1.1, red ≥10; noise-free green ≤1e-6°, red ≥1°; grey n/a.",
-            (6, bottom),
-            font(11),
-        ))?;
-        root.draw(&Text::new(
-            format!("gross = rotation error > {GROSS_DEG}°; RMS/CRLB over successful non-gross problems (shown when ≥ {MIN_KEPT_FOR_RATIO})."),
-            (6, bottom + 18),
-            font(11),
-        ))?;
+        let bottom = TOP + ROW * rows.len() as i32 + 10;
+        let notes = [
+            "Rows are grouped (bold) by what the group varies. Row labels: d/s = centroid depth / object diameter;".to_string(),
+            "n = number of points; t = thickness, the box's z side over its x/y side (0 planar, 1 cube); then where the".to_string(),
+            "centroid projects (axis, a fraction of the way to a corner, corner, uniform); dist = the paper's lens distortion;".to_string(),
+            "σ = pixel noise (px). Colour, log scale, pale = good, dark = bad: gross and errors % pale ≤ 0.3, orange ≈ 3,".to_string(),
+            "dark ≥ 30; RMS/CRLB pale ≤ 1.1, dark ≥ 10; noise-free ° pale ≤ 1e-6, dark ≥ 1. Grey = empty: n/a, the solver".to_string(),
+            "does not take the cell; —, not measured there (RMS/CRLB needs noise; the noise-free column needs none).".to_string(),
+            format!("gross = rotation error > {GROSS_DEG}°, the threshold of every report (validate, search, reproduce);"),
+            format!("RMS/CRLB over the successful non-gross problems, shown when at least {MIN_KEPT_FOR_RATIO} count."),
+        ];
+        for (k, note) in notes.iter().enumerate() {
+            root.draw(&Text::new(
+                note.clone(),
+                (6, bottom + 16 * k as i32),
+                font(11),
+            ))?;
+        }
         root.present()?;
         Ok(())
     };

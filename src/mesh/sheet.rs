@@ -336,6 +336,7 @@ fn tolerance_section(tolerances: &Tolerances) -> String {
                 "  The tolerance scales with the share: at ±{:.3} mm the fabrication error would equal the noise error (the total rising by 41 %).",
                 c.tolerance_mm / c.share
             );
+            let _ = writeln!(md, "{}", printable_tolerances(c));
         }
         None => {
             let _ = writeln!(
@@ -356,6 +357,34 @@ fn tolerance_section(tolerances: &Tolerances) -> String {
         tolerances.hole_position_mm
     );
     md
+}
+
+/// Tolerances that FDM and SLA printers hold, ± mm.
+const PRINTABLE_TOLERANCES_MM: [f64; 2] = [0.1, 0.2];
+
+/// What holding a printable tolerance instead costs, from the same linear
+/// model: at σ_fab = T the fabrication RMS rotation error in the worst
+/// scenario is `T · rotation_deg_per_mm`, added in quadrature to the
+/// noise's there.
+fn printable_tolerances(c: &crate::error_model::fabrication::FabricationTolerance) -> String {
+    let costs: Vec<String> = PRINTABLE_TOLERANCES_MM
+        .iter()
+        .map(|&t| {
+            let fabrication = t * c.rotation_deg_per_mm;
+            let total = c.noise_rotation_deg.hypot(fabrication);
+            format!(
+                "±{t} mm gives up to {fabrication:.4}° from the part, {:.1}× the noise's {:.4}°, and raises the total by {:.0} %",
+                fabrication / c.noise_rotation_deg,
+                c.noise_rotation_deg,
+                100.0 * (total / c.noise_rotation_deg - 1.0)
+            )
+        })
+        .collect();
+    format!(
+        "  **Printable tolerances.** An FDM or SLA printer holds about ±0.1–0.2 mm, not ±{:.3} mm. Printed as it comes, in the same worst scenario: {}. To keep the noise-limited accuracy, measure the printed centres against the datum below and solve with a layout file of the measured centres (the model's fabrication error is that of a part solved with its nominal layout).",
+        c.tolerance_mm,
+        costs.join("; ")
+    )
 }
 
 /// The "Datum" section: what the datum is, and the spheres and holes from

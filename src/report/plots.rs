@@ -18,6 +18,14 @@ use nalgebra::Vector3;
 use std::fmt::Write as _;
 use std::path::Path;
 
+mod availability;
+mod legend;
+mod panels;
+use legend::{draw_legend, legend_width, Entry};
+pub use panels::{
+    panel_plot, solver_group, BandedSeries, LinePanel, MAX_SERIES_PER_PANEL, SOLVER_GROUPS,
+};
+
 /// Estimated width of one character, in units of the font size (the layout
 /// uses a little more, [`LAYOUT_WIDTH_EM`], to leave room for wide glyphs).
 pub const TEXT_WIDTH_EM: f64 = 0.6;
@@ -95,9 +103,9 @@ const fn solver_style(colour: &'static str, dash: Option<&'static str>, marker: 
     }
 }
 
-/// Every solver's style: fourteen colours from Paul Tol's muted (and one
-/// medium-contrast) and the
-/// Okabe–Ito palettes (both chosen to stay apart under colour-vision
+/// Every solver's style: fourteen colours from Paul Tol's muted, bright and
+/// high-contrast and the Okabe–Ito palettes (all chosen to stay apart
+/// under colour-vision
 /// deficiency), each with its own marker–dash pair so that even series of
 /// similar hue differ in shape.
 const SOLVER_STYLES: [(&str, Style); 14] = [
@@ -105,7 +113,7 @@ const SOLVER_STYLES: [(&str, Style); 14] = [
         "parallel-weighted",
         solver_style("#332288", SOLID, Marker::Circle),
     ),
-    ("parallel", solver_style("#88CCEE", SOLID, Marker::Square)),
+    ("parallel", solver_style("#4477AA", SOLID, Marker::Square)),
     (
         "parallel-init",
         solver_style("#6699CC", DOTTED, Marker::Circle),
@@ -117,7 +125,7 @@ const SOLVER_STYLES: [(&str, Style); 14] = [
     ("epnp", solver_style("#E69F00", SOLID, Marker::Diamond)),
     ("epnp-gn", solver_style("#117733", DASHED, Marker::Square)),
     ("iepnp", solver_style("#999933", DASHED, Marker::Circle)),
-    ("dlt", solver_style("#CCBB44", SOLID, Marker::TriangleDown)),
+    ("dlt", solver_style("#997700", SOLID, Marker::TriangleDown)),
     ("dls", solver_style("#CC6677", DASHED, Marker::Diamond)),
     ("lhm", solver_style("#882255", SOLID, Marker::Plus)),
     ("rpnp", solver_style("#AA4499", DOTTED, Marker::TriangleUp)),
@@ -322,6 +330,14 @@ fn log_ticks(lo: f64, hi: f64) -> Vec<Tick> {
             }
         }
         if ticks.len() >= fewest {
+            // One notation per axis: "1e4 … 1e7", never "10000 … 1e7".
+            if ticks.iter().any(|t| t.label.contains('e')) {
+                for t in &mut ticks {
+                    let exponent = t.value.log10().floor() as i32;
+                    let mantissa = (t.value / 10f64.powi(exponent)).round() as u32;
+                    t.label = format!("{mantissa}e{exponent}");
+                }
+            }
             return ticks;
         }
     }
@@ -702,61 +718,6 @@ fn widest_label(scale: &Scale, target: f64) -> f64 {
         .fold(0.0, f64::max)
 }
 
-/// A legend entry: name and style.
-struct Entry<'a> {
-    name: &'a str,
-    style: Style,
-    line: bool,
-}
-
-const LEGEND_ROW: f64 = 18.0;
-const LEGEND_SWATCH: f64 = 30.0;
-
-fn legend_width(entries: &[Entry]) -> f64 {
-    entries
-        .iter()
-        .map(|e| text_width(e.name, LEGEND_SIZE))
-        .fold(0.0, f64::max)
-        + LEGEND_SWATCH
-        + 24.0
-}
-
-/// Draws the legend with its top-left corner at (`left`, `top`); returns its
-/// bottom.
-fn draw_legend(svg: &mut Svg, entries: &[Entry], left: f64, top: f64) -> f64 {
-    let height = LEGEND_ROW * entries.len() as f64 + 8.0;
-    let frame = Rect {
-        left,
-        top,
-        right: left + legend_width(entries) - 6.0,
-        bottom: top + height,
-    };
-    svg.rect(frame, "#FFFFFF", Some("#999999"));
-    for (row, entry) in entries.iter().enumerate() {
-        let y = top + 4.0 + LEGEND_ROW * (row as f64 + 0.5);
-        let (a, b) = (left + 6.0, left + 6.0 + LEGEND_SWATCH);
-        if entry.line {
-            svg.polyline(&[(a, y), (b, y)], &entry.style);
-        }
-        svg.marker(
-            entry.style.marker,
-            (0.5 * (a + b), y),
-            3.5,
-            entry.style.colour,
-        );
-        let baseline = y + 0.5 * (TEXT_ASCENT_EM - TEXT_DESCENT_EM) * LEGEND_SIZE;
-        svg.text(
-            "legend",
-            entry.name,
-            b + 6.0,
-            baseline,
-            LEGEND_SIZE,
-            Anchor::Start,
-        );
-    }
-    frame.bottom
-}
-
 /// Title and notes centred over the picture; returns the bottom of the text.
 fn draw_heading(svg: &mut Svg, title: &str, notes: &[String], width: f64) -> f64 {
     let mut y = 10.0 + TEXT_ASCENT_EM * TITLE_SIZE;
@@ -791,6 +752,10 @@ pub struct Availability {
     pub axis: String,
     /// The unit of x.
     pub unit: String,
+    /// What the panel shows ("share of scenarios with every sphere visible").
+    pub label: String,
+    /// What a share of zero means, for the note ("nothing visible").
+    pub empty: String,
 }
 
 /// A line plot with a logarithmic y axis (errors span decades).
@@ -851,35 +816,21 @@ pub fn line_plot_with_availability(
         x_lo -= 1.0;
         x_hi += 1.0;
     }
-    let empty: Vec<f64> = availability
-        .map(|a| {
-            a.points
-                .iter()
-                .filter(|p| p.1 <= 0.0)
-                .map(|p| p.0)
-                .collect()
-        })
-        .unwrap_or_default();
-    let mut notes = Vec::new();
-    if let (Some(a), false) = (availability, empty.is_empty()) {
-        let values: Vec<String> = empty.iter().map(|v| format!("{v}")).collect();
-        notes.push(format!(
-            "nothing visible at {} {} {} (shaded): no error to plot there",
-            a.axis,
-            values.join(", "),
-            a.unit
-        ));
-    }
+    let notes: Vec<String> = availability
+        .and_then(availability::empty_note)
+        .into_iter()
+        .collect();
     let styles = styles_for(series.iter().map(|s| (s.name.as_str(), s.dashed)));
     let entries: Vec<Entry> = series
         .iter()
         .zip(&styles)
         .zip(&drawn)
         .filter(|(_, (_, p))| !p.is_empty())
-        .map(|((s, style), _)| Entry {
+        .map(|((s, style), (_, p))| Entry {
             name: &s.name,
             style: *style,
-            line: true,
+            // A single point has no line: its legend shows the marker only.
+            line: p.len() > 1 || style.marker == Marker::None,
         })
         .collect();
 
@@ -910,41 +861,8 @@ pub fn line_plot_with_availability(
         pixel_lo: area.left,
         pixel_hi: area.right,
     };
-    // Shade the x values where nothing is visible: half-way to each neighbour.
-    let all_x: Vec<f64> = availability
-        .map(|a| a.points.iter().map(|p| p.0).collect())
-        .unwrap_or_default();
-    let band = |x: f64| -> (f64, f64) {
-        let below = all_x
-            .iter()
-            .copied()
-            .filter(|&v| v < x)
-            .fold(f64::NAN, f64::max);
-        let above = all_x
-            .iter()
-            .copied()
-            .filter(|&v| v > x)
-            .fold(f64::NAN, f64::min);
-        let a = if below.is_nan() { x } else { 0.5 * (x + below) };
-        let b = if above.is_nan() { x } else { 0.5 * (x + above) };
-        (
-            x_scale.map(a).max(area.left),
-            x_scale.map(b).min(area.right),
-        )
-    };
-    for &x in &empty {
-        let (a, b) = band(x);
-        svg.rect(
-            Rect {
-                left: a.min(b - 4.0),
-                top: area.top,
-                right: b.max(a + 4.0),
-                bottom: area.bottom,
-            },
-            "#F2E6E6",
-            None,
-        );
-    }
+    let spans = availability.map_or(Vec::new(), |a| availability::empty_spans(a, &x_scale, area));
+    availability::shade(&mut svg, &spans, area.top, area.bottom);
     draw_axes(&mut svg, &x_scale, &y_scale, area, availability.is_none());
     for ((_, points), style) in drawn.iter().zip(&styles) {
         let pixels: Vec<(f64, f64)> = points
@@ -970,83 +888,7 @@ pub fn line_plot_with_availability(
     );
     let mut bottom = area.bottom;
     if let Some(a) = availability {
-        let caption_y = area.bottom + 8.0 + TEXT_ASCENT_EM * TICK_SIZE;
-        svg.text(
-            "note",
-            "share of scenarios with every sphere visible",
-            area.left,
-            caption_y,
-            TICK_SIZE,
-            Anchor::Start,
-        );
-        let panel = Rect {
-            left: area.left,
-            top: caption_y + TEXT_DESCENT_EM * TICK_SIZE + 6.0,
-            right: area.right,
-            bottom: caption_y + TEXT_DESCENT_EM * TICK_SIZE + 6.0 + PANEL_HEIGHT,
-        };
-        let share = Scale {
-            lo: 0.0,
-            hi: 1.0,
-            log: false,
-            pixel_lo: panel.bottom,
-            pixel_hi: panel.top,
-        };
-        for &x in &empty {
-            let (a, b) = band(x);
-            svg.rect(
-                Rect {
-                    left: a.min(b - 4.0),
-                    top: panel.top,
-                    right: b.max(a + 4.0),
-                    bottom: panel.bottom,
-                },
-                "#F2E6E6",
-                None,
-            );
-        }
-        svg.line(
-            (panel.left, share.map(0.5)),
-            (panel.right, share.map(0.5)),
-            "#DDDDDD",
-            1.0,
-        );
-        let bar = (PLOT_WIDTH / (2.0 * a.points.len().max(1) as f64)).min(16.0);
-        for &(x, s) in &a.points {
-            let px = x_scale.map(x);
-            let top = share.map(s.clamp(0.0, 1.0));
-            svg.rect(
-                Rect {
-                    left: (px - 0.5 * bar).max(panel.left),
-                    top,
-                    right: (px + 0.5 * bar).min(panel.right),
-                    bottom: panel.bottom,
-                },
-                "#88CCEE",
-                Some("#336699"),
-            );
-        }
-        svg.rect(panel, "none", Some("#000000"));
-        let centre = 0.5 * (TEXT_ASCENT_EM - TEXT_DESCENT_EM) * TICK_SIZE;
-        for (value, label) in [(0.0, "0%"), (1.0, "100%")] {
-            let py = share.map(value);
-            svg.line((panel.left - 4.0, py), (panel.left, py), "#000000", 1.0);
-            svg.text(
-                "tick-y",
-                label,
-                panel.left - 7.0,
-                py + centre,
-                TICK_SIZE,
-                Anchor::End,
-            );
-        }
-        let x_ticks = x_scale.ticks(6.0);
-        for tick in &x_ticks {
-            let px = x_scale.map(tick.value);
-            svg.line((px, panel.bottom), (px, panel.bottom + 4.0), "#000000", 1.0);
-        }
-        draw_x_tick_labels(&mut svg, &x_scale, &x_ticks, panel.bottom);
-        bottom = panel.bottom;
+        bottom = availability::draw_panel(&mut svg, a, &x_scale, area, &spans);
     }
     let x_label_y = bottom + 6.0 + TICK_SIZE + 8.0 + TEXT_ASCENT_EM * LABEL_SIZE;
     svg.text(
@@ -1082,17 +924,22 @@ pub fn predicted_vs_measured(
         marker: Marker::None,
         width: 1.2,
     };
-    let styles = styles_for(series.iter().map(|(n, _)| (n.as_str(), false)));
-    let mut entries = vec![Entry {
-        name: "measured = predicted",
-        style: reference,
-        line: true,
-    }];
-    entries.extend(series.iter().zip(&styles).map(|((name, _), style)| Entry {
-        name,
-        style: *style,
-        line: false,
-    }));
+    // One panel, or one per solver group when the series are too many to
+    // tell apart in one.
+    type Named = (String, Vec<(f64, f64)>);
+    let groups: Vec<Vec<&Named>> = if series.len() < MAX_SERIES_PER_PANEL {
+        vec![series.iter().collect()]
+    } else {
+        (0..SOLVER_GROUPS.len())
+            .map(|g| {
+                series
+                    .iter()
+                    .filter(|(n, _)| solver_group(n) == g)
+                    .collect::<Vec<_>>()
+            })
+            .filter(|group| !group.is_empty())
+            .collect()
+    };
     let side = 420.0;
     let mut y_scale = Scale {
         lo,
@@ -1102,60 +949,89 @@ pub fn predicted_vs_measured(
         pixel_hi: 0.0,
     };
     let left = 16.0 + LABEL_SIZE + widest_label(&y_scale, 5.0) + 12.0;
-    let width = (left + side + 16.0 + legend_width(&entries) + 8.0).max(heading_width(title, &[]));
+    let styled: Vec<(Vec<Style>, Vec<Entry>)> = groups
+        .iter()
+        .map(|group| {
+            let styles = styles_for(group.iter().map(|(n, _)| (n.as_str(), false)));
+            let mut entries = vec![Entry {
+                name: "measured = predicted",
+                style: reference,
+                line: true,
+            }];
+            entries.extend(group.iter().zip(&styles).map(|((name, _), style)| Entry {
+                name,
+                style: *style,
+                line: false,
+            }));
+            (styles, entries)
+        })
+        .collect();
+    let panel_width = |entries: &[Entry]| left + side + 16.0 + legend_width(entries) + 8.0;
+    let width = styled
+        .iter()
+        .map(|(_, e)| panel_width(e))
+        .sum::<f64>()
+        .max(heading_width(title, &[]));
     let mut svg = Svg::new();
     let top = draw_heading(&mut svg, title, &[], width) + 14.0;
-    let area = Rect {
-        left,
-        top,
-        right: left + side,
-        bottom: top + side,
-    };
-    y_scale.pixel_lo = area.bottom;
-    y_scale.pixel_hi = area.top;
-    let x_scale = Scale {
-        lo,
-        hi,
-        log: true,
-        pixel_lo: area.left,
-        pixel_hi: area.right,
-    };
-    draw_axes(&mut svg, &x_scale, &y_scale, area, true);
-    svg.polyline(
-        &[
-            (x_scale.map(lo), y_scale.map(lo)),
-            (x_scale.map(hi), y_scale.map(hi)),
-        ],
-        &reference,
-    );
-    for ((_, points), style) in series.iter().zip(&styles) {
-        for &(a, b) in points.iter().filter(good) {
-            svg.marker(
-                style.marker,
-                (x_scale.map(a), y_scale.map(b)),
-                3.0,
-                style.colour,
-            );
+    let mut panel_left = 0.0;
+    let mut height: f64 = 0.0;
+    for (group, (styles, entries)) in groups.iter().zip(&styled) {
+        let area = Rect {
+            left: panel_left + left,
+            top,
+            right: panel_left + left + side,
+            bottom: top + side,
+        };
+        y_scale.pixel_lo = area.bottom;
+        y_scale.pixel_hi = area.top;
+        let x_scale = Scale {
+            lo,
+            hi,
+            log: true,
+            pixel_lo: area.left,
+            pixel_hi: area.right,
+        };
+        draw_axes(&mut svg, &x_scale, &y_scale, area, true);
+        svg.polyline(
+            &[
+                (x_scale.map(lo), y_scale.map(lo)),
+                (x_scale.map(hi), y_scale.map(hi)),
+            ],
+            &reference,
+        );
+        for ((_, points), style) in group.iter().zip(styles) {
+            for &(a, b) in points.iter().filter(good) {
+                svg.marker(
+                    style.marker,
+                    (x_scale.map(a), y_scale.map(b)),
+                    3.0,
+                    style.colour,
+                );
+            }
         }
+        svg.vertical_text(
+            "axis-label",
+            "measured RMS rotation error (°)",
+            panel_left + 10.0 + TEXT_ASCENT_EM * LABEL_SIZE,
+            0.5 * (area.top + area.bottom),
+            LABEL_SIZE,
+        );
+        let x_label_y = area.bottom + 6.0 + TICK_SIZE + 8.0 + TEXT_ASCENT_EM * LABEL_SIZE;
+        svg.text(
+            "axis-label",
+            "predicted RMS rotation error (°)",
+            0.5 * (area.left + area.right),
+            x_label_y,
+            LABEL_SIZE,
+            Anchor::Middle,
+        );
+        let legend_bottom = draw_legend(&mut svg, entries, area.right + 16.0, area.top);
+        height = height
+            .max(x_label_y + TEXT_DESCENT_EM * LABEL_SIZE + 10.0)
+            .max(legend_bottom + 10.0);
+        panel_left += panel_width(entries);
     }
-    svg.vertical_text(
-        "axis-label",
-        "measured RMS rotation error (°)",
-        10.0 + TEXT_ASCENT_EM * LABEL_SIZE,
-        0.5 * (area.top + area.bottom),
-        LABEL_SIZE,
-    );
-    let x_label_y = area.bottom + 6.0 + TICK_SIZE + 8.0 + TEXT_ASCENT_EM * LABEL_SIZE;
-    svg.text(
-        "axis-label",
-        "predicted RMS rotation error (°)",
-        0.5 * (area.left + area.right),
-        x_label_y,
-        LABEL_SIZE,
-        Anchor::Middle,
-    );
-    let legend_bottom = draw_legend(&mut svg, &entries, area.right + 16.0, area.top);
-    let height = (x_label_y + TEXT_DESCENT_EM * LABEL_SIZE + 10.0).max(legend_bottom + 10.0);
     svg.write(path, width, height)
 }
 
@@ -1365,9 +1241,11 @@ pub fn orthographic_views(
             );
         }
         let x_label_y = area.bottom + 6.0 + TICK_SIZE + 8.0 + TEXT_ASCENT_EM * LABEL_SIZE;
+        // Image convention: the downward axis grows downward, so the top
+        // of each view reads negative.
         svg.text(
             "axis-label",
-            "mm",
+            &format!("mm on both axes; {} grows downward", ["x", "y", "z"][b]),
             0.5 * (area.left + area.right),
             x_label_y,
             LABEL_SIZE,

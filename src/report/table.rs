@@ -24,6 +24,21 @@ impl Table {
         self.rows.push(cells.into_iter().map(Into::into).collect());
     }
 
+    /// The table of columns `columns` only, in that order (a wide table
+    /// shown as several narrow ones).
+    pub fn columns(&self, columns: &[usize]) -> Table {
+        let pick = |cells: &[String]| -> Vec<String> {
+            columns
+                .iter()
+                .map(|&k| cells.get(k).cloned().unwrap_or_default())
+                .collect()
+        };
+        Table {
+            header: pick(&self.header),
+            rows: self.rows.iter().map(|r| pick(r)).collect(),
+        }
+    }
+
     /// The table as GitHub-flavoured markdown.
     pub fn markdown(&self) -> String {
         let mut out = String::new();

@@ -31,7 +31,10 @@ use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
 /// A geodesic rotation error above this is a gross failure (degrees).
-pub const GROSS_ERROR_DEG: f64 = 5.0;
+/// It is the crate's one threshold, shared with `validate`, `search` and the
+/// solver conformance sweep, so a gross failure means the same in every
+/// report.
+pub const GROSS_ERROR_DEG: f64 = crate::montecarlo::DEFAULT_GROSS_THRESHOLD_DEG;
 
 /// Shared settings of one run.
 pub(crate) struct Context<'a> {
@@ -355,6 +358,26 @@ pub(crate) fn run_scenarios(
     scenarios: &[Scenario],
     trials: usize,
 ) -> Result<Vec<ScenarioOutcome>, MonteCarloError> {
+    run_scenarios_with(
+        context,
+        &context.solvers,
+        object,
+        sphere_diameter_mm,
+        scenarios,
+        trials,
+    )
+}
+
+/// [`run_scenarios`] with `solvers` instead of the run's (the protocol's
+/// σ calibration runs one solver).
+pub(crate) fn run_scenarios_with(
+    context: &Context,
+    solvers: &[Solver],
+    object: &[Vector3<f64>],
+    sphere_diameter_mm: f64,
+    scenarios: &[Scenario],
+    trials: usize,
+) -> Result<Vec<ScenarioOutcome>, MonteCarloError> {
     let sigmas = vec![None; object.len()];
     let target = Target {
         camera: &context.camera,
@@ -365,7 +388,7 @@ pub(crate) fn run_scenarios(
     let config = MonteCarloConfig {
         trials,
         seed: context.seed,
-        solvers: context.solvers.clone(),
+        solvers: solvers.to_vec(),
         noise: NoiseModel::default(),
         gross_threshold_deg: GROSS_ERROR_DEG,
         // The paper simulates point features: its protocol observes the

@@ -135,7 +135,7 @@ fn claims(context: &Context, panels: &[Panel]) -> Vec<Claim> {
     let claim = Claim::new(
         "off-axis.others-resist",
         "§4.3 off-axis (2), Figs. S1, S2",
-        "The proposed method, OPnP, RPnP, LHM, DLS and EPnP+GN resist the change of eccentricity (the paper: E_rot 0.2–0.?°, E_t 0.5–0.8%).",
+        "The proposed method, OPnP, RPnP, LHM, DLS and EPnP+GN resist the change of eccentricity (the paper: E_rot from 0.2° to an upper bound lost in its text, which reads \"0.°\"; E_t 0.5–0.8%).",
         &format!("in both figures, each one's largest / smallest mean E_rot over the offsets ≤ {}", claims::FLAT_RATIO),
     );
     let (resist, resist_missing) = group(

@@ -83,7 +83,7 @@ pub(crate) fn run(context: &Context, trials: usize) -> ExperimentResult {
             format!("n = {MIN_COUNT}…{MAX_COUNT}; {trials} trials per n (the paper: 200)."),
             format!("Points uniform in the camera-frame box [−{BOX_HALF_WIDTH_MM}, {BOX_HALF_WIDTH_MM}]² × [{BOX_NEAR_MM}, {BOX_FAR_MM}] mm (§4.2); uniformly random object attitude with its origin at the centroid. Trial k draws {MAX_COUNT} points and uses the first n (nested sets)."),
             "σ = √0.2 px. Solvers that need more points than n (DLT: 6) are not run there (\"n/a\").".into(),
-            "The paper's \"80 camera focal lengths\" has no counterpart we can identify; the camera is the paper's §4.2 camera.".into(),
+            "The camera is in the header's camera row: by default the paper's \"80\", read as a focal length of 80 px.".into(),
         ],
         panels: vec![panel],
         extra_markdown: String::new(),

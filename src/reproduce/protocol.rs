@@ -3,8 +3,14 @@
 //!
 //! Protocol: the paper's biprism (L = 50 mm, 10 mm spheres) at depths
 //! 200…1000 mm in steps of 200, X offsets 0, 50 and 100 mm, tilted about X
-//! from −90° to 90° in steps of 2°, σ = √0.2 px, 30 noise draws per pose by
-//! default.
+//! from −90° to 90° in steps of 2°, 30 noise draws per pose by default.
+//!
+//! **The noise level is calibrated**, not taken as σ = √0.2 px: at √0.2 px
+//! our errors were about 10× below the paper's tables, whose real images of
+//! 10 mm spheres carry more centre noise than the simulations' "variance
+//! 0.2". σ is scaled until [`CALIBRATION_SOLVER`] reproduces its mean RE in
+//! the paper's Table III ([`CALIBRATION_TABLE_RE_DEG`]); that solver is
+//! then left out of every verdict, and the others are judged at that σ.
 //! Like the paper's tables, each cell averages the errors over the poses at
 //! one (depth, offset); we average over the poses in which no sphere's image
 //! overlaps a nearer sphere's (an occluded centre cannot be measured).
@@ -21,7 +27,7 @@
 
 use super::claims::{self, describe, num, Claim};
 use super::engine::{find, group, stream};
-use super::engine::{run_scenarios, scenario_cells, Context};
+use super::engine::{run_scenarios, run_scenarios_with, scenario_cells, Context};
 use super::panel::{Cell, FirstOrderLine, Metric, Panel};
 use super::{paper_sigma_px, Experiment, ExperimentResult, PAPER_SOLVERS};
 use crate::layout::Layout;
@@ -37,6 +43,142 @@ pub const DEPTHS_MM: [f64; 5] = [200.0, 400.0, 600.0, 800.0, 1000.0];
 pub const OFFSETS_MM: [f64; 3] = [0.0, 50.0, 100.0];
 /// Tilt about X: range and step, degrees.
 pub const TILT_RANGE_DEG: (f64, f64, f64) = (-90.0, 90.0, 2.0);
+/// The solver whose error in one of the paper's tables sets σ. DLS is a
+/// closed-form solver with no start and no iterations to stop, so its error
+/// is set by the noise alone; in the paper's tables it sits in the middle
+/// of the accurate group, and of the claims here only one names it (in a
+/// group of four).
+pub const CALIBRATION_SOLVER: Solver = Solver::Dls;
+/// The table that sets σ: Table III, the marker at 600 mm under the
+/// atmospheric spotlight (the first lighting condition). It is the middle
+/// depth and has all three offsets (Table I has only the axis).
+pub const CALIBRATION_DEPTH_MM: f64 = 600.0;
+/// [`CALIBRATION_SOLVER`]'s RE (°) in Table III at offsets 0, 50 and
+/// 100 mm; the calibration matches their mean.
+pub const CALIBRATION_TABLE_RE_DEG: [f64; 3] = [2.98, 2.93, 2.90];
+/// Passes of the calibration: σ is rescaled by target / measured after each
+/// (the error is nearly linear in σ; the second pass takes up the rest).
+pub const CALIBRATION_PASSES: usize = 2;
+
+/// The calibrated noise level and what it took.
+#[derive(Debug, Clone, Copy)]
+struct Calibration {
+    /// σ the protocol runs at, px.
+    sigma_px: f64,
+    /// The calibrating solver's mean RE at Table III's poses at σ = √0.2 px.
+    uncalibrated_re_deg: f64,
+}
+
+/// The paper's Table III target: the mean of [`CALIBRATION_TABLE_RE_DEG`].
+fn calibration_target_deg() -> f64 {
+    CALIBRATION_TABLE_RE_DEG.iter().sum::<f64>() / CALIBRATION_TABLE_RE_DEG.len() as f64
+}
+
+/// Tilts per (depth, offset).
+fn tilt_count() -> usize {
+    let (start, end, step) = TILT_RANGE_DEG;
+    ((end - start) / step).round() as usize + 1
+}
+
+/// The mean over the offsets of `solver`'s (column `j` of the outcomes)
+/// mean RE at `depth_mm`, each offset pooled over its unoccluded poses.
+fn mean_re_over_offsets(
+    outcomes: &[crate::montecarlo::ScenarioOutcome],
+    depth_mm: f64,
+    solver: Solver,
+    j: usize,
+    trials: usize,
+) -> Option<f64> {
+    let means: Vec<f64> = OFFSETS_MM
+        .iter()
+        .filter_map(|&offset_mm| {
+            let cells: Vec<Cell> = outcomes
+                .iter()
+                .filter(|o| {
+                    o.scenario.depth_mm == depth_mm
+                        && o.scenario.offset_x_mm == offset_mm
+                        && measurable(o)
+                })
+                .filter_map(|o| o.solvers.get(j).map(|r| Cell::from_outcome(r, trials)))
+                .collect();
+            Cell::pool(solver, cells.iter()).rotation_deg.mean()
+        })
+        .collect();
+    (!means.is_empty()).then(|| means.iter().sum::<f64>() / means.len() as f64)
+}
+
+/// The protocol's poses at `depths` and noise level `sigma_px`, numbered
+/// from `base`.
+fn protocol_scenarios(depths: &[f64], sigma_px: f64, base: usize) -> Vec<Scenario> {
+    let (start, end, step) = TILT_RANGE_DEG;
+    let grid = ScenarioGrid::new(
+        Range::list(depths),
+        Range::list(&OFFSETS_MM),
+        Range::single(0.0),
+        Range::stepped(start, end, step).expect("a positive step"),
+        Range::single(0.0),
+        Range::single(0.0),
+        Range::single(sigma_px),
+    )
+    .expect("the protocol grid is valid");
+    grid.scenarios()
+        .into_iter()
+        .map(|s| Scenario {
+            index: base + s.index,
+            ..s
+        })
+        .collect()
+}
+
+/// Scales σ until [`CALIBRATION_SOLVER`] at Table III's poses reproduces the
+/// paper's mean RE there. Every pass draws the same unit noise (one
+/// stream), so the passes differ only in σ.
+fn calibrate(
+    context: &Context,
+    object: &[nalgebra::Vector3<f64>],
+    sphere_diameter_mm: f64,
+    trials: usize,
+) -> Result<Calibration, super::ReproduceError> {
+    let base = stream(Experiment::Protocol, 1) as usize;
+    let target = calibration_target_deg();
+    let mut sigma_px = paper_sigma_px();
+    let mut uncalibrated_re_deg = f64::NAN;
+    for pass in 0..CALIBRATION_PASSES {
+        let scenarios = protocol_scenarios(&[CALIBRATION_DEPTH_MM], sigma_px, base);
+        let outcomes = run_scenarios_with(
+            context,
+            &[CALIBRATION_SOLVER],
+            object,
+            sphere_diameter_mm,
+            &scenarios,
+            trials,
+        )?;
+        let measured = mean_re_over_offsets(
+            &outcomes,
+            CALIBRATION_DEPTH_MM,
+            CALIBRATION_SOLVER,
+            0,
+            trials,
+        )
+        .filter(|m| *m > 0.0);
+        let Some(measured) = measured else {
+            // Nothing measurable at 600 mm: keep the paper's σ.
+            return Ok(Calibration {
+                sigma_px: paper_sigma_px(),
+                uncalibrated_re_deg,
+            });
+        };
+        if pass == 0 {
+            uncalibrated_re_deg = measured;
+        }
+        sigma_px *= target / measured;
+    }
+    Ok(Calibration {
+        sigma_px,
+        uncalibrated_re_deg,
+    })
+}
+
 /// The paper's bound on the accurate methods' variation with the offset.
 pub const OFFSET_VARIATION_ROTATION_DEG: f64 = 0.7;
 /// See [`OFFSET_VARIATION_ROTATION_DEG`].
@@ -62,28 +204,18 @@ pub(crate) fn run(
     let layout = Layout::paper_biprism();
     let object = layout.positions();
     let (start, end, step) = TILT_RANGE_DEG;
-    let grid = ScenarioGrid::new(
-        Range::list(&DEPTHS_MM),
-        Range::list(&OFFSETS_MM),
-        Range::single(0.0),
-        Range::stepped(start, end, step).expect("a positive step"),
-        Range::single(0.0),
-        Range::single(0.0),
-        Range::single(paper_sigma_px()),
-    )
-    .expect("the protocol grid is valid");
-    let base = stream(Experiment::Protocol, 0) as usize;
-    let scenarios: Vec<Scenario> = grid
-        .scenarios()
-        .into_iter()
-        .map(|s| Scenario {
-            index: base + s.index,
-            ..s
-        })
-        .collect();
-    context
-        .progress
-        .start(Experiment::Protocol.name(), trials * scenarios.len());
+    let calibration_poses = OFFSETS_MM.len() * tilt_count();
+    let poses = DEPTHS_MM.len() * calibration_poses;
+    context.progress.start(
+        Experiment::Protocol.name(),
+        trials * (poses + CALIBRATION_PASSES * calibration_poses),
+    );
+    let calibration = calibrate(context, &object, layout.sphere_diameter_mm, trials)?;
+    let scenarios = protocol_scenarios(
+        &DEPTHS_MM,
+        calibration.sigma_px,
+        stream(Experiment::Protocol, 0) as usize,
+    );
     let outcomes = run_scenarios(
         context,
         &object,
@@ -160,18 +292,30 @@ pub(crate) fn run(
         trials,
         setup: vec![
             format!("The paper's biprism (L = 50 mm, {} mm spheres) at depths 200…1000 mm in steps of 200, X offsets 0, 50 and 100 mm, marker axes parallel to the camera's, tilted about X from {start}° to {end}° in steps of {step}° ({} poses).", layout.sphere_diameter_mm, scenarios.len()),
-            format!("σ = √0.2 px; {trials} noise draws per pose (the paper: one image per pose)."),
+            format!(
+                "σ = {} px, calibrated: at the paper's σ = √0.2 px, `{}` averaged {}° RE at Table III's poses (600 mm, the three offsets) against the paper's {}° (the mean of its Table III row, {}); σ was scaled until they matched ({CALIBRATION_PASSES} passes), and `{}` reaches {}° in the run below. `{}` is therefore left out of every verdict; the other solvers are judged at this σ. {trials} noise draws per pose (the paper: one image per pose).",
+                num(calibration.sigma_px),
+                CALIBRATION_SOLVER.name(),
+                num(calibration.uncalibrated_re_deg),
+                num(calibration_target_deg()),
+                CALIBRATION_TABLE_RE_DEG.map(|v| format!("{v:.2}°")).join(", "),
+                CALIBRATION_SOLVER.name(),
+                num(
+                    context
+                        .solvers
+                        .iter()
+                        .position(|&s| s == CALIBRATION_SOLVER)
+                        .and_then(|j| mean_re_over_offsets(&outcomes, CALIBRATION_DEPTH_MM, CALIBRATION_SOLVER, j, trials))
+                        .unwrap_or(f64::NAN)
+                ),
+                CALIBRATION_SOLVER.name(),
+            ),
             "Each table cell is the mean over the poses at that (depth, offset) in which no sphere's image disc overlaps a nearer sphere's (an occluded centre cannot be measured). The image border is ignored, as in the paper's simulations: with the stated 1280×720 frame and cy = 508, no pose at 200 mm keeps every sphere inside the frame, yet the paper photographed the marker there (its principal point suggests a taller sensor). So unlike the paper's Table I, the 200 mm table has all three offsets; the column \"in 1280×720\" counts the poses that stay inside that frame.".into(),
             "Errors are absolute per simulated image; the paper's are relative between consecutive real images (eq. 33 on R_{i−1}ᵀR_i), which for independent errors are about √2 larger. The three lighting conditions (Tables I–V, VI–X, XI–XV) cannot be simulated; one table per depth stands for all three.".into(),
         ],
         extra_markdown: tables_markdown(context, &blocks),
         panels,
-        // Every verdict here rests on the simulation standing in for the
-        // real images.
-        claims: claims
-            .into_iter()
-            .map(|c| c.ambiguity("the real images are simulated: σ = √0.2 px for \"variance 0.2\", absolute rather than relative errors, one lighting condition"))
-            .collect(),
+        claims,
         extra_csv: vec![("protocol_scenarios.csv".into(), scenario_csv(context, &outcomes, trials))],
         timing: None,
     })
@@ -293,7 +437,10 @@ fn block(blocks: &[Block], depth_mm: f64, offset_mm: f64) -> Option<&Block> {
 }
 
 fn claims(context: &Context, blocks: &[Block]) -> Vec<Claim> {
-    let (paper, missing) = group(context, &PAPER_SOLVERS);
+    // The calibrating solver matches the paper by construction: judged,
+    // it would vote for whatever the calibration made it say.
+    let (mut paper, missing) = group(context, &PAPER_SOLVERS);
+    paper.retain(|&s| s != CALIBRATION_SOLVER);
     let index = |s: Solver| context.solvers.iter().position(|&o| o == s);
     let mean_at = |b: &Block, s: Solver, metric: Metric| {
         index(s).and_then(|j| b.cells[j].stat(metric).mean())
@@ -413,11 +560,13 @@ fn claims(context: &Context, blocks: &[Block]) -> Vec<Claim> {
         "§4.3 real images (3), §5.4",
         "The proposed method's accuracy is consistent with OPnP, LHM, RPnP and DLS.",
         &format!(
-            "parallel-weighted / the median of those methods' mean RE, pooled over every unoccluded pose, within [1/{0}, {0}]",
-            claims::COMPARABLE_RATIO
+            "parallel-weighted / the median of those methods' mean RE (without `{1}`, which calibrates σ), pooled over every unoccluded pose, within [1/{0}, {0}]",
+            claims::COMPARABLE_RATIO,
+            CALIBRATION_SOLVER.name()
         ),
     );
-    let (refs, refs_missing) = group(context, &["opnp", "lhm", "rpnp", "dls"]);
+    let (mut refs, refs_missing) = group(context, &["opnp", "lhm", "rpnp", "dls"]);
+    refs.retain(|&s| s != CALIBRATION_SOLVER);
     match pw {
         Some(pw) if !refs.is_empty() => {
             let mut reference: Vec<f64> = refs.iter().filter_map(|&s| pooled(s)).collect();
@@ -533,7 +682,10 @@ fn claims(context: &Context, blocks: &[Block]) -> Vec<Claim> {
         "§4.3 real images, conclusion",
         "The further from the optical axis, the larger the pose error.",
         "improvement rule on mean RE pooled over the depths where every offset has unoccluded poses: offset 0 against offset 100 mm, for every paper solver available",
-    );
+    )
+    // The offset changes which tilts are pooled: more of them hide a
+    // sphere on the axis than off it, so the pooled sets differ.
+    .ambiguity("which tilts a table cell averages: the paper's are its 90 photographs, ours the unoccluded poses, and fewer tilts are unoccluded on the axis than 100 mm off it");
     let shared: Vec<f64> = DEPTHS_MM
         .iter()
         .copied()

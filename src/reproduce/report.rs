@@ -113,13 +113,26 @@ pub fn write(dir: &Path, reproduction: &Reproduction) -> Result<(), ReproduceErr
     Ok(())
 }
 
-/// "48 claims: 20 hold, …; of the N that do not hold, a contradicted by a
-/// faithful simulation, b depending on an ambiguity."
+/// `count` claims with `verdict`, as a clause: "1 holds", "26 hold",
+/// "7 are indistinguishable", "1 is not evaluated".
+fn verdict_clause(count: usize, verdict: Verdict) -> String {
+    let one = count == 1;
+    let phrase = match verdict {
+        Verdict::Holds => if one { "holds" } else { "hold" }.to_string(),
+        Verdict::DoesNotHold => if one { "does not hold" } else { "do not hold" }.to_string(),
+        other => format!("{} {}", if one { "is" } else { "are" }, other.label()),
+    };
+    format!("{count} {phrase}")
+}
+
+/// "50 claims: 26 hold, 7 are indistinguishable, …. Of the 13 that do not
+/// hold, 9 are contradicted by a faithful simulation and 4 depend on an
+/// ambiguity in the paper."
 fn verdict_counts(claims: &[&claims::Claim]) -> String {
     let count = |v: Verdict| claims.iter().filter(|c| c.verdict == v).count();
     let parts: Vec<String> = Verdict::ALL
         .iter()
-        .map(|&v| format!("{} {}", count(v), v.label()))
+        .map(|&v| verdict_clause(count(v), v))
         .collect();
     let kind = |k: &str| {
         claims
@@ -127,14 +140,94 @@ fn verdict_counts(claims: &[&claims::Claim]) -> String {
             .filter(|c| c.reason.as_ref().is_some_and(|r| r.kind() == k))
             .count()
     };
-    format!(
-        "{} claims: {}. Of the {} that do not hold, {} are contradicted by a faithful simulation and {} depend on an ambiguity in the paper.",
-        claims.len(),
-        parts.join(", "),
-        count(Verdict::DoesNotHold),
-        kind("contradiction"),
-        kind("ambiguity")
-    )
+    let (contradicted, ambiguous) = (kind("contradiction"), kind("ambiguity"));
+    let failing = count(Verdict::DoesNotHold);
+    let mut out = format!("{} claims: {}.", claims.len(), parts.join(", "));
+    if failing > 0 {
+        let _ = write!(
+            out,
+            " Of the {failing} that {}, {contradicted} {} by a faithful simulation and {ambiguous} {} on an ambiguity in the paper.",
+            if failing == 1 { "does not hold" } else { "do not hold" },
+            if contradicted == 1 { "is contradicted" } else { "are contradicted" },
+            if ambiguous == 1 { "depends" } else { "depend" },
+        );
+    }
+    out
+}
+
+/// The summing-up paragraph: what held, what a faithful simulation
+/// contradicts (by claim) and which ambiguities the rest turn on.
+fn summing_up(claims: &[&claims::Claim]) -> String {
+    let count = |v: Verdict| claims.iter().filter(|c| c.verdict == v).count();
+    let judged = claims
+        .iter()
+        .filter(|c| {
+            matches!(
+                c.verdict,
+                Verdict::Holds | Verdict::Indistinguishable | Verdict::DoesNotHold
+            )
+        })
+        .count();
+    let ids = |k: &str| -> Vec<String> {
+        claims
+            .iter()
+            .filter(|c| c.reason.as_ref().is_some_and(|r| r.kind() == k))
+            .map(|c| format!("`{}`", c.id))
+            .collect()
+    };
+    let mut ambiguities: Vec<String> = Vec::new();
+    for claim in claims {
+        if let Some(claims::Reason::Ambiguity { ambiguity }) = &claim.reason {
+            if !ambiguities.contains(ambiguity) {
+                ambiguities.push(ambiguity.clone());
+            }
+        }
+    }
+    let mut out = format!(
+        "**In short.** Of the {judged} claims our simulation can judge, {} and {} a tie at the trials run.",
+        verdict_clause(count(Verdict::Holds), Verdict::Holds),
+        if count(Verdict::Indistinguishable) == 1 {
+            "1 is".to_string()
+        } else {
+            format!("{} are", count(Verdict::Indistinguishable))
+        },
+    );
+    let contradicted = ids("contradiction");
+    if !contradicted.is_empty() {
+        let _ = write!(
+            out,
+            " A faithful simulation contradicts {}: {}.",
+            if contradicted.len() == 1 {
+                "one".to_string()
+            } else {
+                contradicted.len().to_string()
+            },
+            contradicted.join(", ")
+        );
+    }
+    let ambiguous = ids("ambiguity");
+    if !ambiguous.is_empty() {
+        let _ = write!(
+            out,
+            " {} more {} on how the paper is read ({}): {}.",
+            ambiguous.len(),
+            if ambiguous.len() == 1 {
+                "turns"
+            } else {
+                "turn"
+            },
+            ambiguities.join("; "),
+            ambiguous.join(", ")
+        );
+    }
+    let aside = count(Verdict::ImplementationDependent) + count(Verdict::NotEvaluated);
+    if aside > 0 {
+        let _ = write!(
+            out,
+            " The other {aside} compare MATLAB implementations or need the paper's real images, and are shown without a verdict."
+        );
+    }
+    out
 }
 
 fn verdict_badge(verdict: Verdict) -> &'static str {
@@ -218,7 +311,7 @@ fn markdown(reproduction: &Reproduction) -> String {
     );
     let _ = writeln!(
         out,
-        "| noise | isotropic Gaussian; the paper's \"variance 0.2\" is taken as σ = √0.2 = {:.4} px; its noise sweep \"0~10 pixels, step 0.5\" as σ = 0.5…10 px |",
+        "| noise | isotropic Gaussian; the paper's \"variance 0.2\" is taken as σ = √0.2 = {:.4} px; its noise sweep \"0~10 pixels, step 0.5\" as σ = 0.5…10 px; the simulated real-image protocol's σ is calibrated on one solver and one of the paper's tables (section 7) |",
         h.paper_sigma_px
     );
     let _ = writeln!(out, "| errors | E_rot (eq. 33, the largest angle between corresponding columns of R and R_true, °) and E_t = 100·‖t − t_true‖/‖t_true‖ (%), averaged over trials as the paper does; the CSV files add medians and the geodesic angle |");
@@ -251,6 +344,7 @@ fn markdown(reproduction: &Reproduction) -> String {
         ]);
     }
     let _ = writeln!(out, "{}\n", verdict_counts(&claims));
+    let _ = writeln!(out, "{}\n", summing_up(&claims));
     out.push_str(&glance.markdown());
     let _ = writeln!(out, "\n## How verdicts are decided\n");
     out.push_str(&claims::criteria_markdown());
@@ -303,7 +397,7 @@ fn markdown(reproduction: &Reproduction) -> String {
     let _ = writeln!(out, "\n## Files\n");
     let _ = writeln!(out, "- `summary.json`: every deterministic number above (header, curves, claims); `claims.csv`: every claim above, with its verdict and, for each that does not hold, the kind of reason and the reason (its timing rows are machine-dependent);");
     let _ = writeln!(out, "- `<experiment>.csv`: long format, one row per (panel, x, solver) with trials, poses, errors, gross failures, mean and median E_rot, mean and RMS geodesic error, mean and median E_t, and the first-order limit;");
-    let _ = writeln!(out, "- `<figure>_rotation.svg`, `<figure>_translation.svg`: one plot per figure of the paper, log y axis;");
+    let _ = writeln!(out, "- `<figure>_rotation.svg`, `<figure>_translation.svg`: one plot per figure of the paper in three panels on one log y scale (the paper's method and its variants, the other closed-form solvers, the other iterative ones): each solver's RMS error with its 95% band against the first-order limit, which is an RMS too (the tables give the paper's mean E_rot);");
     let _ = writeln!(out, "- `timing.csv`, `timing_claims.csv`, `timing.json`, `run.json`: machine-dependent (timings, wall times); everything else is bit-identical for the same seed at any thread count.");
     let walls: Vec<String> = reproduction
         .wall_seconds
@@ -371,22 +465,15 @@ fn csv_header() -> Table {
     ])
 }
 
-/// Writes `<id>_rotation.svg` and `<id>_translation.svg`.
+/// Writes `<id>_rotation.svg` and `<id>_translation.svg`: the RMS error
+/// of every solver with its 95% band, against the first-order limit (an
+/// RMS too), split into [`plots::SOLVER_GROUPS`] on one y scale.
 fn write_plots(panel: &Panel, dir: &Path) -> Result<(), ReportError> {
     for metric in [Metric::Rotation, Metric::Translation] {
-        let mut series: Vec<plots::Series> = panel
-            .solvers
-            .iter()
-            .map(|&solver| plots::Series {
-                name: solver.name().to_string(),
-                points: panel
-                    .curve(solver, metric)
-                    .into_iter()
-                    .map(|(x, s)| (x, s.mean))
-                    .collect(),
-                dashed: false,
-            })
-            .collect();
+        let stat_of = |cell: &super::panel::Cell| match metric {
+            Metric::Rotation => cell.geodesic_deg,
+            Metric::Translation => cell.translation_percent,
+        };
         let limit: Vec<(f64, f64)> = panel
             .x
             .iter()
@@ -398,26 +485,71 @@ fn write_plots(panel: &Panel, dir: &Path) -> Result<(), ReportError> {
                 })
             })
             .collect();
-        if !limit.is_empty() {
-            series.push(plots::Series {
-                name: "first-order limit (RMS)".into(),
-                points: limit,
-                dashed: true,
-            });
+        let mut panels: Vec<plots::LinePanel> = plots::SOLVER_GROUPS
+            .iter()
+            .map(|heading| plots::LinePanel {
+                heading: heading.to_string(),
+                series: Vec::new(),
+            })
+            .collect();
+        for (j, &solver) in panel.solvers.iter().enumerate() {
+            let cells: Vec<(f64, super::stats::Stat)> = panel
+                .x
+                .iter()
+                .zip(&panel.cells)
+                .filter(|(_, row)| row[j].applicable && stat_of(&row[j]).count > 0)
+                .map(|(&x, row)| (x, stat_of(&row[j])))
+                .collect();
+            panels[plots::solver_group(solver.name())]
+                .series
+                .push(plots::BandedSeries {
+                    series: plots::Series {
+                        name: solver.name().to_string(),
+                        points: cells.iter().map(|(x, s)| (*x, s.rms)).collect(),
+                        dashed: false,
+                    },
+                    band: cells
+                        .iter()
+                        .filter_map(|(x, s)| s.rms_interval().map(|(lo, hi)| (*x, lo, hi)))
+                        .collect(),
+                });
         }
-        if let (Metric::Rotation, Some((name, points))) = (metric, &panel.model_rotation) {
-            series.push(plots::Series {
-                name: name.clone(),
-                points: points.clone(),
-                dashed: true,
-            });
+        for (k, drawn) in panels.iter_mut().enumerate() {
+            if !limit.is_empty() {
+                drawn.series.push(plots::BandedSeries {
+                    series: plots::Series {
+                        name: "first-order limit (RMS)".into(),
+                        points: limit.clone(),
+                        dashed: true,
+                    },
+                    band: Vec::new(),
+                });
+            }
+            if let (Metric::Rotation, Some((name, points)), 0) = (metric, &panel.model_rotation, k)
+            {
+                drawn.series.push(plots::BandedSeries {
+                    series: plots::Series {
+                        name: name.clone(),
+                        points: points.clone(),
+                        dashed: true,
+                    },
+                    band: Vec::new(),
+                });
+            }
         }
-        plots::line_plot(
+        panels.retain(|p| p.series.iter().any(|s| !s.series.dashed));
+        let (what, label) = match metric {
+            Metric::Rotation => ("rotation", "RMS geodesic rotation error (deg)"),
+            Metric::Translation => ("translation", "RMS E_t (%)"),
+        };
+        plots::panel_plot(
             &dir.join(format!("{}_{}.svg", panel.id, metric.file_suffix())),
-            &format!("{} ({})", panel.title, panel.figure),
+            &format!("{}: {what} ({})", panel.title, panel.figure),
+            &["RMS over the trials, shaded: its 95% interval where the trials' errors were kept; dashed black: the first-order limit, an RMS too".to_string()],
             &panel.x_label,
-            metric.label(),
-            &series,
+            label,
+            &panels,
+            None,
         )?;
     }
     Ok(())
@@ -489,20 +621,33 @@ fn write_timing(timing: &TimingResult, dir: &Path) -> Result<(), ReportError> {
             names.push(&r.solver);
         }
     }
-    let series: Vec<plots::Series> = names
+    let mut panels: Vec<plots::LinePanel> = plots::SOLVER_GROUPS
         .iter()
-        .filter_map(|name| Solver::from_name(name))
-        .map(|s| plots::Series {
-            name: s.name().to_string(),
-            points: timing.curve(s),
-            dashed: false,
+        .map(|heading| plots::LinePanel {
+            heading: heading.to_string(),
+            series: Vec::new(),
         })
         .collect();
-    plots::line_plot(
+    for solver in names.iter().filter_map(|name| Solver::from_name(name)) {
+        panels[plots::solver_group(solver.name())]
+            .series
+            .push(plots::BandedSeries {
+                series: plots::Series {
+                    name: solver.name().to_string(),
+                    points: timing.curve(solver),
+                    dashed: false,
+                },
+                band: Vec::new(),
+            });
+    }
+    panels.retain(|p| !p.series.is_empty());
+    plots::panel_plot(
         &dir.join("fig10_timing.svg"),
         "Median time per solve without the shared input checks, one thread (Fig. 10)",
+        &[],
         "number of points n",
         "median method time per solve (µs)",
-        &series,
+        &panels,
+        None,
     )
 }

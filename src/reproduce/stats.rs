@@ -20,7 +20,14 @@ pub struct Stat {
     pub median: Option<f64>,
     /// Largest value.
     pub max: f64,
+    /// Mean of the fourth powers, when the values were at hand (NaN after
+    /// the Monte-Carlo engine's summaries): the spread of the squares, for
+    /// [`Stat::rms_interval`].
+    pub mean_fourth: f64,
 }
+
+/// z of a two-sided 95% interval.
+const Z_95: f64 = 1.959_964;
 
 impl Stat {
     /// From a Monte-Carlo summary.
@@ -31,18 +38,44 @@ impl Stat {
             rms: summary.rms,
             median: (summary.count > 0).then_some(summary.median),
             max: summary.max,
+            mean_fourth: f64::NAN,
         }
     }
 
     /// From raw values (sorted in place).
     pub fn of(values: &mut [f64]) -> Stat {
-        Stat::from_summary(&Summary::of(values))
+        let mean_fourth = if values.is_empty() {
+            f64::NAN
+        } else {
+            values.iter().map(|v| v.powi(4)).sum::<f64>() / values.len() as f64
+        };
+        Stat {
+            mean_fourth,
+            ..Stat::from_summary(&Summary::of(values))
+        }
+    }
+
+    /// A 95% interval of the RMS: the delta method on the mean square,
+    /// whose standard error is `√((m₄ − m₂²)/n)`; `None` without the fourth
+    /// moment or with fewer than two values.
+    pub fn rms_interval(&self) -> Option<(f64, f64)> {
+        if self.count < 2 || !self.mean_fourth.is_finite() {
+            return None;
+        }
+        let mean_square = self.rms * self.rms;
+        let variance = (self.mean_fourth - mean_square * mean_square).max(0.0);
+        let half = Z_95 * (variance / self.count as f64).sqrt();
+        Some((
+            (mean_square - half).max(0.0).sqrt(),
+            (mean_square + half).sqrt(),
+        ))
     }
 
     /// Trial-weighted pool of several statistics of the same error (the
     /// median is lost).
     pub fn pool<'a>(stats: impl IntoIterator<Item = &'a Stat>) -> Stat {
         let (mut count, mut sum, mut sum_sq, mut max) = (0usize, 0.0, 0.0, 0.0f64);
+        let mut sum_fourth = 0.0;
         for s in stats {
             if s.count == 0 {
                 continue;
@@ -51,6 +84,7 @@ impl Stat {
             count += s.count;
             sum += n * s.mean;
             sum_sq += n * s.rms * s.rms;
+            sum_fourth += n * s.mean_fourth;
             max = max.max(s.max);
         }
         if count == 0 {
@@ -63,6 +97,7 @@ impl Stat {
             rms: (sum_sq / n).sqrt(),
             median: None,
             max,
+            mean_fourth: sum_fourth / n,
         }
     }
 

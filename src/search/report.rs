@@ -78,7 +78,7 @@ fn designs_table(summary: &SearchSummary) -> Table {
         "design".into(),
         "points".into(),
         "objective".into(),
-        "accuracy (1 = paper biprism)".into(),
+        "accuracy (1 = the paper's biprism)".into(),
         "availability %".into(),
         "occluded scenarios".into(),
         "scored scenarios (of in front)".into(),
@@ -140,6 +140,45 @@ fn designs_table(summary: &SearchSummary) -> Table {
     table
 }
 
+/// The designs table as narrow tables: the designs, Monte-Carlo per seed,
+/// and the objective's bookkeeping folded away; and a word on designs that
+/// are the same layout under two names.
+fn designs_markdown(summary: &SearchSummary, table: &Table) -> String {
+    const DESIGN: [usize; 8] = [0, 1, 2, 3, 4, 8, 9, 10];
+    const BOOKS: [usize; 4] = [0, 5, 6, 7];
+    const PER_SEED: usize = 5;
+    let mut out = table.columns(&DESIGN).markdown();
+    for (k, seed) in summary.header.comparison_seeds.iter().enumerate() {
+        let first = 11 + PER_SEED * k;
+        let columns: Vec<usize> = std::iter::once(0).chain(first..first + PER_SEED).collect();
+        let _ = writeln!(out, "\nMonte-Carlo, seed {seed}:\n");
+        out.push_str(&table.columns(&columns).markdown());
+    }
+    let _ = writeln!(
+        out,
+        "\n<details><summary>How each objective was counted</summary>\n\n{}\n</details>\n",
+        table.columns(&BOOKS).markdown()
+    );
+    let designs = &summary.designs;
+    for (i, a) in designs.iter().enumerate() {
+        for b in &designs[i + 1..] {
+            if a.layout.points == b.layout.points {
+                let why = if a.name == "start" || b.name == "start" {
+                    ": the search started from that hand design"
+                } else {
+                    ""
+                };
+                let _ = writeln!(
+                    out,
+                    "`{}` and `{}` are the same layout under two names{why}, so their rows agree.\n",
+                    a.name, b.name
+                );
+            }
+        }
+    }
+    out
+}
+
 fn identifiability_markdown(summary: &SearchSummary) -> String {
     let mut out = String::new();
     let Some(books) = &summary.identifiability else {
@@ -158,12 +197,25 @@ fn identifiability_markdown(summary: &SearchSummary) -> String {
     };
     let _ = writeln!(
         out,
-        "The search's winner as found: {} (accuracy {}). {} repair round(s) ({} evaluations, scenarios checked per round {:?}, {:.1} s); the winner: {} (accuracy {}).\n",
+        "The search's winner as found: {} (accuracy {}). {} ({} evaluations, scenarios checked per round: {}, {:.1} s); the winner: {} (accuracy {}).\n",
         figures(&books.before),
         significant(Some(books.accuracy_before), 4),
-        books.rounds,
+        match books.rounds {
+            0 => "No repair round was needed".to_string(),
+            1 => "1 repair round".to_string(),
+            n => format!("{n} repair rounds"),
+        },
         books.evaluations,
-        books.checked_per_round,
+        if books.checked_per_round.is_empty() {
+            "none".to_string()
+        } else {
+            books
+                .checked_per_round
+                .iter()
+                .map(|c| c.to_string())
+                .collect::<Vec<_>>()
+                .join(", ")
+        },
         books.seconds,
         figures(&books.after),
         significant(Some(summary.designs[0].evaluation.accuracy), 4),
@@ -187,10 +239,18 @@ fn markdown(summary: &SearchSummary, table: &Table) -> String {
     let _ = writeln!(out, "| command | `{}` |", h.command);
     let _ = writeln!(out, "| layout-opt | {} |", h.version);
     let _ = writeln!(out, "| family | {} |", h.family);
-    let _ = writeln!(
+    let _ =
+        writeln!(
         out,
-        "| constraints | envelope {:?} mm (bounds sphere centres), spheres {} mm, gap ≥ {} mm, pairwise distances differ by ≥ {} mm |",
-        h.constraints.envelope.size_mm, h.constraints.sphere_diameter_mm, h.constraints.min_gap_mm, h.constraints.min_distance_diff_mm
+        "| constraints | envelope {} mm (bounds sphere centres), spheres {} mm, gap ≥ {} mm, {} |",
+        h.constraints.envelope.size_mm.map(|v| v.to_string()).join(" × "),
+        h.constraints.sphere_diameter_mm,
+        h.constraints.min_gap_mm,
+        if h.constraints.min_distance_diff_mm > 0.0 {
+            format!("pairwise distances differ by ≥ {} mm", h.constraints.min_distance_diff_mm)
+        } else {
+            "pairwise distances unconstrained".to_string()
+        }
     );
     let _ = writeln!(
         out,
@@ -262,7 +322,7 @@ fn markdown(summary: &SearchSummary, table: &Table) -> String {
     let b = &summary.designs[0].evaluation;
     let _ = writeln!(
         out,
-        "Books of the winner's objective: {} scenarios, {} with every sphere in front ({} behind the camera), {} left out for unusable noise, {} scored by every term; {}. Accuracy is aggregated over the scenarios every term scored, never over different subsets per term.\n",
+        "How the winner's objective was counted: {} scenarios, {} with every sphere in front ({} behind the camera), {} left out for unusable noise, {} scored by every term; {}. Accuracy is aggregated over the scenarios every term scored, never over different subsets per term.\n",
         h.volume.len(),
         b.in_front,
         b.behind,
@@ -276,7 +336,7 @@ fn markdown(summary: &SearchSummary, table: &Table) -> String {
     );
     let _ = writeln!(out, "## Designs on the same scenarios and draws\n");
     let _ = writeln!(out, "The objective is accuracy (1 = the paper's biprism; scored on every scenario with all spheres in front) plus the availability term, without constraint penalties; lower is better. Monte-Carlo columns pool every scenario (\"all\"), the design's own visible scenarios, and the scenarios visible to both the design and the winner, where the two are compared like for like.\n");
-    out.push_str(&table.markdown());
+    out.push_str(&designs_markdown(summary, table));
     out.push_str(&identifiability_markdown(summary));
     let _ = writeln!(out, "\n## Verdicts\n");
     let mut verdicts = Table::new(["claim", "result"]);
@@ -299,10 +359,14 @@ fn markdown(summary: &SearchSummary, table: &Table) -> String {
         yes(v.beats_hand_designs_on_objective).to_string(),
     ]);
     verdicts.row([
-        format!(
-            "beats every admissible hand design on the objective ({})",
-            v.admissible_hand_designs.join(", ")
-        ),
+        if v.admissible_hand_designs.is_empty() {
+            "beats every admissible hand design on the objective (none is admissible)".to_string()
+        } else {
+            format!(
+                "beats every admissible hand design on the objective ({})",
+                v.admissible_hand_designs.join(", ")
+            )
+        },
         yes(v.beats_admissible_hand_designs_on_objective).to_string(),
     ]);
     verdicts.row([
@@ -445,7 +509,7 @@ fn write_front(report_dir: &Path, files: &FrontFiles) -> Result<(), ReportError>
     }
     plots::line_plot(
         &report_dir.join("front.svg"),
-        "Accuracy against availability: the front and the hand designs",
+        "Accuracy against availability: the front and the hand designs (better is lower and further right)",
         "availability (% of the grid's scenarios)",
         "first-order RMS rotation (°), search grid",
         &series,
@@ -535,7 +599,7 @@ pub fn console(summary: &SearchSummary) -> String {
     let seeds = &header.comparison_seeds;
     let _ = writeln!(
         out,
-        "winner vs paper biprism ({} Monte-Carlo, {} trials, seeds {} and {}, scenarios both see): RMS rotation {} / {}; availability {:+.1} points",
+        "winner vs the paper's biprism ({} Monte-Carlo, {} trials, seeds {} and {}, scenarios both see): RMS rotation {} / {}; availability {:+.1} points",
         header.comparison_solver,
         header.comparison_trials,
         seeds[0],
@@ -547,7 +611,7 @@ pub fn console(summary: &SearchSummary) -> String {
     let held = &summary.held_out;
     let _ = writeln!(
         out,
-        "held-out grid ({} scenarios), first order: RMS rotation {:.4}° vs the paper biprism's {:.4}° ({:.1}% lower); availability {:.1}% vs {:.1}%; occluded {} vs {}",
+        "held-out grid ({} scenarios), first order: RMS rotation {:.4}° vs the paper's biprism's {:.4}° ({:.1}% lower); availability {:.1}% vs {:.1}%; occluded {} vs {}",
         held.scenarios,
         held.winner_rotation_rms_deg.unwrap_or(f64::NAN),
         held.paper_rotation_rms_deg.unwrap_or(f64::NAN),
@@ -560,7 +624,7 @@ pub fn console(summary: &SearchSummary) -> String {
     if let Some(supported) = &summary.held_out_with_supports {
         let _ = writeln!(
             out,
-            "held-out grid with the printed supports counted: availability {:.1}% vs the paper biprism's {:.1}%; RMS rotation {:.4}° vs {:.4}°",
+            "held-out grid with the printed supports counted: availability {:.1}% vs the paper's biprism's {:.1}%; RMS rotation {:.4}° vs {:.4}°",
             100.0 * supported.winner_availability,
             100.0 * supported.paper_availability,
             supported.winner_rotation_rms_deg.unwrap_or(f64::NAN),

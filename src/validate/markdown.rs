@@ -74,7 +74,14 @@ pub fn console(validation: &ValidateSummary, out: &Path) -> String {
         );
     }
     let s = &summary.systematic;
-    let _ = writeln!(
+    if s.scenarios == 0 {
+        let _ = writeln!(
+            text,
+            "observation {}: nothing to measure, no scenario is visible",
+            h.observation
+        );
+    } else {
+        let _ = writeln!(
         text,
         "observation {}: image bias up to {:.3} px (median {:.3} px); systematic rotation (first-order bias, RMS) {:.2e}° beside random {:.2e}°, translation {:.2e} mm beside {:.2e} mm",
         h.observation,
@@ -85,6 +92,7 @@ pub fn console(validation: &ValidateSummary, out: &Path) -> String {
         s.first_order_bias.rms_translation_mm,
         s.first_order_random.rms_translation_mm
     );
+    }
     let id = &summary.identifiability;
     let _ = writeln!(
         text,
@@ -343,7 +351,7 @@ pub(super) fn markdown(summary: &Overview) -> String {
 
     if !summary.curves.is_empty() {
         let _ = writeln!(out, "## Error along each axis\n");
-        let _ = writeln!(out, "Each point pools the visible scenarios at that value; dashed lines are the model predictions. CSV beside each plot.\n");
+        let _ = writeln!(out, "Each point pools the visible scenarios at that value. Solvers are the lines with markers (some of them dashed or dotted, to tell them apart in grey); the model predictions are the black and grey lines without markers. CSV beside each plot.\n");
         for curve in &summary.curves {
             let _ = writeln!(
                 out,
@@ -423,10 +431,11 @@ fn identifiability_markdown(s: &IdentifiabilitySummary) -> String {
         s.identifiable.to_string(),
         s.identifiable_share
             .map_or("—".into(), |v| format!("{:.1}%", 100.0 * v)),
-        s.smallest_margin_px.map_or(
-            format!("> {}σ everywhere", s.prediction_gate_sigmas),
-            |m| significant(Some(m), 3),
-        ),
+        match (s.smallest_margin_px, s.scenarios) {
+            (_, 0) => "— (nothing visible)".to_string(),
+            (Some(m), _) => significant(Some(m), 3),
+            (None, _) => format!("> {}σ everywhere", s.prediction_gate_sigmas),
+        },
         significant(s.mean_predicted_wrong, 3),
         format!(
             "{} ({} of {}, {} without a labelling, {} fitting worse than the truth)",
@@ -468,6 +477,10 @@ fn systematic_markdown(s: &Systematic, observation: &str) -> String {
         out,
         "\n## Systematic and random error (visible scenarios)\n"
     );
+    if s.scenarios == 0 {
+        let _ = writeln!(out, "Nothing to measure: no scenario is visible.\n");
+        return out;
+    }
     let _ = writeln!(
         out,
         "Observation `{observation}`: the image point of each sphere is displaced from its projected centre by up to **{} px** (median over scenarios of the largest displacement {} px, {} scenarios). The systematic part is the pose error with zero noise; unlike the random part it does not average out over frames. Rotation about camera x, y, z (pitch, yaw, roll); RMS over scenarios.\n",

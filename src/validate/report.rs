@@ -30,7 +30,7 @@ pub fn write(dir: &Path, validation: &ValidateSummary) -> Result<(), ReportError
         write_curve(dir, curve)?;
     }
     for curve in &summary.identifiability.curves {
-        write_identifiability_curve(dir, curve)?;
+        write_identifiability_curve(dir, curve, summary.identifiability.trials_per_scenario)?;
     }
     let scatter: Vec<(String, Vec<(f64, f64)>)> = summary
         .solvers
@@ -215,21 +215,63 @@ fn write_curve(dir: &Path, curve: &Curve) -> Result<(), ReportError> {
             .collect(),
         axis: curve.axis.clone(),
         unit: curve.unit.clone(),
+        label: "share of scenarios with every sphere visible".into(),
+        empty: "nothing visible".into(),
     };
-    plots::line_plot_with_availability(
-        &dir.join(format!("error_vs_{}.svg", curve.axis)),
-        &format!("RMS rotation error vs {} (visible scenarios)", curve.axis),
-        &format!("{} ({})", curve.axis, curve.unit),
-        "RMS rotation error (deg)",
-        &series,
-        Some(&availability),
-    )?;
+    let path = dir.join(format!("error_vs_{}.svg", curve.axis));
+    let title = format!("RMS rotation error vs {} (visible scenarios)", curve.axis);
+    let x_label = format!("{} ({})", curve.axis, curve.unit);
+    if series.len() <= plots::MAX_SERIES_PER_PANEL {
+        plots::line_plot_with_availability(
+            &path,
+            &title,
+            &x_label,
+            "RMS rotation error (deg)",
+            &series,
+            Some(&availability),
+        )?;
+    } else {
+        // Too many solvers for one panel: one per solver group, each with
+        // the model lines, on one y scale.
+        let (models, solvers): (Vec<_>, Vec<_>) = series.into_iter().partition(|s| s.dashed);
+        let panels: Vec<plots::LinePanel> = plots::SOLVER_GROUPS
+            .iter()
+            .enumerate()
+            .map(|(g, heading)| plots::LinePanel {
+                heading: heading.to_string(),
+                series: solvers
+                    .iter()
+                    .filter(|s| plots::solver_group(&s.name) == g)
+                    .chain(&models)
+                    .map(|s| plots::BandedSeries {
+                        series: s.clone(),
+                        band: Vec::new(),
+                    })
+                    .collect(),
+            })
+            .filter(|p| p.series.iter().any(|s| !s.series.dashed))
+            .collect();
+        plots::panel_plot(
+            &path,
+            &title,
+            &[],
+            &x_label,
+            "RMS rotation error (deg)",
+            &panels,
+            Some(&availability),
+        )?;
+    }
     Ok(())
 }
+
+/// Predicted probabilities below this are drawn at it (they run to 1e-20
+/// and would give the axis twenty decades that say only "never").
+const PREDICTED_FLOOR: f64 = 1e-6;
 
 fn write_identifiability_curve(
     dir: &Path,
     curve: &IdentifiabilityCurve,
+    trials_per_scenario: usize,
 ) -> Result<(), ReportError> {
     let mut table = Table::new([
         format!("{} ({})", curve.axis, curve.unit),
@@ -263,15 +305,40 @@ fn write_identifiability_curve(
             .filter_map(|(&x, y)| y.map(|y| (x, y)))
             .collect()
     };
+    // A rate of zero has no place on a log axis: it is drawn at its 95%
+    // upper bound, 3 / trials, as its own series.
+    type Points = Vec<(f64, f64)>;
+    let (zero, measured): (Points, Points) = curve
+        .values
+        .iter()
+        .zip(&curve.monte_carlo_wrong)
+        .zip(&curve.visible)
+        .filter_map(|((&x, rate), &visible)| rate.map(|r| (x, r, visible)))
+        .map(|(x, r, visible)| {
+            if r > 0.0 {
+                (x, r)
+            } else {
+                (x, -3.0 / (visible * trials_per_scenario).max(1) as f64)
+            }
+        })
+        .partition(|&(_, r)| r < 0.0);
     let series = [
         plots::Series {
             name: "Monte-Carlo wrong-label rate".into(),
-            points: xy(&curve.monte_carlo_wrong),
+            points: measured,
             dashed: false,
         },
         plots::Series {
-            name: "predicted wrong-label probability".into(),
-            points: xy(&curve.predicted_wrong),
+            name: "Monte-Carlo: none wrong (at its 95% bound, 3 / trials)".into(),
+            points: zero.into_iter().map(|(x, r)| (x, -r)).collect(),
+            dashed: false,
+        },
+        plots::Series {
+            name: format!("predicted wrong-label probability (floor {PREDICTED_FLOOR:e})"),
+            points: xy(&curve.predicted_wrong)
+                .into_iter()
+                .map(|(x, p)| (x, p.max(PREDICTED_FLOOR)))
+                .collect(),
             dashed: true,
         },
     ];
@@ -285,6 +352,8 @@ fn write_identifiability_curve(
             .collect(),
         axis: curve.axis.clone(),
         unit: curve.unit.clone(),
+        label: "share of the visible scenarios predicted identifiable".into(),
+        empty: "nothing identifiable".into(),
     };
     plots::line_plot_with_availability(
         &dir.join(format!("identifiability_vs_{}.svg", curve.axis)),

@@ -170,6 +170,7 @@ fn problems(path: &Path) -> Vec<String> {
             }
         }
     }
+    found.extend(style_problems(&name.to_string(), &svg));
     for class in ["tick-x", "tick-y"] {
         let labels: Vec<&Text> = texts.iter().filter(|t| t.class == class).collect();
         let needed = labels
@@ -201,12 +202,127 @@ fn problems(path: &Path) -> Vec<String> {
     found
 }
 
+/// The hue (degrees) and saturation of `#rrggbb`.
+fn hue_saturation(colour: &str) -> Option<(f64, f64)> {
+    let hex = colour.strip_prefix('#')?;
+    if hex.len() != 6 {
+        return None;
+    }
+    let channel = |k: usize| {
+        u8::from_str_radix(&hex[k..k + 2], 16)
+            .ok()
+            .map(|v| v as f64 / 255.0)
+    };
+    let (r, g, b) = (channel(0)?, channel(2)?, channel(4)?);
+    let (max, min) = (r.max(g).max(b), r.min(g).min(b));
+    let chroma = max - min;
+    if chroma <= 0.0 {
+        return Some((0.0, 0.0));
+    }
+    let hue = if max == r {
+        60.0 * ((g - b) / chroma).rem_euclid(6.0)
+    } else if max == g {
+        60.0 * ((b - r) / chroma + 2.0)
+    } else {
+        60.0 * ((r - g) / chroma + 4.0)
+    };
+    Some((hue, chroma / max))
+}
+
+/// Problems with how series and colour scales are told apart: more than
+/// [`layout_opt::report::plots::MAX_SERIES_PER_PANEL`] series in one legend,
+/// two series of one legend with the same dash and marker (in grey they
+/// differ only in lightness), and filled cells that set red against green.
+fn style_problems(name: &str, svg: &str) -> Vec<String> {
+    let mut found = Vec::new();
+    let mut legends: Vec<(String, Vec<(String, String)>)> = Vec::new();
+    for tag in svg
+        .split('<')
+        .filter(|t| t.starts_with("g class=\"legend-entry\""))
+    {
+        let legend = attribute(tag, "data-legend").unwrap_or_default();
+        let style = (
+            attribute(tag, "data-dash").unwrap_or_default(),
+            attribute(tag, "data-marker").unwrap_or_default(),
+        );
+        match legends.iter_mut().find(|(l, _)| *l == legend) {
+            Some((_, styles)) => styles.push(style),
+            None => legends.push((legend, vec![style])),
+        }
+    }
+    for (_, styles) in &legends {
+        if styles.len() > layout_opt::report::plots::MAX_SERIES_PER_PANEL {
+            found.push(format!("{name}: {} series in one panel", styles.len()));
+        }
+        for (i, a) in styles.iter().enumerate() {
+            if styles[i + 1..].contains(a) {
+                found.push(format!(
+                    "{name}: two series drawn with dash {} and marker {}",
+                    a.0, a.1
+                ));
+            }
+        }
+    }
+    let fills: Vec<(f64, f64)> = svg
+        .split('<')
+        .filter(|t| t.starts_with("rect"))
+        .filter_map(|t| attribute(t, "fill"))
+        .filter_map(|c| hue_saturation(&c.to_ascii_lowercase()))
+        .filter(|&(_, saturation)| saturation >= 0.25)
+        .collect();
+    let red = fills.iter().any(|&(h, _)| !(20.0..340.0).contains(&h));
+    let green = fills.iter().any(|&(h, _)| (75.0..165.0).contains(&h));
+    if red && green {
+        found.push(format!("{name}: a colour scale sets red against green"));
+    }
+    found
+}
+
+/// Placeholder text in a report: empty brackets, a lone "?" as a value,
+/// "NaN".
+fn placeholders(name: &str, text: &str) -> Vec<String> {
+    let mut found = Vec::new();
+    for (number, line) in text.lines().enumerate() {
+        let lone_question = line
+            .split(|c: char| c.is_whitespace() || c == '|' || c == ',' || c == ';')
+            .any(|word| word.trim_matches(|c: char| "()°%".contains(c)) == "?")
+            || line
+                .as_bytes()
+                .windows(3)
+                .any(|w| w[0].is_ascii_digit() && w[1] == b'.' && w[2] == b'?');
+        for (bad, what) in [
+            ("()", "empty brackets"),
+            ("[]", "empty brackets"),
+            ("NaN", "NaN"),
+        ] {
+            if line.contains(bad) {
+                found.push(format!("{name}:{}: {what}: {line}", number + 1));
+            }
+        }
+        if lone_question {
+            found.push(format!("{name}:{}: '?' as a value: {line}", number + 1));
+        }
+    }
+    found
+}
+
 fn svgs(dir: &Path, out: &mut Vec<PathBuf>) {
     for entry in std::fs::read_dir(dir).unwrap() {
         let path = entry.unwrap().path();
         if path.is_dir() {
             svgs(&path, out);
         } else if path.extension().is_some_and(|e| e == "svg") {
+            out.push(path);
+        }
+    }
+}
+
+fn markdown_files(dir: &Path, out: &mut Vec<PathBuf>) {
+    for entry in std::fs::read_dir(dir).unwrap() {
+        let path = entry.unwrap().path();
+        if path.is_dir() {
+            markdown_files(&path, out);
+        } else if path.extension().is_some_and(|e| e == "md") {
             out.push(path);
         }
     }
@@ -295,7 +411,15 @@ fn every_report_svg_has_clean_legible_text() {
     // The reproduction's figures, the plots of two sensitivity reports and
     // the search's marker views.
     assert!(files.len() >= 40, "only {} SVGs written", files.len());
-    let found: Vec<String> = files.iter().flat_map(|f| problems(f)).collect();
+    let mut found: Vec<String> = files.iter().flat_map(|f| problems(f)).collect();
+    // Every report the runs wrote reads without placeholders.
+    let mut reports = Vec::new();
+    markdown_files(dir.path(), &mut reports);
+    assert!(reports.len() >= 3, "only {} reports written", reports.len());
+    for report in &reports {
+        let text = std::fs::read_to_string(report).unwrap();
+        found.extend(placeholders(&report.display().to_string(), &text));
+    }
     assert!(
         found.is_empty(),
         "{} problems:\n{}",
@@ -337,4 +461,55 @@ fn the_checker_catches_noise_overlap_and_clipping() {
     assert!(found.contains("overlaps"), "{found}");
     assert!(found.contains("float noise"), "{found}");
     assert!(found.contains("'1000.0' has more decimals"), "{found}");
+}
+
+#[test]
+fn style_and_placeholder_checks_catch_what_they_look_for() {
+    let svg = r##"<svg viewBox="0 0 100 50">
+<g class="legend-entry" data-legend="1" data-dash="2 3" data-marker="square"/>
+<g class="legend-entry" data-legend="1" data-dash="2 3" data-marker="square"/>
+<g class="legend-entry" data-legend="2" data-dash="solid" data-marker="circle"/>
+<rect x="0" y="0" width="5" height="5" fill="#F8696B"/>
+<rect x="0" y="0" width="5" height="5" fill="#63BE7B"/>
+</svg>"##;
+    let found = style_problems("bad.svg", svg).join("\n");
+    assert!(found.contains("two series drawn with dash 2 3"), "{found}");
+    assert!(found.contains("red against green"), "{found}");
+    let crowded: String = (0..9)
+        .map(|k| {
+            format!(
+                r#"<g class="legend-entry" data-legend="1" data-dash="{k}" data-marker="circle"/>"#
+            )
+        })
+        .collect();
+    assert!(style_problems("crowded.svg", &crowded)
+        .join("\n")
+        .contains("9 series in one panel"));
+    // A sequential pale-to-dark scale and distinct styles pass.
+    let good = r##"<rect fill="#FFFFD4"/><rect fill="#FE9929"/><rect fill="#993404"/>
+<g class="legend-entry" data-legend="1" data-dash="solid" data-marker="circle"/>
+<g class="legend-entry" data-legend="1" data-dash="solid" data-marker="square"/>"##;
+    assert_eq!(style_problems("good.svg", good), Vec::<String>::new());
+
+    let report = "on the objective ()\nrounds []\nE_rot 0.2–0.?°\n| a | ? |\nmean NaN\nfine (σ = 1) and [1, 2]";
+    let found = placeholders("report.md", report);
+    assert_eq!(found.len(), 5, "{found:?}");
+}
+
+#[test]
+fn the_committed_solver_heatmaps_are_colour_blind_safe() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("reports/solvers");
+    let mut files = Vec::new();
+    svgs(&dir, &mut files);
+    assert!(!files.is_empty(), "no heatmaps in {}", dir.display());
+    let found: Vec<String> = files
+        .iter()
+        .flat_map(|f| {
+            style_problems(
+                &f.display().to_string(),
+                &std::fs::read_to_string(f).unwrap(),
+            )
+        })
+        .collect();
+    assert!(found.is_empty(), "{}", found.join("\n"));
 }
