@@ -12,11 +12,14 @@
 use super::analysis;
 use super::analysis::ValidateError;
 use super::config::{Checked, ValidateConfig};
+use super::image_check::{self, ImageCheck, NoiseLaw};
 use super::report;
 use super::summary::ValidateSummary;
+use crate::config::ConfigError;
 use crate::files::LockError;
 use crate::files::OutputLock;
 use crate::montecarlo::{self, MonteCarloConfig, Target};
+use crate::noise::calibrated::{CalibrationFile, LAW};
 use crate::observer::Observer;
 use crate::report::{duration_text, write_text, ReportError, SLOW_RUN_SECONDS};
 use crate::scenario::Scenario;
@@ -36,6 +39,14 @@ pub enum WorkflowError {
     /// The report could not be written.
     #[error(transparent)]
     Report(#[from] ReportError),
+    /// The noise law could not be fitted or written.
+    #[error("cannot write the noise model {path}: {reason}")]
+    NoiseModel {
+        /// The file asked for.
+        path: PathBuf,
+        /// Why.
+        reason: String,
+    },
 }
 
 /// Every input of a validation run: the analysis's configuration and where
@@ -51,9 +62,29 @@ pub struct WorkflowConfig {
     /// Whether to time a short calibration run first and, when the run
     /// looks slow ([`SLOW_RUN_SECONDS`] or more), log the estimate.
     pub estimate: bool,
+    /// The image-level check after the Monte-Carlo runs (None: none).
+    pub images: Option<ImageCheck>,
+    /// Where to write the noise law fitted by the image check (a
+    /// [`CalibrationFile`]); needs [`Self::images`].
+    pub noise_model_out: Option<PathBuf>,
 }
 
 impl WorkflowConfig {
+    /// Checks what the workflow adds to the analysis's config: the image
+    /// check's fields, and `write_noise_model` only with `images`.
+    pub fn check(&self) -> Result<(), ConfigError> {
+        if let Some(images) = &self.images {
+            images.check()?;
+        }
+        if self.noise_model_out.is_some() && self.images.is_none() {
+            return Err(ConfigError::new(
+                "write_noise_model",
+                "needs the image check (images): the law is fitted to its centres",
+            ));
+        }
+        Ok(())
+    }
+
     /// `validate` into `out_dir`, no grid note, no estimate.
     pub fn new(validate: ValidateConfig, out_dir: impl Into<PathBuf>) -> Self {
         WorkflowConfig {
@@ -61,6 +92,8 @@ impl WorkflowConfig {
             out_dir: out_dir.into(),
             grid_note: None,
             estimate: false,
+            images: None,
+            noise_model_out: None,
         }
     }
 }
@@ -121,13 +154,20 @@ pub fn run(
     observer: &mut impl Observer,
 ) -> Result<ValidateOutcome, WorkflowError> {
     let validate = config.validate.check().map_err(ValidateError::from)?;
+    config.check().map_err(ValidateError::from)?;
     let _lock = OutputLock::acquire(&config.out_dir)?;
     let estimate = match config.estimate {
         true => Some(estimate(validate, observer)?),
         false => None,
     };
     let started = Instant::now();
-    let summary = analysis::monte_carlo(validate, observer)?;
+    let mut summary = analysis::monte_carlo(validate, observer)?;
+    if let Some(check) = &config.images {
+        summary.images = Some(
+            image_check::run(validate, check, &summary.outcomes, observer)
+                .map_err(ValidateError::from)?,
+        );
+    }
     let mut run = Run {
         config,
         validate,
@@ -135,7 +175,7 @@ pub fn run(
         summary,
         seconds: started.elapsed().as_secs_f64(),
     };
-    let phases: [Phase<_>; 3] = [write_report, write_run_json, fabrication];
+    let phases: [Phase<_>; 4] = [write_report, write_noise_model, write_run_json, fabrication];
     for phase in phases {
         phase(&mut run)?;
     }
@@ -169,6 +209,42 @@ fn estimate(validate: Checked, observer: &mut impl Observer) -> Result<RunEstima
 /// The report, from the summary.
 fn write_report<O: Observer>(run: &mut Run<'_, O>) -> Result<(), WorkflowError> {
     Ok(report::write(&run.config.out_dir, &run.summary)?)
+}
+
+/// The noise law the image check fitted, as a [`CalibrationFile`] written
+/// atomically to [`WorkflowConfig::noise_model_out`], when asked for.
+fn write_noise_model<O: Observer>(run: &mut Run<'_, O>) -> Result<(), WorkflowError> {
+    let Some(path) = &run.config.noise_model_out else {
+        return Ok(());
+    };
+    let refuse = |reason: String| WorkflowError::NoiseModel {
+        path: path.clone(),
+        reason,
+    };
+    let Some(images) = &run.summary.images else {
+        return Err(refuse("the image check did not run".to_string()));
+    };
+    let (law, quality, radius_px) = match &images.noise_law {
+        NoiseLaw::Fitted {
+            law,
+            quality,
+            radius_px,
+        } => (law, quality, radius_px),
+        NoiseLaw::Unfitted(reason) => return Err(refuse(reason.clone())),
+    };
+    let file = CalibrationFile {
+        law: LAW.to_string(),
+        a: law.a,
+        b: law.b,
+        c: law.c,
+        radius_px: *radius_px,
+        fit: *quality,
+        source: format!(
+            "{} (seed {}, {} noisy frames per scenario, {})",
+            run.validate.command, images.seed, images.check.trials, images.preset
+        ),
+    };
+    crate::files::write_text_atomic(path, &file.to_json()).map_err(|e| refuse(e.to_string()))
 }
 
 /// `run.json`: what depends on the machine (timing, threads), kept out of
