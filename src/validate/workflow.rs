@@ -108,6 +108,8 @@ pub struct ValidateOutcome {
     pub solves: usize,
     /// Wall-clock seconds of the Monte-Carlo runs.
     pub seconds: f64,
+    /// Wall-clock seconds of the image check (None when it did not run).
+    pub image_seconds: Option<f64>,
     /// Worker threads.
     pub threads: usize,
     /// The estimate logged before the run (None when not asked for).
@@ -117,8 +119,11 @@ pub struct ValidateOutcome {
 impl ValidateOutcome {
     /// The run in one line: solves, time, threads and where the report is.
     pub fn timing_line(&self, out_dir: &std::path::Path) -> String {
+        let images = self
+            .image_seconds
+            .map_or(String::new(), |s| format!(", image check {s:.1} s"));
         format!(
-            "{} solves in {:.1} s on {} threads ({:.0} solves/s); report in {}",
+            "{} solves in {:.1} s on {} threads ({:.0} solves/s){images}; report in {}",
             self.solves,
             self.seconds,
             self.threads,
@@ -135,6 +140,7 @@ pub struct Run<'a, O: Observer> {
     observer: &'a mut O,
     summary: ValidateSummary,
     seconds: f64,
+    image_seconds: Option<f64>,
 }
 
 /// One step of a run, after the analysis.
@@ -162,18 +168,23 @@ pub fn run(
     };
     let started = Instant::now();
     let mut summary = analysis::monte_carlo(validate, observer)?;
+    let seconds = started.elapsed().as_secs_f64();
+    let mut image_seconds = None;
     if let Some(check) = &config.images {
+        let started = Instant::now();
         summary.images = Some(
             image_check::run(validate, check, &summary.outcomes, observer)
                 .map_err(ValidateError::from)?,
         );
+        image_seconds = Some(started.elapsed().as_secs_f64());
     }
     let mut run = Run {
         config,
         validate,
         observer,
         summary,
-        seconds: started.elapsed().as_secs_f64(),
+        seconds,
+        image_seconds,
     };
     let phases: [Phase<_>; 4] = [write_report, write_noise_model, write_run_json, fabrication];
     for phase in phases {
@@ -182,6 +193,7 @@ pub fn run(
     Ok(ValidateOutcome {
         solves: run.summary.solves(),
         seconds: run.seconds,
+        image_seconds: run.image_seconds,
         threads: rayon::current_num_threads(),
         estimate,
         summary: run.summary,
@@ -255,6 +267,7 @@ fn write_run_json<O: Observer>(run: &mut Run<'_, O>) -> Result<(), WorkflowError
     let json = serde_json::json!({
         "tilt_step_note": run.config.grid_note,
         "wall_seconds": run.seconds,
+        "image_seconds": run.image_seconds,
         "threads": rayon::current_num_threads(),
         "solves": solves,
         "solves_per_second": solves as f64 / run.seconds,
@@ -390,6 +403,7 @@ mod tests {
         assert_eq!(outcome.solves, 4 * 5);
         assert!(outcome.estimate.is_some_and(|e| e.seconds >= 0.0));
         assert!(outcome.summary.fabrication.is_none());
+        assert!(outcome.image_seconds.is_none() && outcome.summary.images.is_none());
         assert!(config.out_dir.join("report.md").exists());
         assert!(config.out_dir.join("run.json").exists());
         assert!(!crate::files::lock_path(&config.out_dir).exists());

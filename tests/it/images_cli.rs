@@ -94,6 +94,12 @@ fn images_report_their_figures_and_write_a_noise_law_that_a_second_run_reads() {
         / pose["predicted_rotation_rms_deg"].as_f64().unwrap();
     assert!((ratio / (measured / 0.5) - 1.0).abs() < 0.5, "{pose}");
     assert!(json["by_radius"].as_array().unwrap().len() >= 2, "{json}");
+    let run: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(report.join("run.json")).unwrap()).unwrap();
+    assert!(
+        run["image_seconds"].as_f64().is_some_and(|s| s >= 0.0),
+        "{run}"
+    );
 
     let file = CalibrationFile::load(&law).unwrap();
     assert!(
