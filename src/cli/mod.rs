@@ -10,6 +10,7 @@ mod search;
 mod solve;
 mod track;
 mod validate;
+mod validate_images;
 mod volume;
 
 use clap::{Args, CommandFactory, FromArgMatches, Parser, Subcommand};

@@ -1,6 +1,7 @@
 //! `layout-opt validate`: a layout's sensitivity report.
 
 use super::common::{command_line, naming_file, parse_solvers, CameraArgs, GridArgs};
+use super::validate_images::{image_flag, ImageArgs};
 use super::volume::{volume_flag, VolumeArgs, VolumeDefaults};
 use super::{progress, GlobalOptions};
 use anyhow::Context;
@@ -14,6 +15,8 @@ use layout_opt::noise::NoiseModel;
 use layout_opt::scenario::ScenarioGrid;
 use layout_opt::sphere_image::Observation;
 use layout_opt::validate::config::default_tilt_step_deg;
+use layout_opt::validate::image_check::ImageCheckError;
+use layout_opt::validate::image_report;
 use layout_opt::validate::markdown::{console, fabrication_line};
 use layout_opt::validate::workflow::{WorkflowConfig, WorkflowError};
 use layout_opt::validate::{
@@ -77,6 +80,8 @@ pub struct ValidateArgs {
     /// behaviour before the supports were modelled).
     #[arg(long)]
     no_supports: bool,
+    #[command(flatten)]
+    images: ImageArgs,
 }
 
 /// A probability strictly between 0 and 1, as `0.999` or `99.9%`.
@@ -151,12 +156,15 @@ pub fn run(args: ValidateArgs, global: &GlobalOptions) -> anyhow::Result<()> {
         // Every run is estimated (the calibration takes a fraction of a
         // second); only the slow ones say so.
         estimate: !global.quiet,
+        images: args.images.check(),
+        noise_model_out: args.images.noise_model_out(),
     };
     let layout_name = &config.validate.layout.name;
     config
         .validate
         .check()
         .map_err(|e| flag_error(e, layout_name))?;
+    config.check().map_err(|e| flag_error(e, layout_name))?;
     if let Some(note) = &config.grid_note {
         println!("note: {note}");
     }
@@ -171,6 +179,9 @@ pub fn run(args: ValidateArgs, global: &GlobalOptions) -> anyhow::Result<()> {
         Err(WorkflowError::Validate(ValidateError::Fabrication(FabricationError::Interrupted))) => {
             Some("interrupted during the fabrication check")
         }
+        Err(WorkflowError::Validate(ValidateError::Images(ImageCheckError::Interrupted))) => {
+            Some("interrupted during the image check: no report written")
+        }
         _ => None,
     };
     if let Some(message) = interrupted {
@@ -179,6 +190,12 @@ pub fn run(args: ValidateArgs, global: &GlobalOptions) -> anyhow::Result<()> {
     }
     let outcome = result?;
     print!("{}", console(&outcome.summary, &config.out_dir));
+    if let Some(images) = &outcome.summary.images {
+        print!("{}", image_report::console(images));
+    }
+    if let Some(path) = &config.noise_model_out {
+        println!("noise model written to {}", path.display());
+    }
     println!("{}", outcome.timing_line(&config.out_dir));
     if let Some(run) = &outcome.summary.fabrication {
         println!("{}", fabrication_line(run));
@@ -189,6 +206,9 @@ pub fn run(args: ValidateArgs, global: &GlobalOptions) -> anyhow::Result<()> {
 /// A configuration error in the words of the command line: the field's
 /// flag, or the layout's name.
 fn flag_error(error: ConfigError, layout: &str) -> anyhow::Error {
+    if let Some(flag) = image_flag(error.field) {
+        return anyhow::anyhow!("{flag} {}", error.reason);
+    }
     if let Some(flag) = volume_flag(&error) {
         return anyhow::anyhow!("{flag} {}", error.reason);
     }

@@ -46,6 +46,9 @@ pub enum ValidateError {
     /// The fabrication run failed or was interrupted.
     #[error(transparent)]
     Fabrication(#[from] FabricationError),
+    /// The image-level check failed or was interrupted.
+    #[error(transparent)]
+    Images(#[from] super::image_check::ImageCheckError),
     /// The part's supports cannot be built for the layout.
     #[error("the part's supports cannot be built: {0}")]
     Supports(#[from] crate::mesh::GeometryError),
@@ -183,6 +186,7 @@ pub fn monte_carlo_until(config: Checked, hooks: Hooks) -> Result<ValidateSummar
         outcomes,
         identifiability: identified,
         fabrication: None,
+        images: None,
     })
 }
 

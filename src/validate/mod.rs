@@ -33,6 +33,8 @@
 
 pub mod analysis;
 pub mod config;
+pub mod image_check;
+pub mod image_report;
 pub mod images;
 pub mod markdown;
 pub mod pairs;

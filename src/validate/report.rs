@@ -71,8 +71,26 @@ pub fn write(dir: &Path, validation: &ValidateSummary) -> Result<(), ReportError
         layout.sphere_diameter_mm,
     )?;
     write_pairs(dir, summary)?;
-    write_text(&dir.join("report.md"), &markdown(summary))?;
+    let mut report = markdown(summary);
+    if let Some(images) = &validation.images {
+        write_images(dir, images)?;
+        report.push_str(&super::image_report::markdown(images));
+    }
+    write_text(&dir.join("report.md"), &report)?;
     Ok(())
+}
+
+/// `images.csv` and `images.json` of the image check.
+fn write_images(dir: &Path, images: &super::image_check::ImageSummary) -> Result<(), ReportError> {
+    let csv_path = dir.join("images.csv");
+    let csv = super::image_report::scenario_table(images)
+        .csv()
+        .map_err(|e| ReportError::write(&csv_path, e))?;
+    write_text(&csv_path, &csv)?;
+    let json_path = dir.join("images.json");
+    let json =
+        serde_json::to_string_pretty(images).map_err(|e| ReportError::write(&json_path, e))?;
+    write_text(&json_path, &(json + "\n"))
 }
 
 /// `error_pairs.svg` (the pairwise heatmap matrix, when two or more axes

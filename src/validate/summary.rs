@@ -30,6 +30,8 @@ pub struct ValidateSummary {
     pub identifiability: Vec<Option<ScenarioIdentifiability>>,
     /// The fabrication Monte-Carlo run (None when σ_fab is 0).
     pub fabrication: Option<FabricationRun>,
+    /// The image-level check (None unless asked for).
+    pub images: Option<super::image_check::ImageSummary>,
 }
 
 impl ValidateSummary {

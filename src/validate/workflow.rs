@@ -12,11 +12,14 @@
 use super::analysis;
 use super::analysis::ValidateError;
 use super::config::{Checked, ValidateConfig};
+use super::image_check::{self, ImageCheck, NoiseLaw};
 use super::report;
 use super::summary::ValidateSummary;
+use crate::config::ConfigError;
 use crate::files::LockError;
 use crate::files::OutputLock;
 use crate::montecarlo::{self, MonteCarloConfig, Target};
+use crate::noise::calibrated::{CalibrationFile, LAW};
 use crate::observer::Observer;
 use crate::report::{duration_text, write_text, ReportError, SLOW_RUN_SECONDS};
 use crate::scenario::Scenario;
@@ -36,6 +39,14 @@ pub enum WorkflowError {
     /// The report could not be written.
     #[error(transparent)]
     Report(#[from] ReportError),
+    /// The noise law could not be fitted or written.
+    #[error("cannot write the noise model {path}: {reason}")]
+    NoiseModel {
+        /// The file asked for.
+        path: PathBuf,
+        /// Why.
+        reason: String,
+    },
 }
 
 /// Every input of a validation run: the analysis's configuration and where
@@ -51,9 +62,29 @@ pub struct WorkflowConfig {
     /// Whether to time a short calibration run first and, when the run
     /// looks slow ([`SLOW_RUN_SECONDS`] or more), log the estimate.
     pub estimate: bool,
+    /// The image-level check after the Monte-Carlo runs (None: none).
+    pub images: Option<ImageCheck>,
+    /// Where to write the noise law fitted by the image check (a
+    /// [`CalibrationFile`]); needs [`Self::images`].
+    pub noise_model_out: Option<PathBuf>,
 }
 
 impl WorkflowConfig {
+    /// Checks what the workflow adds to the analysis's config: the image
+    /// check's fields, and `write_noise_model` only with `images`.
+    pub fn check(&self) -> Result<(), ConfigError> {
+        if let Some(images) = &self.images {
+            images.check()?;
+        }
+        if self.noise_model_out.is_some() && self.images.is_none() {
+            return Err(ConfigError::new(
+                "write_noise_model",
+                "needs the image check (images): the law is fitted to its centres",
+            ));
+        }
+        Ok(())
+    }
+
     /// `validate` into `out_dir`, no grid note, no estimate.
     pub fn new(validate: ValidateConfig, out_dir: impl Into<PathBuf>) -> Self {
         WorkflowConfig {
@@ -61,6 +92,8 @@ impl WorkflowConfig {
             out_dir: out_dir.into(),
             grid_note: None,
             estimate: false,
+            images: None,
+            noise_model_out: None,
         }
     }
 }
@@ -75,6 +108,8 @@ pub struct ValidateOutcome {
     pub solves: usize,
     /// Wall-clock seconds of the Monte-Carlo runs.
     pub seconds: f64,
+    /// Wall-clock seconds of the image check (None when it did not run).
+    pub image_seconds: Option<f64>,
     /// Worker threads.
     pub threads: usize,
     /// The estimate logged before the run (None when not asked for).
@@ -84,8 +119,11 @@ pub struct ValidateOutcome {
 impl ValidateOutcome {
     /// The run in one line: solves, time, threads and where the report is.
     pub fn timing_line(&self, out_dir: &std::path::Path) -> String {
+        let images = self
+            .image_seconds
+            .map_or(String::new(), |s| format!(", image check {s:.1} s"));
         format!(
-            "{} solves in {:.1} s on {} threads ({:.0} solves/s); report in {}",
+            "{} solves in {:.1} s on {} threads ({:.0} solves/s){images}; report in {}",
             self.solves,
             self.seconds,
             self.threads,
@@ -102,6 +140,7 @@ pub struct Run<'a, O: Observer> {
     observer: &'a mut O,
     summary: ValidateSummary,
     seconds: f64,
+    image_seconds: Option<f64>,
 }
 
 /// One step of a run, after the analysis.
@@ -121,27 +160,40 @@ pub fn run(
     observer: &mut impl Observer,
 ) -> Result<ValidateOutcome, WorkflowError> {
     let validate = config.validate.check().map_err(ValidateError::from)?;
+    config.check().map_err(ValidateError::from)?;
     let _lock = OutputLock::acquire(&config.out_dir)?;
     let estimate = match config.estimate {
         true => Some(estimate(validate, observer)?),
         false => None,
     };
     let started = Instant::now();
-    let summary = analysis::monte_carlo(validate, observer)?;
+    let mut summary = analysis::monte_carlo(validate, observer)?;
+    let seconds = started.elapsed().as_secs_f64();
+    let mut image_seconds = None;
+    if let Some(check) = &config.images {
+        let started = Instant::now();
+        summary.images = Some(
+            image_check::run(validate, check, &summary.outcomes, observer)
+                .map_err(ValidateError::from)?,
+        );
+        image_seconds = Some(started.elapsed().as_secs_f64());
+    }
     let mut run = Run {
         config,
         validate,
         observer,
         summary,
-        seconds: started.elapsed().as_secs_f64(),
+        seconds,
+        image_seconds,
     };
-    let phases: [Phase<_>; 3] = [write_report, write_run_json, fabrication];
+    let phases: [Phase<_>; 4] = [write_report, write_noise_model, write_run_json, fabrication];
     for phase in phases {
         phase(&mut run)?;
     }
     Ok(ValidateOutcome {
         solves: run.summary.solves(),
         seconds: run.seconds,
+        image_seconds: run.image_seconds,
         threads: rayon::current_num_threads(),
         estimate,
         summary: run.summary,
@@ -171,6 +223,42 @@ fn write_report<O: Observer>(run: &mut Run<'_, O>) -> Result<(), WorkflowError> 
     Ok(report::write(&run.config.out_dir, &run.summary)?)
 }
 
+/// The noise law the image check fitted, as a [`CalibrationFile`] written
+/// atomically to [`WorkflowConfig::noise_model_out`], when asked for.
+fn write_noise_model<O: Observer>(run: &mut Run<'_, O>) -> Result<(), WorkflowError> {
+    let Some(path) = &run.config.noise_model_out else {
+        return Ok(());
+    };
+    let refuse = |reason: String| WorkflowError::NoiseModel {
+        path: path.clone(),
+        reason,
+    };
+    let Some(images) = &run.summary.images else {
+        return Err(refuse("the image check did not run".to_string()));
+    };
+    let (law, quality, radius_px) = match &images.noise_law {
+        NoiseLaw::Fitted {
+            law,
+            quality,
+            radius_px,
+        } => (law, quality, radius_px),
+        NoiseLaw::Unfitted(reason) => return Err(refuse(reason.clone())),
+    };
+    let file = CalibrationFile {
+        law: LAW.to_string(),
+        a: law.a,
+        b: law.b,
+        c: law.c,
+        radius_px: *radius_px,
+        fit: *quality,
+        source: format!(
+            "{} (seed {}, {} noisy frames per scenario, {})",
+            run.validate.command, images.seed, images.check.trials, images.preset
+        ),
+    };
+    crate::files::write_text_atomic(path, &file.to_json()).map_err(|e| refuse(e.to_string()))
+}
+
 /// `run.json`: what depends on the machine (timing, threads), kept out of
 /// `summary.json`.
 fn write_run_json<O: Observer>(run: &mut Run<'_, O>) -> Result<(), WorkflowError> {
@@ -179,6 +267,7 @@ fn write_run_json<O: Observer>(run: &mut Run<'_, O>) -> Result<(), WorkflowError
     let json = serde_json::json!({
         "tilt_step_note": run.config.grid_note,
         "wall_seconds": run.seconds,
+        "image_seconds": run.image_seconds,
         "threads": rayon::current_num_threads(),
         "solves": solves,
         "solves_per_second": solves as f64 / run.seconds,
@@ -314,6 +403,7 @@ mod tests {
         assert_eq!(outcome.solves, 4 * 5);
         assert!(outcome.estimate.is_some_and(|e| e.seconds >= 0.0));
         assert!(outcome.summary.fabrication.is_none());
+        assert!(outcome.image_seconds.is_none() && outcome.summary.images.is_none());
         assert!(config.out_dir.join("report.md").exists());
         assert!(config.out_dir.join("run.json").exists());
         assert!(!crate::files::lock_path(&config.out_dir).exists());

@@ -34,6 +34,8 @@ mod export_cli;
 #[cfg(feature = "cli")]
 mod fabrication_cli;
 #[cfg(feature = "cli")]
+mod images_cli;
+#[cfg(feature = "cli")]
 mod reproduce;
 #[cfg(feature = "cli")]
 mod search;

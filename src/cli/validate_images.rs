@@ -1,0 +1,49 @@
+//! The image-check flags of `validate` (`--images` and its companions).
+
+use clap::Args;
+use layout_opt::validate::image_check::{ImageCheck, DEFAULT_IMAGE_TRIALS};
+use std::path::PathBuf;
+
+/// Flags of the image-level check.
+#[derive(Debug, Args)]
+pub struct ImageArgs {
+    /// Also render every visible scenario once (the part with its supports,
+    /// render's defaults) and read it back with `track` under seeded sensor
+    /// noise: centre errors against disc radius and depth, and the pose from
+    /// the images beside the first-order prediction (report section
+    /// "Images", images.csv, images.json).
+    #[arg(long)]
+    images: bool,
+    /// Noisy frames read back per visible scenario with --images.
+    #[arg(long, value_name = "N", default_value_t = DEFAULT_IMAGE_TRIALS)]
+    image_trials: usize,
+    /// Fit σ = a / r^b + c to the whole spheres' centre σ from --images and
+    /// write it as a noise calibration file (docs/formats.md), for
+    /// `--noise-model calibrated:FILE`.
+    #[arg(long, value_name = "FILE")]
+    write_noise_model: Option<PathBuf>,
+}
+
+impl ImageArgs {
+    /// The image check, when asked for.
+    pub fn check(&self) -> Option<ImageCheck> {
+        self.images.then_some(ImageCheck {
+            trials: self.image_trials,
+        })
+    }
+
+    /// Where to write the fitted noise law.
+    pub fn noise_model_out(&self) -> Option<PathBuf> {
+        self.write_noise_model.clone()
+    }
+}
+
+/// The flag of an image-check field, if `field` is one.
+pub fn image_flag(field: &str) -> Option<&'static str> {
+    match field {
+        "image_trials" => Some("--image-trials"),
+        "write_noise_model" => Some("--write-noise-model"),
+        "images" => Some("--images"),
+        _ => None,
+    }
+}

@@ -1,0 +1,285 @@
+//! Renders an [`ImageSummary`]: the `report.md` section ([`markdown`]),
+//! `images.csv` ([`scenario_table`]), `images.json` (the summary without
+//! its per-scenario rows) and the terminal paragraph ([`console`]).
+//! Computes nothing new.
+
+use super::image_check::{CentreBin, ImageSummary, NoiseLaw, BIAS_SIGMAS};
+use crate::report::{significant, Table};
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+
+fn number(value: f64) -> String {
+    significant(value.is_finite().then_some(value), 3)
+}
+
+fn percent(part: usize, whole: usize) -> String {
+    if whole == 0 {
+        "—".to_string()
+    } else {
+        format!("{:.1}%", 100.0 * part as f64 / whole as f64)
+    }
+}
+
+fn counts(reasons: &BTreeMap<String, usize>) -> String {
+    if reasons.is_empty() {
+        return "none".to_string();
+    }
+    reasons
+        .iter()
+        .map(|(reason, count)| format!("{reason}: {count}"))
+        .collect::<Vec<_>>()
+        .join("; ")
+}
+
+fn bin_table(label: &str, bins: &[CentreBin]) -> Table {
+    let mut table = Table::new([
+        label,
+        "sphere views",
+        "centres",
+        "bias RMS (px)",
+        "σ per axis (px)",
+    ]);
+    for bin in bins {
+        table.row([
+            format!("{}–{}", number(bin.from), number(bin.to)),
+            bin.sphere_views.to_string(),
+            bin.centres.to_string(),
+            number(bin.bias_px),
+            number(bin.sigma_px),
+        ]);
+    }
+    table
+}
+
+/// Today's `size` law "holds" when its RMS relative residual is at most
+/// this many times the fitted law's (or than 5%, whichever is larger).
+pub const SIZE_LAW_HOLDS_FACTOR: f64 = 1.5;
+
+/// The noise law in one sentence.
+pub fn law_line(law: &NoiseLaw) -> String {
+    match law {
+        NoiseLaw::Fitted {
+            law,
+            quality,
+            radius_px,
+        } => format!(
+            "σ = {} / r^{} + {} px over disc radii {}–{} px ({} sphere views): RMS relative residual {} (worst {}); today's `size` law (σ ∝ 1/√r) fits with {}, so it {}",
+            number(law.a),
+            number(law.b),
+            number(law.c),
+            number(radius_px[0]),
+            number(radius_px[1]),
+            quality.points,
+            number(quality.rms_relative_residual),
+            number(quality.worst_relative_residual),
+            number(quality.size_law_rms_relative_residual),
+            if quality.size_law_rms_relative_residual
+                <= SIZE_LAW_HOLDS_FACTOR * quality.rms_relative_residual.max(0.05)
+            {
+                "holds about as well"
+            } else {
+                "does not hold"
+            }
+        ),
+        NoiseLaw::Unfitted(reason) => format!("no noise law fitted: {reason}"),
+    }
+}
+
+/// The `report.md` section.
+pub fn markdown(images: &ImageSummary) -> String {
+    let mut out = String::new();
+    let _ = writeln!(out, "## Images\n");
+    let _ = writeln!(
+        out,
+        "Every visible scenario rendered once ({}) and read back by `track` {} times under seeded sensor noise (seed {}, frame = scenario index); per-scenario figures in [images.csv](images.csv), pooled ones in [images.json](images.json).\n",
+        images.preset, images.check.trials, images.seed
+    );
+    let _ = writeln!(
+        out,
+        "- scenarios: {} visible, {} refused by the renderer ({})",
+        images.scenarios,
+        images.refused.values().sum::<usize>(),
+        counts(&images.refused)
+    );
+    let lost: usize = images.lost.values().sum();
+    let _ = writeln!(
+        out,
+        "- frames: {} read, {} posed, {} lost ({}; {}), {} mislabelled ({}), {} missing a whole sphere ({})\n",
+        images.frames,
+        images.posed_frames,
+        lost,
+        percent(lost, images.frames),
+        counts(&images.lost),
+        images.mislabelled_frames,
+        percent(images.mislabelled_frames, images.frames),
+        images.frames_missing_a_whole_sphere,
+        percent(images.frames_missing_a_whole_sphere, images.frames),
+    );
+    let _ = writeln!(
+        out,
+        "### Centre error of whole spheres against disc radius\n"
+    );
+    out.push_str(&bin_table("radius (px)", &images.by_radius).markdown());
+    let _ = writeln!(out, "\n### Centre error of whole spheres against depth\n");
+    out.push_str(&bin_table("depth (mm)", &images.by_depth).markdown());
+    let _ = writeln!(
+        out,
+        "\n### Pose from the images against the first-order model\n"
+    );
+    match &images.pose {
+        Some(p) => {
+            let mut table = Table::new(["", "rotation RMS (°)", "translation RMS (mm)"]);
+            table.row([
+                "images".to_string(),
+                number(p.image_rotation_rms_deg),
+                number(p.image_translation_rms_mm),
+            ]);
+            table.row([
+                format!(
+                    "first order at the assumed σ ({} px)",
+                    number(p.assumed_sigma_px)
+                ),
+                number(p.predicted_rotation_rms_deg),
+                number(p.predicted_translation_rms_mm),
+            ]);
+            table.row([
+                format!(
+                    "first order at the measured σ ({} px)",
+                    number(p.measured_sigma_px)
+                ),
+                number(p.predicted_at_measured_rotation_rms_deg),
+                number(p.predicted_at_measured_translation_rms_mm),
+            ]);
+            out.push_str(&table.markdown());
+            let _ = writeln!(
+                out,
+                "\nOver {} scenarios (root mean square of the per-scenario RMS). The measured σ of a scenario pools its whole spheres' per-axis centre variance; the prediction at it is the one at the scenario's σ times their ratio (the first-order model is linear in σ; exact for the isotropic model).\n",
+                p.scenarios
+            );
+        }
+        None => {
+            let _ = writeln!(
+                out,
+                "No scenario gave both an image pose and a prediction.\n"
+            );
+        }
+    }
+    let _ = writeln!(
+        out,
+        "### Partly hidden spheres with a biased centre\n\n{} sphere views hidden in part have a mean centre error above {BIAS_SIGMAS} × their σ.\n",
+        images.biased_count
+    );
+    if !images.biased.is_empty() {
+        let mut table = Table::new([
+            "scenario",
+            "sphere",
+            "hidden",
+            "radius (px)",
+            "bias (px)",
+            "σ (px)",
+        ]);
+        for b in &images.biased {
+            table.row([
+                super::summary::describe_scenario(&b.scenario),
+                b.sphere.clone(),
+                format!("{:.1}%", 100.0 * b.hidden),
+                number(b.radius_px),
+                number(b.bias_px),
+                number(b.sigma_px),
+            ]);
+        }
+        out.push_str(&table.markdown());
+        out.push('\n');
+    }
+    let _ = writeln!(out, "### Noise law\n\n{}\n", law_line(&images.noise_law));
+    out
+}
+
+/// `images.csv`: one row per visible scenario.
+pub fn scenario_table(images: &ImageSummary) -> Table {
+    let mut table = Table::new([
+        "scenario",
+        "depth_mm",
+        "tilt_deg",
+        "refused",
+        "frames",
+        "posed",
+        "mislabelled",
+        "missing_a_whole_sphere",
+        "whole_spheres",
+        "min_radius_px",
+        "sigma_px",
+        "max_bias_px",
+        "rotation_rms_deg",
+        "translation_rms_mm",
+        "predicted_rotation_rms_deg",
+    ]);
+    let cell = |v: f64| {
+        if v.is_finite() {
+            format!("{v}")
+        } else {
+            String::new()
+        }
+    };
+    for row in &images.per_scenario {
+        table.row([
+            row.scenario.to_string(),
+            cell(row.depth_mm),
+            cell(row.tilt_deg),
+            row.refused.clone().unwrap_or_default(),
+            row.frames.to_string(),
+            row.posed.to_string(),
+            row.mislabelled.to_string(),
+            row.missing_a_whole_sphere.to_string(),
+            row.whole_spheres.to_string(),
+            cell(row.min_radius_px),
+            cell(row.sigma_px),
+            cell(row.max_bias_px),
+            cell(row.rotation_rms_deg),
+            cell(row.translation_rms_mm),
+            cell(row.predicted_rotation_rms_deg),
+        ]);
+    }
+    table
+}
+
+/// The terminal paragraph.
+pub fn console(images: &ImageSummary) -> String {
+    let lost: usize = images.lost.values().sum();
+    let sigma = |bins: &[CentreBin], first: bool| {
+        let bin = if first { bins.first() } else { bins.last() };
+        bin.map_or("—".to_string(), |b| {
+            format!(
+                "{} px at {}–{}",
+                number(b.sigma_px),
+                number(b.from),
+                number(b.to)
+            )
+        })
+    };
+    let pose = images.pose.as_ref().map_or(
+        "no scenario gave an image pose and a prediction".to_string(),
+        |p| {
+            format!(
+                "rotation RMS {}° from the images against {}° predicted at σ {} px and {}° at the measured σ {} px",
+                number(p.image_rotation_rms_deg),
+                number(p.predicted_rotation_rms_deg),
+                number(p.assumed_sigma_px),
+                number(p.predicted_at_measured_rotation_rms_deg),
+                number(p.measured_sigma_px)
+            )
+        },
+    );
+    format!(
+        "images: {} visible scenarios × {} frames ({} refused by the renderer); centre σ {} (smallest discs) to {} (largest); {pose}; {} of frames lost, {} mislabelled; {} partly hidden spheres biased beyond {BIAS_SIGMAS} σ; {}\n",
+        images.scenarios,
+        images.check.trials,
+        images.refused.values().sum::<usize>(),
+        sigma(&images.by_radius, true),
+        sigma(&images.by_radius, false),
+        percent(lost, images.frames),
+        percent(images.mislabelled_frames, images.frames),
+        images.biased_count,
+        law_line(&images.noise_law)
+    )
+}

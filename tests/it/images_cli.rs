@@ -1,0 +1,179 @@
+//! `validate --images`: the image-level check on the search winner over a
+//! tiny grid, its report files, the noise law it writes and reads back,
+//! its bad input, and its independence of the thread count.
+
+use assert_cmd::Command;
+use layout_opt::noise::calibrated::CalibrationFile;
+use std::path::Path;
+
+const WINNER: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/layouts/biprism-search.json");
+
+fn layout_opt() -> Command {
+    Command::cargo_bin("layout-opt").unwrap()
+}
+
+/// The cheapest validate of the winner: 4 scenarios, all visible, 2 trials, one
+/// solver, no identifiability trials, then `extra`.
+fn validate(out: &Path, extra: &[&str]) -> assert_cmd::assert::Assert {
+    layout_opt()
+        .args([
+            "validate",
+            WINNER,
+            "--quiet",
+            "--depth",
+            "500,600",
+            "--tilt=0,20",
+        ])
+        .args(["--offset-x", "0", "--trials", "2", "--solvers", "ml"])
+        .args(["--identify-trials", "0", "--out"])
+        .arg(out)
+        .args(extra)
+        .assert()
+}
+
+fn stdout(assert: assert_cmd::assert::Assert) -> String {
+    String::from_utf8(assert.success().get_output().stdout.clone()).unwrap()
+}
+
+/// The first-order rotation limit the terminal prints, degrees.
+fn first_order_limit(stdout: &str) -> f64 {
+    let line = stdout
+        .lines()
+        .find_map(|l| l.strip_prefix("first-order limit: "))
+        .unwrap_or_else(|| panic!("no first-order line in {stdout}"));
+    line.split('°').next().unwrap().parse().unwrap()
+}
+
+#[test]
+fn images_report_their_figures_and_write_a_noise_law_that_a_second_run_reads() {
+    let dir = tempfile::tempdir().unwrap();
+    let law = dir.path().join("noise.json");
+    let law_arg = law.to_str().unwrap();
+    let out = stdout(validate(
+        &dir.path().join("images"),
+        &[
+            "--images",
+            "--image-trials",
+            "4",
+            "--write-noise-model",
+            law_arg,
+        ],
+    ));
+    assert!(
+        out.contains("images: 4 visible scenarios × 4 frames"),
+        "{out}"
+    );
+    let report = dir.path().join("images");
+    let markdown = std::fs::read_to_string(report.join("report.md")).unwrap();
+    for heading in [
+        "## Images",
+        "### Centre error of whole spheres against disc radius",
+        "### Centre error of whole spheres against depth",
+        "first order at the measured σ",
+        "### Partly hidden spheres with a biased centre",
+        "### Noise law",
+    ] {
+        assert!(markdown.contains(heading), "{heading} missing:\n{markdown}");
+    }
+    let csv = std::fs::read_to_string(report.join("images.csv")).unwrap();
+    let rows: Vec<&str> = csv.lines().skip(1).collect();
+    assert_eq!(rows.len(), 4, "{csv}");
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(report.join("images.json")).unwrap())
+            .unwrap();
+    assert_eq!(json["frames"], 16, "{json}");
+    let pose = &json["pose"];
+    let image_rms = pose["image_rotation_rms_deg"].as_f64().unwrap();
+    let measured = pose["measured_sigma_px"].as_f64().unwrap();
+    assert!(image_rms > 0.0 && image_rms < 0.5, "{pose}");
+    // Rendered centres are far better than the assumed 0.5 px.
+    assert!(measured > 0.0 && measured < 0.5, "{pose}");
+    let ratio = pose["predicted_at_measured_rotation_rms_deg"]
+        .as_f64()
+        .unwrap()
+        / pose["predicted_rotation_rms_deg"].as_f64().unwrap();
+    assert!((ratio / (measured / 0.5) - 1.0).abs() < 0.5, "{pose}");
+    assert!(json["by_radius"].as_array().unwrap().len() >= 2, "{json}");
+    let run: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(report.join("run.json")).unwrap()).unwrap();
+    assert!(
+        run["image_seconds"].as_f64().is_some_and(|s| s >= 0.0),
+        "{run}"
+    );
+
+    let file = CalibrationFile::load(&law).unwrap();
+    assert!(
+        file.source.contains("--images") && file.source.contains("seed 7"),
+        "{file:?}"
+    );
+    assert!(
+        file.fit.points >= 3 && file.radius_px[0] < file.radius_px[1],
+        "{file:?}"
+    );
+    let calibrated = format!("calibrated:{law_arg}");
+    let plain = stdout(validate(&dir.path().join("plain"), &[]));
+    let read_back = stdout(validate(
+        &dir.path().join("calibrated"),
+        &["--noise-model", &calibrated],
+    ));
+    // The measured σ is far below 0.5 px, and so is the prediction.
+    assert!(
+        first_order_limit(&read_back) < 0.5 * first_order_limit(&plain),
+        "{plain}\n{read_back}"
+    );
+}
+
+#[test]
+fn bad_image_flags_are_refused_by_name() {
+    let dir = tempfile::tempdir().unwrap();
+    let zero = validate(dir.path(), &["--images", "--image-trials", "0"]).failure();
+    let stderr = String::from_utf8_lossy(&zero.get_output().stderr).to_string();
+    assert!(
+        stderr.contains("--image-trials must be at least 1"),
+        "{stderr}"
+    );
+    let law = dir.path().join("law.json");
+    let alone = validate(dir.path(), &["--write-noise-model", law.to_str().unwrap()]).failure();
+    let stderr = String::from_utf8_lossy(&alone.get_output().stderr).to_string();
+    assert!(
+        stderr.contains("--write-noise-model needs the image check"),
+        "{stderr}"
+    );
+    assert!(!law.exists());
+}
+
+#[test]
+fn image_figures_do_not_depend_on_the_thread_count() {
+    let dir = tempfile::tempdir().unwrap();
+    let files = |threads: &str| {
+        let out = dir.path().join(threads);
+        layout_opt()
+            .args(["--threads", threads])
+            .args([
+                "validate",
+                WINNER,
+                "--quiet",
+                "--depth",
+                "300,450,600",
+                "--tilt",
+                "0",
+            ])
+            .args(["--offset-x", "0", "--trials", "1", "--solvers", "ml"])
+            .args([
+                "--identify-trials",
+                "0",
+                "--images",
+                "--image-trials",
+                "3",
+                "--out",
+            ])
+            .arg(&out)
+            .assert()
+            .success();
+        (
+            std::fs::read(out.join("images.csv")).unwrap(),
+            std::fs::read(out.join("images.json")).unwrap(),
+        )
+    };
+    assert_eq!(files("1"), files("2"));
+}
