@@ -69,7 +69,8 @@ pub mod workflow;
 pub use error::ExportError;
 pub use format::Format;
 pub use geometry::{
-    straight_supports, supports_for_range, Axis, GeometryError, Marker, MarkerOptions, MountHoles,
+    marker_for_range, straight_supports, supports_for_range, Axis, GeometryError, Marker,
+    MarkerOptions, MountHoles,
 };
 pub use tolerance::{datum_positions, Datum, DatumPosition, Tolerances};
 pub use trimesh::{Topology, TriangleMesh};
@@ -219,12 +220,7 @@ pub fn resolution_for(marker: &Marker, asked_mm: Option<f64>) -> Result<f64, Exp
 pub fn build(layout: &Layout, options: &ExportOptions) -> Result<Solid, ExportError> {
     let start = Instant::now();
     let marker = match &options.working_range {
-        Some(range) => {
-            let mut marker_options = options.marker.clone();
-            marker_options.working_views =
-                range.clear_views(&layout.positions(), layout.sphere_diameter_mm);
-            Marker::design(layout, &marker_options)?
-        }
+        Some(range) => marker_for_range(layout, &options.marker, range)?,
         None => Marker::design(layout, &options.marker)?,
     };
     let resolution_mm = resolution_for(&marker, options.resolution_mm)?;

@@ -3,8 +3,10 @@
 //! ([`super::images::check_pose`]), pooled into an [`ImageSummary`] beside
 //! the point-noise figures.
 //!
-//! **Setup.** The part is `export`'s default part (the spheres on their
-//! supports, [`MarkerOptions::default`]), rendered with the render
+//! **Setup.** The part is the one whose supports validate's visibility
+//! model counts: `export`'s part with validate's structure options, its
+//! supports routed for validate's own scenarios
+//! ([`crate::mesh::marker_for_range`]), rendered with the render
 //! command's defaults ([`RenderConfig::new`]) through the validation's
 //! camera; noise streams are seeded by the validation's seed, and the
 //! frame index of a scenario is its grid index, so results do not depend
@@ -31,13 +33,14 @@
 use super::config::Checked;
 use super::images::{check_pose, sigma_samples, PoseImages, WHOLE_SPHERE_HIDDEN};
 use crate::config::ConfigError;
-use crate::mesh::{Marker, MarkerOptions};
+use crate::mesh::marker_for_range;
 use crate::montecarlo::ScenarioOutcome;
 use crate::noise::calibrated::{fit, CalibratedSigma, FitQuality, SigmaSample};
 use crate::observer::{watch, Observer};
 use crate::render::{RenderConfig, RenderError, Scene};
 use crate::scenario::Scenario;
 use crate::track::TrackConfig;
+use crate::visibility::WorkingRange;
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -386,7 +389,16 @@ pub fn run_until(
     check.check()?;
     let layout = &config.layout;
     let names: Vec<String> = layout.points.iter().map(|p| p.name.clone()).collect();
-    let scene = Scene::from_marker(Marker::design(layout, &MarkerOptions::default())?);
+    // The part whose supports validate's visibility model counts: routed
+    // for validate's own scenarios, with its structure options (export's
+    // defaults under --no-supports, which the model then ignores).
+    let range = WorkingRange {
+        camera: config.camera,
+        scenarios: outcomes.iter().map(|o| o.scenario).collect(),
+        max_hidden: config.max_hidden()?,
+    };
+    let options = config.structure.clone().unwrap_or_default();
+    let scene = Scene::from_marker(marker_for_range(layout, &options, &range)?);
     let mut render = RenderConfig::new(config.camera);
     render.seed = config.monte_carlo.seed;
     let track = TrackConfig::new(layout, config.camera);

@@ -745,18 +745,27 @@ impl Router<'_> {
     }
 }
 
-/// The supports `export` would build for `layout` with `options`, routed
-/// to clear the views of `range`, as occluders for the visibility model
-/// (no mesh is made).
+/// The part `export` would build for `layout` with `options`, its supports
+/// routed to clear the views of `range` (no mesh is made).
+pub fn marker_for_range(
+    layout: &crate::layout::Layout,
+    options: &MarkerOptions,
+    range: &crate::visibility::WorkingRange,
+) -> Result<Marker, GeometryError> {
+    let mut options = options.clone();
+    options.working_views = range.clear_views(&layout.positions(), layout.sphere_diameter_mm);
+    Marker::design(layout, &options)
+}
+
+/// The supports of [`marker_for_range`], as occluders for the visibility
+/// model.
 pub fn supports_for_range(
     layout: &crate::layout::Layout,
     options: &MarkerOptions,
     range: &crate::visibility::WorkingRange,
 ) -> Result<crate::visibility::Supports, GeometryError> {
-    let mut options = options.clone();
-    options.working_views = range.clear_views(&layout.positions(), layout.sphere_diameter_mm);
     Ok(crate::visibility::Supports::new(
-        Marker::design(layout, &options)?.occluders(),
+        marker_for_range(layout, options, range)?.occluders(),
     ))
 }
 
