@@ -366,6 +366,7 @@ impl Run<'_, '_> {
         let summary = SearchSummary {
             header: SearchHeader {
                 command: config.command.clone(),
+                layout_path: config.layout_path.clone(),
                 version: env!("CARGO_PKG_VERSION").to_string(),
                 family: self.analysis.description.clone(),
                 constraints: config.constraints,
