@@ -25,7 +25,7 @@ pub fn write(dir: &Path, finished: &Finished) -> Result<(), SearchError> {
     write_summary(dir, &finished.summary)?;
     validate::report::write(&dir.join("winner-validation"), &finished.validation)?;
     if let Some(files) = &finished.front {
-        write_front(dir, files)?;
+        write_front(dir, files, &finished.summary)?;
     }
     Ok(())
 }
@@ -547,7 +547,11 @@ fn markdown(summary: &SearchSummary, table: &Table) -> String {
 /// Writes what [`front::build`] built: each member's layout file (at its entry's
 /// `layout` path, atomically), then `front.json`, `front.csv` and
 /// `front.svg` in `report_dir`.
-fn write_front(report_dir: &Path, files: &FrontFiles) -> Result<(), ReportError> {
+fn write_front(
+    report_dir: &Path,
+    files: &FrontFiles,
+    summary: &SearchSummary,
+) -> Result<(), ReportError> {
     let report = &files.report;
     for (entry, layout) in report.members.iter().zip(&files.layouts) {
         if let Some(dir) = entry.layout.parent() {
@@ -586,12 +590,19 @@ fn write_front(report_dir: &Path, files: &FrontFiles) -> Result<(), ReportError>
             });
         }
     }
-    plots::line_plot(
+    let winner = &summary.designs[0];
+    let winner_point = front::first_order(&winner.evaluation)
+        .0
+        .map(|r| (100.0 * winner.evaluation.availability, r));
+    plots::front_plot(
         &report_dir.join("front.svg"),
-        "Accuracy against availability: the front and the hand designs (better is lower and further right)",
-        "availability (% of the grid's scenarios)",
-        "first-order RMS rotation (°), search grid",
-        &series,
+        &plots::FrontPlot {
+            title: "Accuracy against availability: the front, the hand designs and the winner",
+            x_label: "availability (% of the grid's scenarios)",
+            y_label: "first-order RMS rotation (°), search grid",
+            series: &series,
+            winner: winner_point.map(|p| (winner.name.as_str(), p)),
+        },
     )?;
     Ok(())
 }
