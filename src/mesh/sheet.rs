@@ -12,7 +12,8 @@
 use super::geometry::{gltf_rotation, print_rotation, Marker};
 use super::quality::Coverage;
 use super::tolerance::{
-    datum_positions, identification_margin, pairwise_distances, Datum, DatumPosition, Tolerances,
+    datum_positions, identification_margin, pairwise_distances, Datum, DatumPosition,
+    OneImageIdentifiability, Tolerances,
 };
 use super::{write_file, ExportError, Solid};
 use nalgebra::{Matrix3, Vector3};
@@ -35,13 +36,17 @@ pub fn write(
     solid: &Solid,
     coverage: &[Coverage],
     tolerances: &Tolerances,
+    one_image: Option<OneImageIdentifiability>,
     dir: &Path,
 ) -> Result<Vec<PathBuf>, ExportError> {
     let name = solid.name();
     let md = dir.join(format!("{name}-fabrication.md"));
     let csv = dir.join(format!("{name}-fabrication.csv"));
     let svg = dir.join(format!("{name}-views.svg"));
-    write_file(&md, markdown(solid, coverage, tolerances, &svg).as_bytes())?;
+    write_file(
+        &md,
+        markdown(solid, coverage, tolerances, one_image, &svg).as_bytes(),
+    )?;
     write_file(&csv, &csv_table(&solid.marker, tolerances))?;
     let [lo, hi] = solid.report.bounds_mm;
     write_file(
@@ -68,7 +73,13 @@ fn frame_rows(rotation: &Matrix3<f64>) -> String {
     format!("({}, {}, {})", axis(0), axis(1), axis(2))
 }
 
-fn markdown(solid: &Solid, coverage: &[Coverage], tolerances: &Tolerances, svg: &Path) -> String {
+fn markdown(
+    solid: &Solid,
+    coverage: &[Coverage],
+    tolerances: &Tolerances,
+    one_image: Option<OneImageIdentifiability>,
+    svg: &Path,
+) -> String {
     let marker = &solid.marker;
     let report = &solid.report;
     let t = &report.topology;
@@ -115,7 +126,7 @@ fn markdown(solid: &Solid, coverage: &[Coverage], tolerances: &Tolerances, svg: 
         );
     }
     let _ = writeln!(md, ".");
-    let _ = write!(md, "{}", margin_warning(marker, tolerances));
+    let _ = write!(md, "{}", margin_warning(marker, tolerances, one_image));
     let _ = write!(md, "{}", tolerance_section(tolerances));
     let _ = write!(md, "{}", datum_section(marker, tolerances));
 
@@ -270,9 +281,23 @@ fn distance_change_mm(t: f64) -> f64 {
     2.0 * 3f64.sqrt() * t
 }
 
-/// The identification-margin warning (empty when the margin is ample).
-fn margin_warning(marker: &Marker, tolerances: &Tolerances) -> String {
+/// The identification-margin warning (empty when the margin is ample),
+/// or, for a design one image identifies (`one_image`, from the search
+/// that made it), a note that the margin concerns stereo trackers only.
+fn margin_warning(
+    marker: &Marker,
+    tolerances: &Tolerances,
+    one_image: Option<OneImageIdentifiability>,
+) -> String {
     let (margin, pairs) = identification_margin(marker);
+    if margin < MARGIN_WARNING_MM {
+        if let Some(one) = one_image.filter(OneImageIdentifiability::everywhere) {
+            return format!(
+                "\nOne image identifies the spheres in all {} visible scenarios of the search that made this layout (its provenance): a camera tells them apart by the image they make, not by their distances. The margin above matters only to a stereo tracker that identifies spheres by measured pairwise distances.\n",
+                one.visible
+            );
+        }
+    }
     let names = pairs.map_or(String::new(), |[a, b]| {
         format!(
             " ({} and {})",
@@ -945,6 +970,41 @@ mod tests {
         assert!((pairs[20].2 - 100.0).abs() < 1e-12);
         // Six arms of 50 mm: the margin is zero.
         assert_eq!(identification_margin(&marker).0, 0.0);
+    }
+
+    /// A design the search found identifiable from one image gets no
+    /// distance-margin warning; one it did not, or a layout that does not
+    /// say, keeps it.
+    #[test]
+    fn no_distance_warning_for_a_design_one_image_identifies() {
+        let marker = Marker::design(&Layout::paper_biprism(), &MarkerOptions::default()).unwrap();
+        let tolerances = Tolerances {
+            centre: None,
+            basis: String::new(),
+            diameter_mm: 0.1,
+            hole_position_mm: 0.2,
+        };
+        let provenance = |identifiable: usize| serde_json::json!({"identifiability": {"identifiable": identifiable, "visible": 191}});
+        let everywhere = OneImageIdentifiability::from_provenance(Some(&provenance(191)));
+        assert_eq!(
+            everywhere,
+            Some(OneImageIdentifiability {
+                identifiable: 191,
+                visible: 191
+            })
+        );
+        let text = margin_warning(&marker, &tolerances, everywhere);
+        assert!(!text.contains("Warning"), "{text}");
+        assert!(text.contains("all 191 visible scenarios"), "{text}");
+        let partly = OneImageIdentifiability::from_provenance(Some(&provenance(190)));
+        for one_image in [partly, None] {
+            let text = margin_warning(&marker, &tolerances, one_image);
+            assert!(text.contains("Warning: repeated distances"), "{text}");
+        }
+        assert_eq!(
+            OneImageIdentifiability::from_provenance(Some(&serde_json::json!({"seed": 7}))),
+            None
+        );
     }
 
     #[test]
