@@ -28,6 +28,34 @@ const ORDINATE_OFFSET_MM: f64 = 5.0;
 const ORDINATE_SPACING_MM: f64 = 3.2;
 /// Text size in the SVG, mm.
 const TEXT_MM: f64 = 4.0;
+/// The papers the views sheet is laid out on, landscape: name, width and
+/// height, mm.
+const PAPERS: [(&str, f64, f64); 2] = [("A4", 297.0, 210.0), ("A3", 420.0, 297.0)];
+/// Drawing scales tried, 1:n, largest first (ISO 5455's reductions).
+const SCALES: [f64; 4] = [1.0, 2.0, 5.0, 10.0];
+/// Blank border of the paper, mm.
+const PAGE_MARGIN_MM: f64 = 10.0;
+
+/// The paper and scale of a drawing `width` × `height` mm at 1:1: the
+/// largest scale of [`SCALES`] on the smallest paper of [`PAPERS`] it fits
+/// within the margins, or, for a drawing too large for A3 at 1:10, A3 at
+/// the scale (1:n, n whole) that fits it.
+fn page(width: f64, height: f64) -> (&'static str, f64, f64, f64) {
+    let fits = |n: f64, (_, w, h): (&str, f64, f64)| {
+        width / n <= w - 2.0 * PAGE_MARGIN_MM && height / n <= h - 2.0 * PAGE_MARGIN_MM
+    };
+    for n in SCALES {
+        if let Some(&(name, w, h)) = PAPERS.iter().find(|&&paper| fits(n, paper)) {
+            return (name, w, h, n);
+        }
+    }
+    let (name, w, h) = PAPERS[PAPERS.len() - 1];
+    let n = (width / (w - 2.0 * PAGE_MARGIN_MM))
+        .max(height / (h - 2.0 * PAGE_MARGIN_MM))
+        .ceil();
+    (name, w, h, n)
+}
+
 /// Identification margins below this are flagged in the sheet, mm.
 pub const MARGIN_WARNING_MM: f64 = 1.0;
 
@@ -617,11 +645,24 @@ fn views_svg(marker: &Marker, (lo, hi): (Vector3<f64>, Vector3<f64>)) -> String 
         })
         .fold(0.0, f64::max);
     let total_w: f64 = panel_w.iter().sum();
+    // The views side by side, with the scale's line under them, on the
+    // paper they fit at the largest standard scale.
+    let total_h = panel_h + 2.0 * TEXT_MM;
+    let (paper, paper_w, paper_h, n) = page(total_w, total_h);
     let mut svg = String::new();
     let _ = writeln!(
         svg,
-        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{:.0}mm" height="{:.0}mm" viewBox="0 0 {:.3} {:.3}" font-family="sans-serif" font-size="{TEXT_MM}">"#,
-        total_w, panel_h, total_w, panel_h
+        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{paper_w:.0}mm" height="{paper_h:.0}mm" viewBox="{:.3} {:.3} {:.3} {:.3}" font-family="sans-serif" font-size="{TEXT_MM}">"#,
+        // Centred on the paper.
+        -0.5 * (paper_w * n - total_w),
+        -0.5 * (paper_h * n - total_h),
+        paper_w * n,
+        paper_h * n
+    );
+    let _ = writeln!(
+        svg,
+        r#"<text class="scale" x="2" y="{:.3}" font-size="{TEXT_MM}">Scale 1:{n} on {paper} landscape ({paper_w:.0} × {paper_h:.0} mm): print at 100 %. Dimensions are true sizes in mm.</text>"#,
+        panel_h + 1.5 * TEXT_MM
     );
     let _ = writeln!(
         svg,
@@ -1004,6 +1045,26 @@ mod tests {
         assert_eq!(
             OneImageIdentifiability::from_provenance(Some(&serde_json::json!({"seed": 7}))),
             None
+        );
+    }
+
+    /// The views of the paper's biprism (591 mm wide side by side at 1:1)
+    /// go on A3 at 1:2, and the sheet says so.
+    #[test]
+    fn views_fit_a3_at_a_stated_scale() {
+        assert_eq!(page(250.0, 150.0), ("A4", 297.0, 210.0, 1.0));
+        assert_eq!(page(591.0, 211.0), ("A3", 420.0, 297.0, 2.0));
+        assert_eq!(page(8000.0, 100.0), ("A3", 420.0, 297.0, 20.0));
+        let marker = Marker::design(&Layout::paper_biprism(), &MarkerOptions::default()).unwrap();
+        let svg = views_svg(
+            &marker,
+            (Vector3::repeat(-60.0), Vector3::new(60.0, 60.0, 75.0)),
+        );
+        let head = svg.lines().next().unwrap();
+        assert!(head.contains(r#"width="420mm" height="297mm""#), "{head}");
+        assert!(
+            svg.contains("Scale 1:2 on A3 landscape (420 × 297 mm)"),
+            "{svg}"
         );
     }
 
