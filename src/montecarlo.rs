@@ -201,8 +201,17 @@ pub struct PoseErrorVector {
 
 impl PoseErrorVector {
     /// The error of `estimate` against `truth`.
+    ///
+    /// The rotation vector is taken through a unit quaternion, whose angle
+    /// is an `atan2`: `Rotation3::scaled_axis` takes the `acos` of
+    /// `(trace − 1) / 2`, which is NaN when a solver's rotation, a hair off
+    /// orthonormal, puts that past 1 for an error near zero (the systematic
+    /// part at zero noise, where every figure of a solver's row became NaN).
     pub fn between(truth: &crate::pose::Pose, estimate: &crate::pose::Pose) -> Self {
-        let omega = (estimate.rotation * truth.rotation.inverse()).scaled_axis();
+        let omega = nalgebra::UnitQuaternion::from_rotation_matrix(
+            &(estimate.rotation * truth.rotation.inverse()),
+        )
+        .scaled_axis();
         let dt = estimate.translation - truth.translation;
         PoseErrorVector {
             rotation_deg: [
@@ -785,6 +794,40 @@ pub fn pool<'a>(
 mod tests {
     use super::*;
     use crate::scenario::{Range, ScenarioGrid};
+
+    /// The regression case of the winner's `parallel-gn` row: a rotation a
+    /// hair off orthonormal and a micro-degree off the truth put
+    /// `(trace − 1) / 2` past 1, and the error vector was NaN.
+    #[test]
+    fn error_vector_of_a_nearly_orthonormal_rotation_is_finite() {
+        let truth = crate::pose::Pose::new(
+            nalgebra::Rotation3::from_euler_angles(0.4, -0.2, 1.1),
+            Vector3::new(5.0, -3.0, 500.0),
+        );
+        let angle_rad = 1e-6;
+        let turned =
+            nalgebra::Rotation3::from_axis_angle(&Vector3::x_axis(), angle_rad) * truth.rotation;
+        let estimate = crate::pose::Pose::new(
+            nalgebra::Rotation3::from_matrix_unchecked(turned.matrix() * (1.0 + 1e-9)),
+            truth.translation,
+        );
+        let cosine = ((estimate.rotation * truth.rotation.inverse())
+            .matrix()
+            .trace()
+            - 1.0)
+            / 2.0;
+        assert!(cosine > 1.0, "the case no longer reaches past 1: {cosine}");
+        let error = PoseErrorVector::between(&truth, &estimate);
+        assert!(
+            error.rotation_deg.iter().all(|v| v.is_finite()),
+            "{error:?}"
+        );
+        approx::assert_relative_eq!(
+            error.rotation_norm_deg(),
+            angle_rad.to_degrees(),
+            max_relative = 1e-2
+        );
+    }
 
     #[test]
     fn summary_statistics() {

@@ -38,6 +38,9 @@ pub struct ExportReport {
     pub files: Vec<WrittenFile>,
     /// The smallest difference between two pairwise sphere distances, mm.
     pub identification_margin_mm: f64,
+    /// Whether one image identifies the spheres, from the layout's
+    /// provenance (the search that made it); None when it does not say.
+    pub one_image_identifiability: Option<tolerance::OneImageIdentifiability>,
     /// How much the marker hides each sphere, in the main view and over
     /// the view cone.
     pub main_view_coverage: Vec<quality::Coverage>,
@@ -123,6 +126,9 @@ pub fn analyse(layout: &Layout, options: &ExportOptions) -> Result<Analysis, Exp
         mesh: solid.report.clone(),
         files: Vec::new(),
         identification_margin_mm: tolerance::identification_margin(&solid.marker).0,
+        one_image_identifiability: tolerance::OneImageIdentifiability::from_provenance(
+            layout.provenance.as_ref(),
+        ),
         main_view_coverage: coverage,
         view_cone_deg: options.marker.view_cone_deg,
         occlusion_allowed: options.allow_occlusion,

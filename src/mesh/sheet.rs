@@ -12,7 +12,8 @@
 use super::geometry::{gltf_rotation, print_rotation, Marker};
 use super::quality::Coverage;
 use super::tolerance::{
-    datum_positions, identification_margin, pairwise_distances, Datum, DatumPosition, Tolerances,
+    datum_positions, identification_margin, pairwise_distances, Datum, DatumPosition,
+    OneImageIdentifiability, Tolerances,
 };
 use super::{write_file, ExportError, Solid};
 use nalgebra::{Matrix3, Vector3};
@@ -27,6 +28,34 @@ const ORDINATE_OFFSET_MM: f64 = 5.0;
 const ORDINATE_SPACING_MM: f64 = 3.2;
 /// Text size in the SVG, mm.
 const TEXT_MM: f64 = 4.0;
+/// The papers the views sheet is laid out on, landscape: name, width and
+/// height, mm.
+const PAPERS: [(&str, f64, f64); 2] = [("A4", 297.0, 210.0), ("A3", 420.0, 297.0)];
+/// Drawing scales tried, 1:n, largest first (ISO 5455's reductions).
+const SCALES: [f64; 4] = [1.0, 2.0, 5.0, 10.0];
+/// Blank border of the paper, mm.
+const PAGE_MARGIN_MM: f64 = 10.0;
+
+/// The paper and scale of a drawing `width` × `height` mm at 1:1: the
+/// largest scale of [`SCALES`] on the smallest paper of [`PAPERS`] it fits
+/// within the margins, or, for a drawing too large for A3 at 1:10, A3 at
+/// the scale (1:n, n whole) that fits it.
+fn page(width: f64, height: f64) -> (&'static str, f64, f64, f64) {
+    let fits = |n: f64, (_, w, h): (&str, f64, f64)| {
+        width / n <= w - 2.0 * PAGE_MARGIN_MM && height / n <= h - 2.0 * PAGE_MARGIN_MM
+    };
+    for n in SCALES {
+        if let Some(&(name, w, h)) = PAPERS.iter().find(|&&paper| fits(n, paper)) {
+            return (name, w, h, n);
+        }
+    }
+    let (name, w, h) = PAPERS[PAPERS.len() - 1];
+    let n = (width / (w - 2.0 * PAGE_MARGIN_MM))
+        .max(height / (h - 2.0 * PAGE_MARGIN_MM))
+        .ceil();
+    (name, w, h, n)
+}
+
 /// Identification margins below this are flagged in the sheet, mm.
 pub const MARGIN_WARNING_MM: f64 = 1.0;
 
@@ -35,13 +64,17 @@ pub fn write(
     solid: &Solid,
     coverage: &[Coverage],
     tolerances: &Tolerances,
+    one_image: Option<OneImageIdentifiability>,
     dir: &Path,
 ) -> Result<Vec<PathBuf>, ExportError> {
     let name = solid.name();
     let md = dir.join(format!("{name}-fabrication.md"));
     let csv = dir.join(format!("{name}-fabrication.csv"));
     let svg = dir.join(format!("{name}-views.svg"));
-    write_file(&md, markdown(solid, coverage, tolerances, &svg).as_bytes())?;
+    write_file(
+        &md,
+        markdown(solid, coverage, tolerances, one_image, &svg).as_bytes(),
+    )?;
     write_file(&csv, &csv_table(&solid.marker, tolerances))?;
     let [lo, hi] = solid.report.bounds_mm;
     write_file(
@@ -68,7 +101,13 @@ fn frame_rows(rotation: &Matrix3<f64>) -> String {
     format!("({}, {}, {})", axis(0), axis(1), axis(2))
 }
 
-fn markdown(solid: &Solid, coverage: &[Coverage], tolerances: &Tolerances, svg: &Path) -> String {
+fn markdown(
+    solid: &Solid,
+    coverage: &[Coverage],
+    tolerances: &Tolerances,
+    one_image: Option<OneImageIdentifiability>,
+    svg: &Path,
+) -> String {
     let marker = &solid.marker;
     let report = &solid.report;
     let t = &report.topology;
@@ -115,7 +154,7 @@ fn markdown(solid: &Solid, coverage: &[Coverage], tolerances: &Tolerances, svg: 
         );
     }
     let _ = writeln!(md, ".");
-    let _ = write!(md, "{}", margin_warning(marker, tolerances));
+    let _ = write!(md, "{}", margin_warning(marker, tolerances, one_image));
     let _ = write!(md, "{}", tolerance_section(tolerances));
     let _ = write!(md, "{}", datum_section(marker, tolerances));
 
@@ -270,9 +309,23 @@ fn distance_change_mm(t: f64) -> f64 {
     2.0 * 3f64.sqrt() * t
 }
 
-/// The identification-margin warning (empty when the margin is ample).
-fn margin_warning(marker: &Marker, tolerances: &Tolerances) -> String {
+/// The identification-margin warning (empty when the margin is ample),
+/// or, for a design one image identifies (`one_image`, from the search
+/// that made it), a note that the margin concerns stereo trackers only.
+fn margin_warning(
+    marker: &Marker,
+    tolerances: &Tolerances,
+    one_image: Option<OneImageIdentifiability>,
+) -> String {
     let (margin, pairs) = identification_margin(marker);
+    if margin < MARGIN_WARNING_MM {
+        if let Some(one) = one_image.filter(OneImageIdentifiability::everywhere) {
+            return format!(
+                "\nOne image identifies the spheres in all {} visible scenarios of the search that made this layout (its provenance): a camera tells them apart by the image they make, not by their distances. The margin above matters only to a stereo tracker that identifies spheres by measured pairwise distances.\n",
+                one.visible
+            );
+        }
+    }
     let names = pairs.map_or(String::new(), |[a, b]| {
         format!(
             " ({} and {})",
@@ -592,11 +645,24 @@ fn views_svg(marker: &Marker, (lo, hi): (Vector3<f64>, Vector3<f64>)) -> String 
         })
         .fold(0.0, f64::max);
     let total_w: f64 = panel_w.iter().sum();
+    // The views side by side, with the scale's line under them, on the
+    // paper they fit at the largest standard scale.
+    let total_h = panel_h + 2.0 * TEXT_MM;
+    let (paper, paper_w, paper_h, n) = page(total_w, total_h);
     let mut svg = String::new();
     let _ = writeln!(
         svg,
-        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{:.0}mm" height="{:.0}mm" viewBox="0 0 {:.3} {:.3}" font-family="sans-serif" font-size="{TEXT_MM}">"#,
-        total_w, panel_h, total_w, panel_h
+        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{paper_w:.0}mm" height="{paper_h:.0}mm" viewBox="{:.3} {:.3} {:.3} {:.3}" font-family="sans-serif" font-size="{TEXT_MM}">"#,
+        // Centred on the paper.
+        -0.5 * (paper_w * n - total_w),
+        -0.5 * (paper_h * n - total_h),
+        paper_w * n,
+        paper_h * n
+    );
+    let _ = writeln!(
+        svg,
+        r#"<text class="scale" x="2" y="{:.3}" font-size="{TEXT_MM}">Scale 1:{n} on {paper} landscape ({paper_w:.0} × {paper_h:.0} mm): print at 100 %. Dimensions are true sizes in mm.</text>"#,
+        panel_h + 1.5 * TEXT_MM
     );
     let _ = writeln!(
         svg,
@@ -945,6 +1011,61 @@ mod tests {
         assert!((pairs[20].2 - 100.0).abs() < 1e-12);
         // Six arms of 50 mm: the margin is zero.
         assert_eq!(identification_margin(&marker).0, 0.0);
+    }
+
+    /// A design the search found identifiable from one image gets no
+    /// distance-margin warning; one it did not, or a layout that does not
+    /// say, keeps it.
+    #[test]
+    fn no_distance_warning_for_a_design_one_image_identifies() {
+        let marker = Marker::design(&Layout::paper_biprism(), &MarkerOptions::default()).unwrap();
+        let tolerances = Tolerances {
+            centre: None,
+            basis: String::new(),
+            diameter_mm: 0.1,
+            hole_position_mm: 0.2,
+        };
+        let provenance = |identifiable: usize| serde_json::json!({"identifiability": {"identifiable": identifiable, "visible": 191}});
+        let everywhere = OneImageIdentifiability::from_provenance(Some(&provenance(191)));
+        assert_eq!(
+            everywhere,
+            Some(OneImageIdentifiability {
+                identifiable: 191,
+                visible: 191
+            })
+        );
+        let text = margin_warning(&marker, &tolerances, everywhere);
+        assert!(!text.contains("Warning"), "{text}");
+        assert!(text.contains("all 191 visible scenarios"), "{text}");
+        let partly = OneImageIdentifiability::from_provenance(Some(&provenance(190)));
+        for one_image in [partly, None] {
+            let text = margin_warning(&marker, &tolerances, one_image);
+            assert!(text.contains("Warning: repeated distances"), "{text}");
+        }
+        assert_eq!(
+            OneImageIdentifiability::from_provenance(Some(&serde_json::json!({"seed": 7}))),
+            None
+        );
+    }
+
+    /// The views of the paper's biprism (591 mm wide side by side at 1:1)
+    /// go on A3 at 1:2, and the sheet says so.
+    #[test]
+    fn views_fit_a3_at_a_stated_scale() {
+        assert_eq!(page(250.0, 150.0), ("A4", 297.0, 210.0, 1.0));
+        assert_eq!(page(591.0, 211.0), ("A3", 420.0, 297.0, 2.0));
+        assert_eq!(page(8000.0, 100.0), ("A3", 420.0, 297.0, 20.0));
+        let marker = Marker::design(&Layout::paper_biprism(), &MarkerOptions::default()).unwrap();
+        let svg = views_svg(
+            &marker,
+            (Vector3::repeat(-60.0), Vector3::new(60.0, 60.0, 75.0)),
+        );
+        let head = svg.lines().next().unwrap();
+        assert!(head.contains(r#"width="420mm" height="297mm""#), "{head}");
+        assert!(
+            svg.contains("Scale 1:2 on A3 landscape (420 × 297 mm)"),
+            "{svg}"
+        );
     }
 
     #[test]

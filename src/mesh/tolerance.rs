@@ -120,6 +120,36 @@ pub const DIAMETER_TOLERANCE_MM: f64 = 0.2;
 /// Hole position tolerance, ± mm: for mounting only.
 pub const HOLE_TOLERANCE_MM: f64 = 0.2;
 
+/// Whether one image identifies the spheres, as the search that made the
+/// layout found it (its provenance's `identifiability`): the unlabelled
+/// solver labels the blobs correctly in `identifiable` of the `visible`
+/// scenarios of the search's working volume.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+pub struct OneImageIdentifiability {
+    /// Visible scenarios in which one image identifies the spheres.
+    pub identifiable: usize,
+    /// Visible scenarios checked.
+    pub visible: usize,
+}
+
+impl OneImageIdentifiability {
+    /// Reads it from a layout's provenance (None when the layout does not
+    /// record it, or records it incompletely).
+    pub fn from_provenance(provenance: Option<&serde_json::Value>) -> Option<Self> {
+        let record = provenance?.get("identifiability")?;
+        let count = |key: &str| record.get(key)?.as_u64().map(|v| v as usize);
+        Some(OneImageIdentifiability {
+            identifiable: count("identifiable")?,
+            visible: count("visible")?,
+        })
+    }
+
+    /// Every visible scenario (at least one) identifiable.
+    pub fn everywhere(&self) -> bool {
+        self.visible > 0 && self.identifiable == self.visible
+    }
+}
+
 /// The tolerances the sheet gives.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Tolerances {

@@ -113,6 +113,7 @@ fn export_observed(
         &solid,
         &report.main_view_coverage,
         &report.tolerances,
+        report.one_image_identifiability,
         &staging,
     )?;
     let seconds = start.elapsed().as_secs_f64();

@@ -19,8 +19,10 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 mod availability;
+mod front;
 mod legend;
 mod panels;
+pub use front::{front_plot, FrontPlot};
 use legend::{draw_legend, legend_width, Entry};
 pub use panels::{
     panel_plot, solver_group, BandedSeries, LinePanel, MAX_SERIES_PER_PANEL, SOLVER_GROUPS,

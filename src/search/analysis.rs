@@ -366,6 +366,7 @@ impl Run<'_, '_> {
         let summary = SearchSummary {
             header: SearchHeader {
                 command: config.command.clone(),
+                layout_path: config.layout_path.clone(),
                 version: env!("CARGO_PKG_VERSION").to_string(),
                 family: self.analysis.description.clone(),
                 constraints: config.constraints,
@@ -523,6 +524,20 @@ impl Run<'_, '_> {
         provenance["score"] = cost.into();
         provenance["status"] = STATUS_FINISHED.into();
         provenance["evaluations"] = outcome.evaluations.into();
+        // Checked on every visible scenario: export reads it to tell a
+        // design identified from one image from one that needs distances.
+        if let Some(f) = outcome
+            .best
+            .evaluation
+            .identifiability
+            .as_ref()
+            .filter(|f| f.all_checked)
+        {
+            provenance["identifiability"] = serde_json::json!({
+                "identifiable": f.identifiable,
+                "visible": f.checked,
+            });
+        }
         winner.provenance = Some(provenance);
         Ok(winner)
     }

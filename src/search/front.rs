@@ -301,7 +301,9 @@ pub struct FrontReport {
 /// The method, in words, for the reports.
 pub const METHOD: &str = "ε-constraint sweep: the search rerun with the availability floor raised in equal steps from the availability of the most accurate layout (no floor) towards 1, then with the weighted blend at availability weights 0.5, 1, 2 and 4, each level warm-started from the two front members so far that score best under its objective plus the family's natural and spread starts; the floor is an exact penalty (100 per unit of missing availability, counted exactly and softly) and ranks layouts below it behind every layout above it; only layouts meeting the constraints enter, and the non-dominated ones form the front";
 
-fn first_order(evaluation: &Evaluation) -> (Option<f64>, Option<f64>) {
+/// The first-order RMS rotation and translation of an evaluation (its
+/// first term's), as the front and its plot show them.
+pub(super) fn first_order(evaluation: &Evaluation) -> (Option<f64>, Option<f64>) {
     evaluation
         .terms
         .first()

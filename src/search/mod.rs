@@ -113,7 +113,9 @@ pub use identify::{
 pub use optimise::{
     Candidate, OptimiseError, OptimiseOutcome, Optimiser, SearchSettings, FINAL_POLISH_STARTS,
 };
-pub use summary::{HeldOutCheck, IdentifyBooks, SearchHeader, SearchSummary, Verdicts};
+pub use summary::{
+    ClosestDesign, HeldOutCheck, IdentifyBooks, SearchHeader, SearchSummary, Verdicts,
+};
 
 use crate::camera::Camera;
 use crate::error_model::first_order::{pose_covariance, pose_covariance_and_bias};

@@ -25,7 +25,7 @@ pub fn write(dir: &Path, finished: &Finished) -> Result<(), SearchError> {
     write_summary(dir, &finished.summary)?;
     validate::report::write(&dir.join("winner-validation"), &finished.validation)?;
     if let Some(files) = &finished.front {
-        write_front(dir, files)?;
+        write_front(dir, files, &finished.summary)?;
     }
     Ok(())
 }
@@ -229,12 +229,91 @@ fn identifiability_markdown(summary: &SearchSummary) -> String {
     out
 }
 
+/// The report's first lines: what won, by how much against the paper's
+/// biprism (accuracy, availability, identifiability), under which command,
+/// and where its layout is.
+fn answer_markdown(summary: &SearchSummary) -> String {
+    let mut out = String::new();
+    let h = &summary.header;
+    let v = &summary.verdicts;
+    let winner = &summary.designs[0];
+    let w = &winner.evaluation;
+    let closest = v.closest_hand_design.as_ref().map_or(String::new(), |c| {
+        format!(
+            ": the hand design `{1}` with no sphere more than {0} mm from its place (after the rigid motion that best maps one onto the other; `{1}` is the closest hand design)",
+            significant(Some(c.largest_shift_mm), 3),
+            c.name
+        )
+    });
+    let _ = writeln!(
+        out,
+        "**Answer.** The {} is `{}` ({} spheres of {} mm){closest}.",
+        if summary.outcome.interrupted {
+            "best layout of an **interrupted** search"
+        } else {
+            "search's winner"
+        },
+        winner.name,
+        winner.layout.points.len(),
+        winner.layout.sphere_diameter_mm
+    );
+    let Some(paper) = summary.designs.iter().find(|d| d.name == v.paper_design) else {
+        return out + "\n";
+    };
+    let p = &paper.evaluation;
+    let _ = writeln!(
+        out,
+        "Against the paper's biprism (`{}`) on the same {} scenarios:\n",
+        paper.name,
+        h.volume.len()
+    );
+    let reductions: Vec<String> = h
+        .comparison_seeds
+        .iter()
+        .zip(&v.rotation_reduction_vs_paper_percent)
+        .map(|(seed, r)| format!("{} (seed {seed})", percent_lower(*r)))
+        .collect();
+    let common = paper
+        .monte_carlo
+        .first()
+        .map_or(0, |mc| mc.common.scenarios);
+    let _ = writeln!(
+        out,
+        "- **accuracy**: first-order error {} × the paper's biprism's; Monte-Carlo RMS rotation with `{}` {} on the {common} scenarios both see{}",
+        significant(Some(w.accuracy / p.accuracy), 3),
+        h.comparison_solver,
+        reductions.join(", "),
+        match summary.held_out.rotation_reduction_percent {
+            Some(r) => format!("; {} on a held-out grid", percent_lower(r)),
+            None => String::new(),
+        }
+    );
+    let _ = writeln!(
+        out,
+        "- **availability** (every sphere visible): {:.1}% of the scenarios against {:.1}% ({:+.1} points)",
+        100.0 * w.availability,
+        100.0 * p.availability,
+        v.availability_difference_pp
+    );
+    if let (Some(wi), Some(pi)) = (&w.identifiability, &p.identifiability) {
+        let _ = writeln!(
+            out,
+            "- **identifiable from one image**: {} of {} visible scenarios against {} of {}",
+            wi.identifiable, wi.checked, pi.identifiable, pi.checked
+        );
+    }
+    let _ = writeln!(out, "- **command**: `{}`", h.command);
+    let _ = writeln!(out, "- **layout file**: `{}`\n", h.layout_path.display());
+    out
+}
+
 fn markdown(summary: &SearchSummary, table: &Table) -> String {
     let h = &summary.header;
     let o = &summary.outcome;
     let v = &summary.verdicts;
     let mut out = String::new();
     let _ = writeln!(out, "# Search report: {}\n", summary.designs[0].layout.name);
+    out.push_str(&answer_markdown(summary));
     let _ = writeln!(out, "| | |\n|---|---|");
     let _ = writeln!(out, "| command | `{}` |", h.command);
     let _ = writeln!(out, "| layout-opt | {} |", h.version);
@@ -468,7 +547,11 @@ fn markdown(summary: &SearchSummary, table: &Table) -> String {
 /// Writes what [`front::build`] built: each member's layout file (at its entry's
 /// `layout` path, atomically), then `front.json`, `front.csv` and
 /// `front.svg` in `report_dir`.
-fn write_front(report_dir: &Path, files: &FrontFiles) -> Result<(), ReportError> {
+fn write_front(
+    report_dir: &Path,
+    files: &FrontFiles,
+    summary: &SearchSummary,
+) -> Result<(), ReportError> {
     let report = &files.report;
     for (entry, layout) in report.members.iter().zip(&files.layouts) {
         if let Some(dir) = entry.layout.parent() {
@@ -507,12 +590,19 @@ fn write_front(report_dir: &Path, files: &FrontFiles) -> Result<(), ReportError>
             });
         }
     }
-    plots::line_plot(
+    let winner = &summary.designs[0];
+    let winner_point = front::first_order(&winner.evaluation)
+        .0
+        .map(|r| (100.0 * winner.evaluation.availability, r));
+    plots::front_plot(
         &report_dir.join("front.svg"),
-        "Accuracy against availability: the front and the hand designs (better is lower and further right)",
-        "availability (% of the grid's scenarios)",
-        "first-order RMS rotation (°), search grid",
-        &series,
+        &plots::FrontPlot {
+            title: "Accuracy against availability: the front, the hand designs and the winner",
+            x_label: "availability (% of the grid's scenarios)",
+            y_label: "first-order RMS rotation (°), search grid",
+            series: &series,
+            winner: winner_point.map(|p| (winner.name.as_str(), p)),
+        },
     )?;
     Ok(())
 }

@@ -12,6 +12,7 @@ use crate::camera::Camera;
 use crate::family::Constraints;
 use crate::scenario::ScenarioGrid;
 use crate::volume::WorkingVolume;
+use nalgebra::Vector3;
 use serde::Serialize;
 
 /// Provenance of a search.
@@ -19,6 +20,8 @@ use serde::Serialize;
 pub struct SearchHeader {
     /// The command line.
     pub command: String,
+    /// Where the winning layout was written (as the command named it).
+    pub layout_path: std::path::PathBuf,
     /// layout-opt version.
     pub version: String,
     /// The family, with its options.
@@ -88,6 +91,62 @@ pub struct Verdicts {
     /// Whether the winner meets the identifiability floor on every visible
     /// scenario (None: no floor).
     pub winner_meets_identifiability_floor: Option<bool>,
+    /// The name of the paper's biprism's row, the design every comparison
+    /// is against.
+    pub paper_design: String,
+    /// The hand design the winner is closest to (same sphere count), when
+    /// one has as many spheres.
+    pub closest_hand_design: Option<ClosestDesign>,
+}
+
+/// How far the winner's spheres are from a hand design's.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ClosestDesign {
+    /// The hand design's name.
+    pub name: String,
+    /// The largest distance from a winner sphere to the hand design's
+    /// sphere it is paired with, after the rigid motion that best
+    /// (least squares) maps the winner onto the hand design, under the
+    /// pairing that makes this distance smallest, mm.
+    pub largest_shift_mm: f64,
+}
+
+/// Most spheres a layout may have for [`largest_shift_mm`] to pair them
+/// (it tries every pairing: 8! = 40 320).
+const MAX_PAIRED_SPHERES: usize = 8;
+
+/// The smallest, over pairings of `a`'s points with `b`'s, of the largest
+/// distance between paired points once `a` is moved rigidly onto `b`
+/// (least squares), mm: how far `a` is from being `b` seen another way.
+/// None when the counts differ, are below 3 or exceed
+/// [`MAX_PAIRED_SPHERES`].
+fn largest_shift_mm(a: &[Vector3<f64>], b: &[Vector3<f64>]) -> Option<f64> {
+    fn pairings(a: &[Vector3<f64>], b: &[Vector3<f64>], order: &mut Vec<usize>, best: &mut f64) {
+        if order.len() == b.len() {
+            let paired = || order.iter().map(|&k| b[k]);
+            let motion = crate::pose::absolute_orientation(a.iter().copied(), paired());
+            let worst = a
+                .iter()
+                .zip(paired())
+                .map(|(p, q)| (motion.rotation * p + motion.translation - q).norm())
+                .fold(0.0, f64::max);
+            *best = best.min(worst);
+            return;
+        }
+        for k in 0..b.len() {
+            if !order.contains(&k) {
+                order.push(k);
+                pairings(a, b, order, best);
+                order.pop();
+            }
+        }
+    }
+    if a.len() != b.len() || a.len() < 3 || a.len() > MAX_PAIRED_SPHERES {
+        return None;
+    }
+    let mut best = f64::INFINITY;
+    pairings(a, b, &mut Vec::with_capacity(b.len()), &mut best);
+    Some(best)
 }
 
 /// First-order figures of the winner and the paper's biprism on a held-out
@@ -222,6 +281,17 @@ pub fn verdicts(
             .identifiability
             .as_ref()
             .map(|f| f.meets_floor()),
+        paper_design: paper.name.clone(),
+        closest_hand_design: rows[hand]
+            .iter()
+            .filter_map(|r| {
+                let shift = largest_shift_mm(&winner.layout.positions(), &r.layout.positions())?;
+                Some(ClosestDesign {
+                    name: r.name.clone(),
+                    largest_shift_mm: shift,
+                })
+            })
+            .min_by(|x, y| x.largest_shift_mm.total_cmp(&y.largest_shift_mm)),
     }
 }
 
@@ -283,4 +353,35 @@ fn grid_text(grid: &ScenarioGrid) -> String {
         })
         .collect::<Vec<_>>()
         .join("; ")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::Rotation3;
+
+    #[test]
+    fn largest_shift_pairs_points_in_any_order_and_pose() {
+        let a = [
+            Vector3::new(0.0, 0.0, 0.0),
+            Vector3::new(10.0, 0.0, 0.0),
+            Vector3::new(0.0, 10.0, 0.0),
+        ];
+        // b is a, reordered, with one point moved by 2 mm and one by 1 mm.
+        let b = [
+            Vector3::new(0.0, 12.0, 0.0),
+            Vector3::new(0.0, 0.0, 0.0),
+            Vector3::new(10.0, 0.0, 1.0),
+        ];
+        let shift = largest_shift_mm(&a, &b).unwrap();
+        assert!(shift > 0.5 && shift < 2.0, "{shift}");
+        // The same points, reordered, turned and moved: no shift.
+        let turn = Rotation3::from_euler_angles(0.3, -1.2, 2.0);
+        let moved: Vec<Vector3<f64>> = [2, 0, 1]
+            .iter()
+            .map(|&k| turn * a[k] + Vector3::new(5.0, -7.0, 1.0))
+            .collect();
+        assert!(largest_shift_mm(&a, &moved).unwrap() < 1e-9);
+        assert_eq!(largest_shift_mm(&a, &b[..2]), None);
+    }
 }

@@ -518,12 +518,64 @@ fn systematic_markdown(s: &Systematic, observation: &str) -> String {
     }
     out.push_str(&table.markdown());
     out.push('\n');
+    for (solver, errors) in &s.solvers {
+        let failed = s.scenarios.saturating_sub(errors.scenarios);
+        if failed == 0 {
+            continue;
+        }
+        let _ = if errors.scenarios == 0 {
+            writeln!(
+                out,
+                "`{solver}` returned no pose on any of the {} scenarios at zero noise, so its row has no figures (—).\n",
+                s.scenarios
+            )
+        } else {
+            writeln!(
+                out,
+                "`{solver}` returned no pose at zero noise on {failed} of the {} scenarios; its row pools the {} it solved.\n",
+                s.scenarios, errors.scenarios
+            )
+        };
+    }
     out
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_solver_without_a_pose_on_some_scenarios_says_so() {
+        let solved = AxisErrors {
+            scenarios: 4,
+            ..AxisErrors::default()
+        };
+        let systematic = Systematic {
+            scenarios: 4,
+            solvers: vec![
+                ("parallel-weighted".into(), solved),
+                (
+                    "epnp-gn".into(),
+                    AxisErrors {
+                        scenarios: 3,
+                        ..solved
+                    },
+                ),
+                ("parallel-gn".into(), AxisErrors::default()),
+            ],
+            ..Systematic::default()
+        };
+        let text = systematic_markdown(&systematic, "centre");
+        assert!(!text.contains("`parallel-weighted` returned"), "{text}");
+        assert!(
+            text.contains("`epnp-gn` returned no pose at zero noise on 1 of the 4 scenarios; its row pools the 3 it solved."),
+            "{text}"
+        );
+        assert!(
+            text.contains("`parallel-gn` returned no pose on any of the 4 scenarios at zero noise, so its row has no figures (—)."),
+            "{text}"
+        );
+    }
 
     #[test]
     fn axis_table_merges_runs_of_equal_counts() {

@@ -513,3 +513,101 @@ fn the_committed_solver_heatmaps_are_colour_blind_safe() {
         .collect();
     assert!(found.is_empty(), "{}", found.join("\n"));
 }
+
+#[test]
+fn the_front_plot_is_linear_padded_and_marks_the_winner() {
+    use layout_opt::report::plots::{front_plot, FrontPlot, Series};
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("front.svg");
+    let point = |name: &str, x: f64, y: f64| Series {
+        name: name.into(),
+        points: vec![(x, y)],
+        dashed: false,
+    };
+    let series = [
+        Series {
+            name: "Pareto front (search)".into(),
+            points: vec![
+                (55.6, 0.1988),
+                (77.8, 0.1997),
+                (88.9, 0.2021),
+                (100.0, 0.2417),
+            ],
+            dashed: false,
+        },
+        point("paper-biprism", 68.9, 0.3631),
+        point("seven-cube-corners", 60.0, 0.2023),
+        point("tetrahedron-with-centre", 77.8, 0.2591),
+    ];
+    front_plot(
+        &path,
+        &FrontPlot {
+            title: "front",
+            x_label: "availability (%)",
+            y_label: "RMS rotation (°)",
+            series: &series,
+            winner: Some(("biprism-search", (71.1, 0.2008))),
+        },
+    )
+    .unwrap();
+    assert_eq!(problems(&path), Vec::<String>::new());
+    let svg = std::fs::read_to_string(&path).unwrap();
+    let (_, all) = texts(&svg);
+    // A linear y axis: its labelled ticks are evenly spaced.
+    let mut ticks: Vec<f64> = all
+        .iter()
+        .filter(|t| t.class == "tick-y")
+        .map(|t| t.content.parse().unwrap())
+        .collect();
+    ticks.sort_by(f64::total_cmp);
+    assert!(ticks.len() >= 3, "{ticks:?}");
+    let step = ticks[1] - ticks[0];
+    assert!(
+        ticks.windows(2).all(|w| (w[1] - w[0] - step).abs() < 1e-9),
+        "y ticks not linear: {ticks:?}"
+    );
+    // The winner is named on the plot and in the legend; the better corner
+    // is marked.
+    for (class, content) in [
+        ("point-label", "winner: biprism-search"),
+        ("legend", "winner: biprism-search"),
+        ("note", "better"),
+    ] {
+        assert!(
+            all.iter().any(|t| t.class == class && t.content == content),
+            "no {class} text {content:?}"
+        );
+    }
+    // Every marker sits inside the frame, off its lines (the axes are
+    // padded): the frame is the area's black rectangle.
+    let frame = svg
+        .split('<')
+        .find(|t| t.starts_with("rect") && t.contains(r##"fill="none" stroke="#000000""##))
+        .unwrap();
+    let (left, top) = (number(frame, "x"), number(frame, "y"));
+    let (right, bottom) = (left + number(frame, "width"), top + number(frame, "height"));
+    let mut centres = Vec::new();
+    for tag in svg.split('<') {
+        if tag.starts_with("circle") && !tag.contains("class=") {
+            centres.push((number(tag, "cx"), number(tag, "cy")));
+        } else if tag.starts_with("polygon") && !tag.contains("class=") {
+            let points: Vec<f64> = attribute(tag, "points")
+                .unwrap()
+                .split([' ', ','])
+                .map(|v| v.parse().unwrap())
+                .collect();
+            let n = (points.len() / 2) as f64;
+            let sum = |k: usize| points.iter().skip(k).step_by(2).sum::<f64>() / n;
+            centres.push((sum(0), sum(1)));
+        }
+    }
+    // The legend's markers stand to the right of the frame.
+    centres.retain(|&(x, _)| x < right + 8.0);
+    assert!(centres.len() >= 7, "{centres:?}");
+    for (x, y) in centres {
+        assert!(
+            x > left + 5.0 && x < right - 5.0 && y > top + 5.0 && y < bottom - 5.0,
+            "a marker at ({x}, {y}) sits on the frame ({left}, {top}, {right}, {bottom})"
+        );
+    }
+}

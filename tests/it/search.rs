@@ -98,6 +98,36 @@ fn search_writes_a_valid_layout_and_a_report() {
         "winner {winner} worse than its start {start}"
     );
     assert!(summary["verdicts"]["winner_feasible"].as_bool().unwrap());
+    // The report leads with the answer, from the summary's figures: the
+    // winner, its availability against the paper's biprism's, the command
+    // and the layout file, all before the provenance table.
+    let lead = report
+        .split("| | |")
+        .next()
+        .unwrap()
+        .split_once('\n')
+        .unwrap()
+        .1;
+    let availability =
+        |k: usize| 100.0 * designs[k]["evaluation"]["availability"].as_f64().unwrap();
+    let layout_file = dir.path().join("t.json").display().to_string();
+    for needle in [
+        "**Answer.** The search's winner is `t` (7 spheres",
+        "Against the paper's biprism (`paper-biprism`)",
+        "first-order error ",
+        &format!(
+            "{:.1}% of the scenarios against {:.1}%",
+            availability(0),
+            availability(2)
+        ),
+        "- **command**: `layout-opt search",
+        &format!("- **layout file**: `{layout_file}`"),
+    ] {
+        assert!(
+            lead.contains(needle),
+            "the report's lead lacks {needle:?}:\n{lead}"
+        );
+    }
 }
 
 #[test]
