@@ -31,7 +31,9 @@
 //! first-order prediction.
 
 use super::config::Checked;
-use super::images::{check_pose, sigma_samples, PoseImages, WHOLE_SPHERE_HIDDEN};
+use super::images::{
+    check_pose, sigma_samples, sphere_views, PoseImages, SphereView, WHOLE_SPHERE_HIDDEN,
+};
 use crate::config::ConfigError;
 use crate::mesh::marker_for_range;
 use crate::montecarlo::ScenarioOutcome;
@@ -263,57 +265,6 @@ pub struct ImageSummary {
     /// Per scenario, in grid order (`images.csv`; not in `summary.json`).
     #[serde(skip)]
     pub per_scenario: Vec<ScenarioImages>,
-}
-
-/// One sphere view's figures.
-struct SphereView {
-    sphere: usize,
-    radius_px: f64,
-    hidden: f64,
-    centres: usize,
-    mean: [f64; 2],
-    spread: f64,
-}
-
-impl SphereView {
-    fn bias_px(&self) -> f64 {
-        self.mean[0].hypot(self.mean[1])
-    }
-    fn sigma_px(&self) -> f64 {
-        (self.spread / (2.0 * (self.centres as f64 - 1.0))).sqrt()
-    }
-}
-
-fn sphere_views(images: &PoseImages) -> Vec<SphereView> {
-    (0..images.radius_px.len())
-        .filter_map(|sphere| {
-            let errors: Vec<[f64; 2]> = images
-                .centres
-                .iter()
-                .filter(|c| c.sphere == sphere)
-                .map(|c| c.error_px)
-                .collect();
-            if errors.len() < 2 {
-                return None;
-            }
-            let n = errors.len() as f64;
-            let mean = errors
-                .iter()
-                .fold([0.0; 2], |m, e| [m[0] + e[0] / n, m[1] + e[1] / n]);
-            let spread = errors
-                .iter()
-                .map(|e| (e[0] - mean[0]).powi(2) + (e[1] - mean[1]).powi(2))
-                .sum();
-            Some(SphereView {
-                sphere,
-                radius_px: images.radius_px[sphere],
-                hidden: images.hidden[sphere],
-                centres: errors.len(),
-                mean,
-                spread,
-            })
-        })
-        .collect()
 }
 
 /// Pooled σ of sphere views (module docs), NaN when none.

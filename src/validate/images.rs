@@ -194,23 +194,49 @@ fn lost_reason(message: &str) -> String {
         .to_string()
 }
 
-/// One σ measurement per whole sphere of each pose (module docs); spheres
-/// with fewer than two centres give none.
-pub fn sigma_samples(poses: &[PoseImages]) -> Vec<SigmaSample> {
-    let mut samples = Vec::new();
-    for pose in poses {
-        for (sphere, (&radius_px, &hidden)) in pose.radius_px.iter().zip(&pose.hidden).enumerate() {
-            if hidden >= WHOLE_SPHERE_HIDDEN {
-                continue;
-            }
-            let errors: Vec<[f64; 2]> = pose
+/// One sphere of one pose with at least two labelled centres: their mean
+/// error and spread.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SphereView {
+    /// The sphere (layout order).
+    pub sphere: usize,
+    /// Its disc radius, px.
+    pub radius_px: f64,
+    /// The fraction of its silhouette hidden (every cause).
+    pub hidden: f64,
+    /// Labelled centres.
+    pub centres: usize,
+    /// Mean centre error (the bias), px.
+    pub mean: [f64; 2],
+    /// Sum of squared distances of the errors from their mean, px².
+    pub spread: f64,
+}
+
+impl SphereView {
+    /// Length of the bias, px.
+    pub fn bias_px(&self) -> f64 {
+        self.mean[0].hypot(self.mean[1])
+    }
+
+    /// σ per axis about the mean (n − 1 degrees of freedom per axis), px.
+    pub fn sigma_px(&self) -> f64 {
+        (self.spread / (2.0 * (self.centres as f64 - 1.0))).sqrt()
+    }
+}
+
+/// The sphere views of one pose, in sphere order; spheres with fewer than
+/// two labelled centres give none.
+pub fn sphere_views(images: &PoseImages) -> Vec<SphereView> {
+    (0..images.radius_px.len())
+        .filter_map(|sphere| {
+            let errors: Vec<[f64; 2]> = images
                 .centres
                 .iter()
                 .filter(|c| c.sphere == sphere)
                 .map(|c| c.error_px)
                 .collect();
             if errors.len() < 2 {
-                continue;
+                return None;
             }
             let n = errors.len() as f64;
             let mean = errors
@@ -219,19 +245,32 @@ pub fn sigma_samples(poses: &[PoseImages]) -> Vec<SigmaSample> {
             let spread = errors
                 .iter()
                 .map(|e| (e[0] - mean[0]).powi(2) + (e[1] - mean[1]).powi(2))
-                .sum::<f64>();
-            // Per axis, each axis with n − 1 degrees of freedom.
-            let sigma_px = (spread / (2.0 * (n - 1.0))).sqrt();
-            if sigma_px > 0.0 {
-                samples.push(SigmaSample {
-                    radius_px,
-                    sigma_px,
-                    weight: n,
-                });
-            }
-        }
-    }
-    samples
+                .sum();
+            Some(SphereView {
+                sphere,
+                radius_px: images.radius_px[sphere],
+                hidden: images.hidden[sphere],
+                centres: errors.len(),
+                mean,
+                spread,
+            })
+        })
+        .collect()
+}
+
+/// One σ measurement per whole sphere view of each pose (module docs),
+/// weighted by its number of centres.
+pub fn sigma_samples(poses: &[PoseImages]) -> Vec<SigmaSample> {
+    poses
+        .iter()
+        .flat_map(sphere_views)
+        .filter(|view| view.hidden < WHOLE_SPHERE_HIDDEN && view.sigma_px() > 0.0)
+        .map(|view| SigmaSample {
+            radius_px: view.radius_px,
+            sigma_px: view.sigma_px(),
+            weight: view.centres as f64,
+        })
+        .collect()
 }
 
 /// The first view at `depth_mm`, on the optical axis, over tilts and pans
