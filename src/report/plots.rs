@@ -760,6 +760,62 @@ pub struct Availability {
     pub empty: String,
 }
 
+/// A one-panel plot laid out: its heading drawn, the plot area, both
+/// scales mapped onto it, and the page width (the y labels' width on the
+/// left, the legend's on the right).
+struct Panel {
+    svg: Svg,
+    area: Rect,
+    x_scale: Scale,
+    y_scale: Scale,
+    width: f64,
+}
+
+/// Lays out a one-panel plot of `x` (linear) and `y` (`lo`, `hi`, log)
+/// under `title` and `notes`, with room for `entries` in a legend.
+fn single_panel(
+    title: &str,
+    notes: &[String],
+    entries: &[Entry],
+    (x_lo, x_hi): (f64, f64),
+    (y_lo, y_hi, log): (f64, f64, bool),
+) -> Panel {
+    let mut y_scale = Scale {
+        lo: y_lo,
+        hi: y_hi,
+        log,
+        pixel_lo: 0.0,
+        pixel_hi: 0.0,
+    };
+    let left = 16.0 + LABEL_SIZE + widest_label(&y_scale, 5.0) + 12.0;
+    let width =
+        (left + PLOT_WIDTH + 16.0 + legend_width(entries) + 8.0).max(heading_width(title, notes));
+    let mut svg = Svg::new();
+    let heading_bottom = draw_heading(&mut svg, title, notes, width);
+    let area = Rect {
+        left,
+        top: heading_bottom + 14.0,
+        right: left + PLOT_WIDTH,
+        bottom: heading_bottom + 14.0 + PLOT_HEIGHT,
+    };
+    y_scale.pixel_lo = area.bottom;
+    y_scale.pixel_hi = area.top;
+    let x_scale = Scale {
+        lo: x_lo,
+        hi: x_hi,
+        log: false,
+        pixel_lo: area.left,
+        pixel_hi: area.right,
+    };
+    Panel {
+        svg,
+        area,
+        x_scale,
+        y_scale,
+        width,
+    }
+}
+
 /// A line plot with a logarithmic y axis (errors span decades).
 pub fn line_plot(
     path: &Path,
@@ -836,33 +892,13 @@ pub fn line_plot_with_availability(
         })
         .collect();
 
-    let mut y_scale = Scale {
-        lo: y_lo,
-        hi: y_hi,
-        log: true,
-        pixel_lo: 0.0,
-        pixel_hi: 0.0,
-    };
-    let left = 16.0 + LABEL_SIZE + widest_label(&y_scale, 5.0) + 12.0;
-    let legend_w = legend_width(&entries);
-    let width = (left + PLOT_WIDTH + 16.0 + legend_w + 8.0).max(heading_width(title, &notes));
-    let mut svg = Svg::new();
-    let heading_bottom = draw_heading(&mut svg, title, &notes, width);
-    let area = Rect {
-        left,
-        top: heading_bottom + 14.0,
-        right: left + PLOT_WIDTH,
-        bottom: heading_bottom + 14.0 + PLOT_HEIGHT,
-    };
-    y_scale.pixel_lo = area.bottom;
-    y_scale.pixel_hi = area.top;
-    let x_scale = Scale {
-        lo: x_lo,
-        hi: x_hi,
-        log: false,
-        pixel_lo: area.left,
-        pixel_hi: area.right,
-    };
+    let Panel {
+        mut svg,
+        area,
+        x_scale,
+        y_scale,
+        width,
+    } = single_panel(title, &notes, &entries, (x_lo, x_hi), (y_lo, y_hi, true));
     let spans = availability.map_or(Vec::new(), |a| availability::empty_spans(a, &x_scale, area));
     availability::shade(&mut svg, &spans, area.top, area.bottom);
     draw_axes(&mut svg, &x_scale, &y_scale, area, availability.is_none());

@@ -5,9 +5,9 @@
 //! towards the better corner.
 
 use super::{
-    draw_axes, draw_heading, draw_legend, heading_width, legend_width, styles_for, widest_label,
-    Anchor, Entry, Marker, Rect, ReportError, Scale, Series, Style, Svg, LABEL_SIZE, PLOT_HEIGHT,
-    PLOT_WIDTH, POINT_LABEL_SIZE, TEXT_ASCENT_EM, TEXT_DESCENT_EM, TICK_SIZE,
+    draw_axes, draw_legend, single_panel, styles_for, Anchor, Entry, Marker, Panel, Rect,
+    ReportError, Series, Style, Svg, LABEL_SIZE, POINT_LABEL_SIZE, TEXT_ASCENT_EM, TEXT_DESCENT_EM,
+    TICK_SIZE,
 };
 use std::fmt::Write as _;
 use std::path::Path;
@@ -112,33 +112,13 @@ pub fn front_plot(path: &Path, plot: &FrontPlot) -> Result<(), ReportError> {
             line: false,
         });
     }
-    let mut y_scale = Scale {
-        lo: y_lo,
-        hi: y_hi,
-        log: false,
-        pixel_lo: 0.0,
-        pixel_hi: 0.0,
-    };
-    let left = 16.0 + LABEL_SIZE + widest_label(&y_scale, 5.0) + 12.0;
-    let width = (left + PLOT_WIDTH + 16.0 + legend_width(&entries) + 8.0)
-        .max(heading_width(plot.title, &[]));
-    let mut svg = Svg::new();
-    let heading_bottom = draw_heading(&mut svg, plot.title, &[], width);
-    let area = Rect {
-        left,
-        top: heading_bottom + 14.0,
-        right: left + PLOT_WIDTH,
-        bottom: heading_bottom + 14.0 + PLOT_HEIGHT,
-    };
-    y_scale.pixel_lo = area.bottom;
-    y_scale.pixel_hi = area.top;
-    let x_scale = Scale {
-        lo: x_lo,
-        hi: x_hi,
-        log: false,
-        pixel_lo: area.left,
-        pixel_hi: area.right,
-    };
+    let Panel {
+        mut svg,
+        area,
+        x_scale,
+        y_scale,
+        width,
+    } = single_panel(plot.title, &[], &entries, (x_lo, x_hi), (y_lo, y_hi, false));
     draw_axes(&mut svg, &x_scale, &y_scale, area, true);
     draw_better(&mut svg, area);
     for (points, style) in drawn.iter().zip(&styles) {
