@@ -460,9 +460,16 @@ impl Trace<'_> {
         let half_angle = (radius_mm / distance).asin();
         // Sight lines enter the ball no further than the silhouette's rim.
         let front = (distance * distance - radius_mm * radius_mm).sqrt();
-        let spheres: Vec<usize> = (0..centres.len())
-            .filter(|&j| j != k && may_cover(eye, &axis, half_angle, front, &centres[j], radius_mm))
-            .collect();
+        // In a visible scenario no sphere hides another (see below).
+        let spheres: Vec<usize> = if visible {
+            Vec::new()
+        } else {
+            (0..centres.len())
+                .filter(|&j| {
+                    j != k && may_cover(eye, &axis, half_angle, front, &centres[j], radius_mm)
+                })
+                .collect()
+        };
         let parts = parts_in_cone(
             eye, &axis, half_angle, front, &centre, radius_mm, supports, among,
         );
@@ -494,8 +501,32 @@ impl Trace<'_> {
             })
             .collect();
         let rays = SILHOUETTE_RAYS;
+        // In a visible scenario only the supports can hide a line, and a
+        // part can meet only the lines at least as far from the cone's axis
+        // as its nearest point: the sunflower runs outwards, so the lines
+        // inside the least such angle over the parts are not followed.
+        let skip = if visible {
+            let tan_half = half_angle.tan();
+            let nearest = parts
+                .iter()
+                .zip(&planes)
+                .map(|(&p, plane)| {
+                    least_tangent(
+                        eye,
+                        &axis,
+                        &centre,
+                        radius_mm,
+                        &supports.occluders[p],
+                        plane,
+                    )
+                })
+                .fold(f64::INFINITY, f64::min);
+            inner_lines(nearest / tan_half)
+        } else {
+            0
+        };
         let (mut by_support, mut by_sphere, mut outside) = (0usize, 0usize, 0usize);
-        for direction in silhouette_directions(eye, &centre, radius_mm) {
+        for direction in silhouette_directions(eye, &centre, radius_mm).skip(skip) {
             let t_sphere = occluders::ray_ball(eye, &direction, &centre, radius_mm)
                 .unwrap_or_else(|| (centre - eye).dot(&direction));
             let on_sphere = eye + direction * t_sphere;
@@ -552,6 +583,89 @@ impl Trace<'_> {
     }
 }
 
+/// How many of the [`SILHOUETTE_RAYS`] sunflower lines lie strictly
+/// within `fraction` of the disc's radius (the pattern runs outwards: line
+/// i at √((i + ½)/N)), less one for rounding.
+fn inner_lines(fraction: f64) -> usize {
+    if fraction.is_nan() || fraction <= 0.0 {
+        return 0;
+    }
+    let n = SILHOUETTE_RAYS as f64;
+    ((n * fraction.min(1.0).powi(2) - 1.5).floor().max(0.0) as usize).min(SILHOUETTE_RAYS)
+}
+
+/// A lower bound on the tangent of the angle, seen from `eye`, between
+/// `axis` (towards the sphere at `centre`) and any point of `part` that
+/// can hide some of the sphere; 0 where no bound is known. For the
+/// sphere's own cone with its cut-off plane (`plane`, as in
+/// [`Trace::sphere`]): only lines that meet the ball beyond the plane are
+/// followed, and the ball's cap beyond it lies at least ψ − acos(level/r)
+/// from the direction to the eye (ψ the angle between that direction and
+/// the plane's normal), which the eye sees at least atan(r·sin γ /
+/// (d − r·cos γ)) off its axis. For a capsule (and a round cone or a
+/// fillet by the capsule that holds it): the least angle of its axis, less
+/// the angle its radius subtends at its nearest point.
+fn least_tangent(
+    eye: &Vector3<f64>,
+    axis: &Vector3<f64>,
+    centre: &Vector3<f64>,
+    radius_mm: f64,
+    part: &Occluder,
+    plane: &Option<(Vector3<f64>, f64)>,
+) -> f64 {
+    if let Some((u, level)) = plane {
+        let to_eye = eye - centre;
+        let distance = to_eye.norm();
+        let psi = (to_eye.dot(u) / distance).clamp(-1.0, 1.0).acos();
+        let gamma = psi - (level / radius_mm).clamp(-1.0, 1.0).acos();
+        if gamma <= 0.0 {
+            return 0.0;
+        }
+        let silhouette = (radius_mm / distance).clamp(-1.0, 1.0).acos();
+        let gamma = gamma.min(silhouette);
+        return radius_mm * gamma.sin() / (distance - radius_mm * gamma.cos());
+    }
+    let capsule_angle = |a: &Vector3<f64>, b: &Vector3<f64>, radius: f64| {
+        let (pa, pb) = (a - eye, b - eye);
+        let (za, zb) = (pa.dot(axis), pb.dot(axis));
+        let nearest = (eye - occluders::closest_on_segment(eye, a, b)).norm();
+        if za <= radius || zb <= radius || nearest <= radius {
+            return 0.0;
+        }
+        let on_plane = |p: &Vector3<f64>, z: f64| (p - axis * z) / z;
+        let (qa, qb) = (on_plane(&pa, za), on_plane(&pb, zb));
+        let ab = qb - qa;
+        let t = if ab.norm_squared() > 0.0 {
+            (-qa.dot(&ab) / ab.norm_squared()).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        ((qa + ab * t).norm().atan() - (radius / nearest).asin()).max(0.0)
+    };
+    let angle = match part {
+        Occluder::Capsule { a, b, radius } => capsule_angle(a, b, *radius),
+        Occluder::RoundCone {
+            a,
+            radius_a,
+            b,
+            radius_b,
+        } => capsule_angle(a, b, radius_a.max(*radius_b)),
+        fillet @ Occluder::Fillet { pieces, .. } => {
+            let reach = fillet.fillet_reach().unwrap_or(0.0);
+            pieces
+                .iter()
+                .map(|(a, b, radius)| capsule_angle(a, b, radius + reach))
+                .fold(f64::INFINITY, f64::min)
+        }
+        Occluder::Box { .. } => 0.0,
+    };
+    if angle >= std::f64::consts::FRAC_PI_2 {
+        f64::INFINITY
+    } else {
+        angle.tan()
+    }
+}
+
 /// The [`SILHOUETTE_RAYS`] unit directions from `eye` that the model
 /// follows to the sphere (`centre`, `radius_mm`): a sunflower pattern,
 /// even over the disc the silhouette cone cuts from a plane across the
@@ -560,7 +674,7 @@ pub fn silhouette_directions(
     eye: &Vector3<f64>,
     centre: &Vector3<f64>,
     radius_mm: f64,
-) -> Vec<Vector3<f64>> {
+) -> impl ExactSizeIterator<Item = Vector3<f64>> {
     let to_centre = centre - eye;
     let distance = to_centre.norm();
     let axis = to_centre / distance;
@@ -574,8 +688,7 @@ pub fn silhouette_directions(
     let e2 = axis.cross(&e1);
     sunflower()
         .iter()
-        .map(|&(x, y)| (axis + (e1 * x + e2 * y) * tan_half).normalize())
-        .collect()
+        .map(move |&(x, y)| (axis + (e1 * x + e2 * y) * tan_half).normalize())
 }
 
 /// The [`SILHOUETTE_RAYS`] points of the sunflower pattern on the unit

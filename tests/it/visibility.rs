@@ -54,7 +54,7 @@ fn mesh_support_fraction(
 ) -> f64 {
     let pose = scenario.pose();
     let eye = -(pose.rotation.matrix().transpose() * pose.translation);
-    let directions = silhouette_directions(&eye, &centres[k], radius);
+    let directions: Vec<_> = silhouette_directions(&eye, &centres[k], radius).collect();
     let tolerance = layout_opt::visibility::SURFACE_TOLERANCE_MM;
     // Only triangles inside the cone from the eye round the sphere can
     // meet one of its sight lines: each triangle's bounding ball, seen
