@@ -526,7 +526,7 @@ impl Trace<'_> {
             0
         };
         let (mut by_support, mut by_sphere, mut outside) = (0usize, 0usize, 0usize);
-        for direction in silhouette_directions(eye, &centre, radius_mm).skip(skip) {
+        for direction in lines_from(eye, &centre, radius_mm, skip) {
             let t_sphere = occluders::ray_ball(eye, &direction, &centre, radius_mm)
                 .unwrap_or_else(|| (centre - eye).dot(&direction));
             let on_sphere = eye + direction * t_sphere;
@@ -675,6 +675,17 @@ pub fn silhouette_directions(
     centre: &Vector3<f64>,
     radius_mm: f64,
 ) -> impl ExactSizeIterator<Item = Vector3<f64>> {
+    lines_from(eye, centre, radius_mm, 0)
+}
+
+/// [`silhouette_directions`] from line `first` on (the pattern runs
+/// outwards), the lines before it not computed.
+fn lines_from(
+    eye: &Vector3<f64>,
+    centre: &Vector3<f64>,
+    radius_mm: f64,
+    first: usize,
+) -> impl ExactSizeIterator<Item = Vector3<f64>> {
     let to_centre = centre - eye;
     let distance = to_centre.norm();
     let axis = to_centre / distance;
@@ -686,7 +697,7 @@ pub fn silhouette_directions(
     };
     let e1 = axis.cross(&helper).normalize();
     let e2 = axis.cross(&e1);
-    sunflower()
+    sunflower()[first.min(SILHOUETTE_RAYS)..]
         .iter()
         .map(move |&(x, y)| (axis + (e1 * x + e2 * y) * tan_half).normalize())
 }
