@@ -40,7 +40,12 @@ fn bench(c: &mut Criterion<CpuTime>) {
             }
             .pose()
         })
-        .find(|pose| frames::clean_view(&part.truth(&camera, pose), &camera))
+        .find(|pose| {
+            frames::clean_view(
+                &part.truth_over(&camera, pose, layout_opt::render::truth::SILHOUETTE_RAYS),
+                &camera,
+            )
+        })
         .expect("a clean view");
     let frame = part.render(&frames::noisy(camera, 4), &pose).expose(1, 0);
     let png = frame.to_png();

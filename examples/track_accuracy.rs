@@ -6,6 +6,7 @@
 //! cargo run --release --example track_accuracy -- labels [POSES] [REALISATIONS]
 //! cargo run --release --example track_accuracy -- hidden [POSES]
 //! cargo run --release --example track_accuracy -- speed [RUNS]
+//! cargo run --release --example track_accuracy -- lost [TRIALS]
 //! ```
 //!
 //! * `centres`: noise-free renders (16 bit, σ 0.5 px blur, 8×8
@@ -25,6 +26,13 @@
 //!   with the spheres the render says are partly hidden, by hidden share
 //!   of the outline and by how deep the support's notch reaches into the
 //!   disc ([`frames::support_reach_px`]).
+//! * `lost`: `validate --images`' part (supports routed for the paper's
+//!   protocol) and grid (10° tilt step) for the winner, each visible
+//!   scenario read `TRIALS` times with seed 7: the share of frames lost by
+//!   reason, and per view the first lost frame's blobs flagged as partly
+//!   hidden (or missing) beside the render's hidden fractions, the
+//!   visibility model's support share, the notch depth, the centre error
+//!   and the parts that hide the outline.
 
 #[path = "../tests/it/track/frames.rs"]
 #[allow(dead_code)]
@@ -63,7 +71,12 @@ pub fn first_clean(part: &Part, camera: &Camera, depth_mm: f64) -> Pose {
     (-4..=4)
         .flat_map(|t| (-4..=4).map(move |p| (5.0 * t as f64, 5.0 * p as f64)))
         .map(|(tilt, pan)| centred(camera, depth_mm, tilt, pan, 20.0))
-        .find(|pose| clean_view(&part.truth(camera, pose), camera))
+        .find(|pose| {
+            clean_view(
+                &part.truth_over(camera, pose, layout_opt::render::truth::SILHOUETTE_RAYS),
+                camera,
+            )
+        })
         .expect("a clean view")
 }
 
@@ -389,6 +402,196 @@ fn speed(part: &Part, camera: Camera, runs: u64) {
     );
 }
 
+/// `validate --images`'s part and grid for the winner (the supports routed
+/// for the paper's protocol at a 10° tilt step, every visible scenario read
+/// `trials` times with seed 7): the share of frames lost, by reason, and
+/// every blob flagged as partly hidden in a frame lost for too few blobs,
+/// beside the render's hidden fractions of its sphere and the visibility
+/// model's support-hidden fraction.
+fn lost(part: &Part, camera: Camera, trials: u64) {
+    use layout_opt::mesh::{marker_for_range, MarkerOptions};
+    use layout_opt::render::{expose, frame_truth, render_radiance, RenderConfig, Scene};
+    use layout_opt::scenario::{sphere_images, visibility, ScenarioGrid};
+    use layout_opt::track::GreyFrame;
+    use layout_opt::visibility::{support_fractions, MaxHidden, Supports, WorkingRange};
+    let layout = &part.layout;
+    let scenarios = ScenarioGrid::paper_protocol(10.0).scenarios();
+    let max_hidden = MaxHidden::default();
+    let range = WorkingRange {
+        camera,
+        scenarios: scenarios.clone(),
+        max_hidden,
+    };
+    let marker = marker_for_range(layout, &MarkerOptions::default(), &range).unwrap();
+    let supports = Supports::new(marker.occluders());
+    let scene = Scene::from_marker(marker);
+    let mut render = RenderConfig::new(camera);
+    render.seed = 7;
+    let config = TrackConfig::new(layout, camera);
+    let centres = layout.positions();
+    let radius = layout.sphere_radius_mm();
+    let visible: Vec<_> = scenarios
+        .iter()
+        .filter(|s| {
+            let pose = s.pose();
+            visibility(
+                &sphere_images(&camera, &pose, &centres, layout.sphere_diameter_mm),
+                &camera,
+            )
+            .is_visible()
+                && support_fractions(&camera, &pose, &centres, radius, &supports)
+                    .iter()
+                    .all(|f| *f <= max_hidden.fraction())
+        })
+        .collect();
+    let rows: Vec<(u64, Vec<String>, std::collections::BTreeMap<String, u64>)> = visible
+        .par_iter()
+        .map(|s| {
+            let pose = s.pose();
+            let truth = frame_truth(&scene, &part.names, &pose, &camera).unwrap();
+            let radiance = render_radiance(&scene, &pose, &render).unwrap();
+            let model = support_fractions(&camera, &pose, &centres, radius, &supports);
+            let mut reasons = std::collections::BTreeMap::new();
+            let mut lines = Vec::new();
+            for trial in 0..trials {
+                let d = expose(&radiance, &render.sensor, 7, s.index as u64, trial);
+                let frame =
+                    GreyFrame::new(d.width as u32, d.height as u32, d.bit_depth, d.values).unwrap();
+                let analysis = analyse(&config, &frame);
+                let Err(error) = &analysis.outcome else {
+                    continue;
+                };
+                let reason: String = error.to_string().chars().take(20).collect();
+                *reasons.entry(reason.clone()).or_default() += 1;
+                // The blobs of the first lost frame of the view (the
+                // others differ by sensor noise only).
+                let Some(detection) = analysis.detection.as_ref().filter(|_| lines.is_empty())
+                else {
+                    continue;
+                };
+                for (k, sphere) in truth.spheres.iter().enumerate() {
+                    let Some(b) = blob_of_sphere(&detection.blobs, sphere) else {
+                        let e = ellipse_centre(sphere);
+                        let gap = truth
+                            .spheres
+                            .iter()
+                            .filter(|o| o.name != sphere.name)
+                            .map(|o| {
+                                (ellipse_centre(o) - e).norm()
+                                    - o.semi_axes_px[0]
+                                    - sphere.semi_axes_px[0]
+                            })
+                            .fold(f64::INFINITY, f64::min);
+                        lines.push(format!(
+                            "    t{trial} {}: no blob (r {:.1} px, nearest disc {gap:.2} px away; rejected {:?})",
+                            sphere.name, sphere.semi_axes_px[0], detection.rejected
+                        ));
+                        continue;
+                    };
+                    let b = &detection.blobs[b];
+                    if !b.hidden() {
+                        continue;
+                    }
+                    let h = &sphere.hidden;
+                    let centre_error =
+                        (Vector2::from(b.centre_px) - Vector2::from(sphere.projected_centre_px)).norm();
+                    let reach = support_reach_px(&scene, &pose, &camera, k, 256);
+                    let hits = occluding_parts(&scene, &pose, k);
+                    lines.push(format!(
+                        "    t{trial} {} r {:.1} px: truth support {:.4} sphere {:.4} outside {:.4}, model {:.4}; {:?} dip {:.3} fill {:.3} out {:.3} ratio {:.3}/{:.3}; centre off {:.3} px, notch {:.3} px; hidden by {hits}",
+                        sphere.name,
+                        sphere.semi_axes_px[0],
+                        h.by_support,
+                        h.by_sphere,
+                        h.outside_image,
+                        model[k],
+                        b.hidden_because,
+                        b.edge_dip_px,
+                        b.filled_fraction,
+                        b.outlier_fraction,
+                        b.axis_ratio,
+                        b.expected_axis_ratio,
+                        centre_error,
+                        reach
+                    ));
+                }
+            }
+            let head = format!(
+                "scenario {} depth {} offset {} tilt {}",
+                s.index, s.depth_mm, s.offset_x_mm, s.tilt_deg
+            );
+            let mut all = vec![head];
+            all.extend(lines);
+            (trials, all, reasons)
+        })
+        .collect();
+    let mut total = std::collections::BTreeMap::<String, u64>::new();
+    let frames: u64 = rows.iter().map(|r| r.0).sum();
+    for (_, lines, reasons) in &rows {
+        if reasons.is_empty() {
+            continue;
+        }
+        println!("{} lost {reasons:?}", lines[0]);
+        for line in &lines[1..] {
+            println!("{line}");
+        }
+        for (reason, count) in reasons {
+            *total.entry(reason.clone()).or_default() += count;
+        }
+    }
+    let lost: u64 = total.values().sum();
+    println!(
+        "{} visible scenarios, {frames} frames, {lost} lost ({:.1}%): {total:?}",
+        rows.len(),
+        100.0 * lost as f64 / frames as f64
+    );
+}
+
+/// Which parts of `scene` the limb rays of sphere `k` meet first at `pose`
+/// (256 rays): per part, the rays and how far outside the sphere's ball the
+/// farthest hit lies, mm. A sphere's shape is its ball with the cone under
+/// it, blended by the fillet between them: "own cone" is that fillet and
+/// cone.
+fn occluding_parts(scene: &layout_opt::render::Scene, pose: &Pose, k: usize) -> String {
+    use layout_opt::render::scene::Ray;
+    let spheres = scene.spheres().len();
+    let (centre, radius) = scene.spheres()[k];
+    let c = pose.transform(&centre);
+    let inverse = pose.rotation.inverse();
+    let origin = -(inverse * pose.translation);
+    let all = scene.all_shapes();
+    let mut parts = std::collections::BTreeMap::<usize, (usize, f64)>::new();
+    for limb in layout_opt::render::truth::limb_points(&c, radius, 256) {
+        let aim = c + (limb - c) * (1.0 - 1e-6);
+        let ray = Ray {
+            origin,
+            direction: inverse * aim.normalize(),
+        };
+        if let Some(hit) = scene.first_hit(&ray, &all).filter(|h| h.sphere.is_none()) {
+            let p = origin + ray.direction * hit.t;
+            let part = parts.entry(hit.shape).or_default();
+            part.0 += 1;
+            part.1 = part.1.max((p - centre).norm() - radius);
+        }
+    }
+    parts
+        .iter()
+        .map(|(&shape, (rays, off))| {
+            let name = if shape == k {
+                "own cone".to_string()
+            } else if shape < spheres {
+                format!("sphere {shape}'s cone")
+            } else if shape + 1 < scene.shape_count() {
+                "a strut".to_string()
+            } else {
+                "the plate".to_string()
+            };
+            format!("{name} ({rays}/256 rays, up to {off:.3} mm off the ball)")
+        })
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let part = Part::winner();
@@ -400,8 +603,9 @@ fn main() {
         Some("labels") => labels(&part, camera, number(1, 1000), number(2, 10)),
         Some("hidden") => hidden(&part, camera, number(1, 600)),
         Some("speed") => speed(&part, camera, number(1, 300)),
+        Some("lost") => lost(&part, camera, number(1, 20)),
         _ => eprintln!(
-            "usage: track_accuracy centres | labels [POSES] [REALISATIONS] | hidden [POSES] | speed [RUNS]"
+            "usage: track_accuracy centres | labels [POSES] [REALISATIONS] | hidden [POSES] | speed [RUNS] | lost [TRIALS]"
         ),
     }
 }

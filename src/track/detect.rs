@@ -42,7 +42,11 @@
 //!      refitted without the edge points farther from it than their noise
 //!      allows (a straight occluder's edge, a neighbour's);
 //!    * the sphere's **projected centre** from the ellipse
-//!      ([`super::conic::SphereFromEllipse`]) and, with the radius, its depth.
+//!      ([`super::conic::SphereFromEllipse`]) and, with the radius, its depth;
+//!    * a component that no ellipse fits is **split at its bright cores**
+//!      ([`split_cores`]: two discs that the blur joins across a pixel's
+//!      gap), and each part is measured on its own, the other part's
+//!      pixels left out.
 //! 4. **Judgement.** A blob is rejected for size, contrast or a shape no
 //!    sphere casts; it is **flagged as partly hidden** when it touches the
 //!    image border, when its pixels above the half level fill too little of its fitted
@@ -416,28 +420,149 @@ pub fn detect(
             if stats.count == 0 || coarse_label(fx, fy) != label {
                 continue;
             }
-            match measure(&context, &levels, &labels, &window, id as u32 + 1, stats) {
-                Ok(blob) => {
-                    order.push((fy * width + fx, blob));
-                    if order.len() > max_blobs {
-                        return Err(DetectError::TooManyBlobs {
-                            max: max_blobs,
-                            found: order.len(),
-                        });
+            let mut measured = vec![(
+                stats.first,
+                measure(&context, &levels, &labels, &window, id as u32 + 1, stats),
+            )];
+            // Two discs that the blur joins: each bright core on its own.
+            if matches!(measured[0].1, Err(Reason::Shape)) {
+                if let Some((split, ids)) =
+                    split_cores(frame, &levels, &labels, &window, id as u32 + 1, config)
+                {
+                    let parts = component_stats(&split, &window);
+                    let pieces: Vec<_> = ids
+                        .iter()
+                        .map(|&part| {
+                            let stats = &parts[part as usize - 1];
+                            (
+                                stats.first,
+                                measure(&context, &levels, &split, &window, part, stats),
+                            )
+                        })
+                        .collect();
+                    if pieces.iter().any(|(_, m)| m.is_ok()) {
+                        measured = pieces;
                     }
                 }
-                Err(reason) => match reason {
-                    Reason::Small => detection.rejected.small += 1,
-                    Reason::Large => detection.rejected.large += 1,
-                    Reason::Contrast => detection.rejected.contrast += 1,
-                    Reason::Shape => detection.rejected.shape += 1,
-                },
+            }
+            for ((fx, fy), result) in measured {
+                match result {
+                    Ok(blob) => {
+                        order.push((fy * width + fx, blob));
+                        if order.len() > max_blobs {
+                            return Err(DetectError::TooManyBlobs {
+                                max: max_blobs,
+                                found: order.len(),
+                            });
+                        }
+                    }
+                    Err(reason) => match reason {
+                        Reason::Small => detection.rejected.small += 1,
+                        Reason::Large => detection.rejected.large += 1,
+                        Reason::Contrast => detection.rejected.contrast += 1,
+                        Reason::Shape => detection.rejected.shape += 1,
+                    },
+                }
             }
         }
     }
     order.sort_by_key(|(first, _)| *first);
     detection.blobs = order.into_iter().map(|(_, blob)| blob).collect();
     Ok(detection)
+}
+
+/// Component `id` of the window's `labels` split at its bright cores, for
+/// a component that no ellipse fits: the pixels above the level half-way
+/// from the threshold to the component's peak, 8-connected, are its cores
+/// (those of at least a quarter of `min_area_px`); with two or more, every
+/// pixel of the component goes to the core it reaches first, breadth first
+/// within the component (8-connected), so that two discs the blur joins
+/// across a gap of a pixel come apart along the dim neck between them.
+/// Returns the window's labels with the component's pixels relabelled and
+/// the new labels, or `None` for fewer than two cores.
+fn split_cores(
+    frame: &GreyFrame,
+    levels: &Levels,
+    labels: &[u32],
+    window: &Window,
+    id: u32,
+    config: &DetectorConfig,
+) -> Option<(Vec<u32>, Vec<u32>)> {
+    let w = window.width();
+    let h = window.y1 - window.y0;
+    let width = frame.width() as usize;
+    let value =
+        |i: usize| f64::from(frame.pixels()[(window.y0 + i / w) * width + window.x0 + i % w]);
+    let level = |i: usize| levels.at(window.x0 + i % w, window.y0 + i / w);
+    let peak = (0..labels.len())
+        .filter(|&i| labels[i] == id)
+        .map(value)
+        .fold(f64::MIN, f64::max);
+    let mut mask = GrayImage::new(w as u32, h as u32);
+    for i in (0..labels.len()).filter(|&i| labels[i] == id) {
+        if value(i) > level(i) + 0.5 * (peak - level(i)) {
+            mask.put_pixel((i % w) as u32, (i / w) as u32, Luma([255]));
+        }
+    }
+    let cores = connected_components(&mask, Connectivity::Eight, Luma([0u8])).into_raw();
+    let mut sizes: Vec<usize> = Vec::new();
+    for &core in cores.iter().filter(|&&c| c > 0) {
+        if sizes.len() < core as usize {
+            sizes.resize(core as usize, 0);
+        }
+        sizes[core as usize - 1] += 1;
+    }
+    let min_core = config.min_area_px.div_ceil(4).max(1);
+    let next = labels.iter().copied().max().unwrap_or(0) + 1;
+    // Kept cores, numbered from `next` in order of their first pixel.
+    let mut renumber = vec![0u32; sizes.len()];
+    let mut ids = Vec::new();
+    for &core in &cores {
+        if core > 0 && sizes[core as usize - 1] >= min_core && renumber[core as usize - 1] == 0 {
+            renumber[core as usize - 1] = next + ids.len() as u32;
+            ids.push(next + ids.len() as u32);
+        }
+    }
+    if ids.len() < 2 {
+        return None;
+    }
+    let mut split = labels.to_vec();
+    let mut queue = std::collections::VecDeque::new();
+    for i in 0..split.len() {
+        if split[i] == id {
+            let core = cores[i];
+            if core > 0 && renumber[core as usize - 1] > 0 {
+                split[i] = renumber[core as usize - 1];
+                queue.push_back(i);
+            } else {
+                split[i] = 0;
+            }
+        }
+    }
+    while let Some(i) = queue.pop_front() {
+        let (x, y) = ((i % w) as isize, (i / w) as isize);
+        for (dx, dy) in [
+            (-1, -1),
+            (0, -1),
+            (1, -1),
+            (-1, 0),
+            (1, 0),
+            (-1, 1),
+            (0, 1),
+            (1, 1),
+        ] {
+            let (nx, ny) = (x + dx, y + dy);
+            if nx < 0 || ny < 0 || nx >= w as isize || ny >= h as isize {
+                continue;
+            }
+            let j = ny as usize * w + nx as usize;
+            if labels[j] == id && split[j] == 0 {
+                split[j] = split[i];
+                queue.push_back(j);
+            }
+        }
+    }
+    Some((split, ids))
 }
 
 /// How far the edge dips inside `ellipse`, px: over every arc of at most
@@ -1061,6 +1186,68 @@ mod tests {
             detect(&frame, &camera, &DetectorConfig::default(), 5.0, 1),
             Err(DetectError::TooManyBlobs { max: 1, found: 2 })
         ));
+    }
+
+    /// Two area-sampled discs (radius 9 px) whose edges pass 0.8 px apart,
+    /// blurred by a [1 2 1]/4 kernel each way: the pixels between them
+    /// rise above the threshold, so they form one component that no
+    /// ellipse fits; split at their cores, each is found with its centre
+    /// to a tenth of a pixel.
+    #[test]
+    fn two_discs_the_threshold_joins_are_split() {
+        let (width, height) = (120u32, 80u32);
+        let discs = [(40.3, 40.2, 9.0), (59.1, 40.2, 9.0)];
+        let mut pixels = vec![20u16; (width * height) as usize];
+        for y in 0..height {
+            for x in 0..width {
+                let mut covered = 0;
+                for sy in 0..8 {
+                    for sx in 0..8 {
+                        let px = x as f64 - 0.5 + (sx as f64 + 0.5) / 8.0;
+                        let py = y as f64 - 0.5 + (sy as f64 + 0.5) / 8.0;
+                        if discs
+                            .iter()
+                            .any(|(cx, cy, r)| (px - cx).powi(2) + (py - cy).powi(2) < r * r)
+                        {
+                            covered += 1;
+                        }
+                    }
+                }
+                pixels[(y * width + x) as usize] =
+                    (20.0 + 200.0 * covered as f64 / 64.0).round() as u16;
+            }
+        }
+        let (w, h) = (width as usize, height as usize);
+        let blur = |p: &[u16], step: usize, limit: usize, along: fn(usize, usize) -> usize| {
+            (0..p.len())
+                .map(|i| {
+                    let k = along(i, w);
+                    let a = if k > 0 { p[i - step] } else { p[i] };
+                    let b = if k + 1 < limit { p[i + step] } else { p[i] };
+                    ((u32::from(a) + 2 * u32::from(p[i]) + u32::from(b) + 2) / 4) as u16
+                })
+                .collect::<Vec<u16>>()
+        };
+        let pixels = blur(&pixels, 1, w, |i, w| i % w);
+        let pixels = blur(&pixels, w, h, |i, w| i / w);
+        let frame = GreyFrame::new(width, height, 8, pixels.clone()).unwrap();
+        let camera = Camera::new(1000.0, 1000.0, 60.0, 40.0, 120, 80, [0.0; 5]).unwrap();
+        let whole = DetectorConfig::default();
+        let detection = detect(&frame, &camera, &whole, 5.0, 10).unwrap();
+        assert_eq!(detection.rejected.shape, 0, "{detection:?}");
+        // One component at the threshold: the row through the neck stays
+        // above it from one disc's middle to the other's.
+        let level = detection.threshold_level * 255.0;
+        assert!(
+            (40..=59).all(|x| f64::from(pixels[40 * w + x]) > level),
+            "{:?}",
+            &pixels[40 * w + 40..=40 * w + 59]
+        );
+        assert_eq!(detection.blobs.len(), 2, "{detection:?}");
+        for (blob, (cx, cy, _)) in detection.blobs.iter().zip(discs) {
+            let [x, y] = blob.ellipse_centre_px;
+            assert!((x - cx).hypot(y - cy) < 0.1, "{blob:?}");
+        }
     }
 
     #[test]

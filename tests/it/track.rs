@@ -243,23 +243,65 @@ fn clean_poses(
     max_deg: f64,
     keep: impl Fn(&Pose) -> bool + Sync,
 ) -> Vec<Pose> {
+    clean_views(seed, count, depth_mm, max_deg, keep)
+        .into_iter()
+        .map(|(pose, _)| pose)
+        .collect()
+}
+
+/// Limb rays per sphere of the truth that finds clean views: a quarter of
+/// the render's, so a support that hides less than 1/512 of an outline
+/// (0.7°, a quarter pixel of a 20 px disc's) may go unseen; the tests that
+/// need a count of hidden outline trace the render's own truth.
+const CLEAN_RAYS: usize = 512;
+
+/// [`clean_poses`] with each view's truth (at the paper camera), its
+/// hidden fractions over [`CLEAN_RAYS`] limb rays. The candidates (at most
+/// 8 per view wanted) are judged a thread's worth at a time, in seed
+/// order, until `count` are found: the same views at any thread count, and
+/// no truth traced beyond the batch that completes them.
+fn clean_views(
+    seed: u64,
+    count: usize,
+    depth_mm: f64,
+    max_deg: f64,
+    keep: impl Fn(&Pose) -> bool + Sync,
+) -> Vec<(Pose, layout_opt::render::FrameTruth)> {
     let camera = Camera::paper();
     let part = winner();
-    let poses: Vec<Pose> = (0..count as u64 * 8)
-        .into_par_iter()
-        .filter_map(|k| {
-            let mut rng = ChaCha8Rng::seed_from_u64(seed + k);
-            let pose = random_pose(&camera, &mut rng, depth_mm, max_deg);
-            (keep(&pose) && clean_view(&part.truth(&camera, &pose), &camera)).then_some(pose)
-        })
-        .collect();
-    assert!(poses.len() >= count, "only {} clean views", poses.len());
-    poses[..count].to_vec()
+    let limit = count as u64 * 8;
+    let batch = rayon::current_num_threads().max(1) as u64;
+    let mut found = Vec::new();
+    let mut next = 0;
+    while found.len() < count && next < limit {
+        let end = (next + batch).min(limit);
+        let views: Vec<_> = (next..end)
+            .into_par_iter()
+            .filter_map(|k| {
+                let mut rng = ChaCha8Rng::seed_from_u64(seed + k);
+                let pose = random_pose(&camera, &mut rng, depth_mm, max_deg);
+                if !keep(&pose) {
+                    return None;
+                }
+                let truth = part.truth_over(&camera, &pose, CLEAN_RAYS);
+                clean_view(&truth, &camera).then_some((pose, truth))
+            })
+            .collect();
+        found.extend(views);
+        next = end;
+    }
+    assert!(found.len() >= count, "only {} clean views", found.len());
+    found.truncate(count);
+    found
 }
 
 /// Seeded noisy renders of random, clean views: `poses` poses, each read
-/// `realisations` times by the 8-bit sensor with `full_well_electrons`. Returns, per frame,
-/// the truth pose, the analysis and whether every label is right.
+/// `realisations` times by the 8-bit sensor with `full_well_electrons`,
+/// each rendered through the window round the marker's discs
+/// ([`frames::crop`], [`CROP_MARGIN_PX`]): the tracker sees every blob and
+/// its surround, and the exposure pays for no empty background. Returns,
+/// per frame, the truth pose, the analysis and whether every label is
+/// right.
 fn noisy_frames(
     seed: u64,
     poses: usize,
@@ -270,22 +312,31 @@ fn noisy_frames(
 ) -> Vec<(Pose, layout_opt::track::FrameAnalysis, usize)> {
     let camera = Camera::paper();
     let part = winner();
-    let config = TrackConfig::new(&part.layout, camera);
     let mut render = frames::noisy(camera, 4);
     render.sensor.noise = Some(Noise {
         full_well_electrons,
         ..Noise::default()
     });
-    let rendered: Vec<(Pose, frames::Rendered)> = clean_poses(seed, poses, depth_mm, 30.0, keep)
-        .into_par_iter()
-        .map(|pose| (pose, part.render(&render, &pose)))
-        .collect();
+    let rendered: Vec<(Pose, frames::Rendered, TrackConfig)> =
+        clean_views(seed, poses, depth_mm, 30.0, keep)
+            .into_par_iter()
+            .map(|(pose, truth)| {
+                let window = frames::crop(&camera, &truth, CROP_MARGIN_PX, |_| true);
+                let mut render = render.clone();
+                render.camera = window;
+                (
+                    pose,
+                    part.render_window(&render, &pose, &camera, &truth),
+                    TrackConfig::new(&part.layout, window),
+                )
+            })
+            .collect();
     (0..poses as u64 * realisations)
         .into_par_iter()
         .map(|frame| {
             let index = (frame / realisations) as usize;
-            let (truth, render) = &rendered[index];
-            let analysis = analyse(&config, &render.expose(seed, frame));
+            let (truth, render, config) = &rendered[index];
+            let analysis = analyse(config, &render.expose(seed, frame));
             let correct = match (&analysis.outcome, &analysis.detection) {
                 (Ok(tracked), Some(detection)) => {
                     usize::from(labels_correct(tracked, &detection.blobs, &render.truth))
@@ -487,28 +538,42 @@ fn sum_counts(counts: &[[usize; 3]]) -> [usize; 3] {
 }
 
 /// Bars painted on each pose of [`hidden_flags_match_the_ground_truth`].
-const BARS: u64 = 5;
+const BARS: u64 = 8;
+
+/// Margin round the discs of a cropped render ([`frames::crop`]), px: the
+/// detector's coarse cells and measurement window, and the blur's tail,
+/// with room to spare.
+const CROP_MARGIN_PX: f64 = 12.0;
 
 /// Clean views with a dark bar painted across a random sphere at a random
-/// depth into it: the partly-hidden flag against the share of the sphere's
-/// exact outline under the bar. Precision ≥ 95% (flagged blobs are hidden),
-/// recall ≥ 90% for blobs with ≥ 10% hidden.
+/// depth into it: the partly-hidden flag against the share of the
+/// sphere's exact outline under the bar. Precision ≥ 95% (flagged blobs
+/// are hidden), recall ≥ 90% for blobs with ≥ 10% hidden.
+///
+/// Each pose is rendered once, through the window round the marker's discs
+/// ([`frames::crop`]: every blob and its surround, none of the frame's
+/// empty background), and each bar is painted on a copy of it. A bar
+/// through a small disc's middle can leave no blob that is the sphere's;
+/// about a quarter of the bars give a flagged hidden blob (21 of 75 at 5
+/// bars on 15 poses, 72 of 192 here), so at least a fifth must, or the
+/// precision and recall below would rest on too few.
 #[test]
 fn hidden_flags_match_the_ground_truth() {
     let camera = Camera::paper();
     let part = winner();
-    let config = TrackConfig::new(&part.layout, camera);
-    let render = frames::noisy(camera, 4);
-    let poses: Vec<Pose> = [350.0, 550.0, 800.0]
+    let views: Vec<(Pose, layout_opt::render::FrameTruth)> = [350.0, 550.0, 800.0]
         .into_iter()
         .enumerate()
-        .flat_map(|(i, depth)| clean_poses(0xB1D + 1000 * i as u64, 8, depth, 20.0, |_| true))
+        .flat_map(|(i, depth)| clean_views(0xB1D + 1000 * i as u64, 8, depth, 20.0, |_| true))
         .collect();
-    let counts: Vec<[usize; 3]> = poses
+
+    let counts: Vec<[usize; 3]> = views
         .par_iter()
         .enumerate()
-        .flat_map_iter(|(k, pose)| {
-            let clean = part.render(&render, pose);
+        .flat_map_iter(|(k, (pose, truth))| {
+            let window = frames::crop(&camera, truth, CROP_MARGIN_PX, |_| true);
+            let config = TrackConfig::new(&part.layout, window);
+            let clean = part.render_window(&frames::noisy(window, 4), pose, &camera, truth);
             let mut rng = ChaCha8Rng::seed_from_u64(0xB1D + k as u64);
             (0..BARS)
                 .map(|bar| {
@@ -558,7 +623,7 @@ fn hidden_flags_match_the_ground_truth() {
     let precision = total[0] as f64 / (total[0] + total[1]) as f64;
     let recall = total[0] as f64 / (total[0] + total[2]) as f64;
     eprintln!("bars: {} frames: {} flagged hidden, {} flagged whole, {} missed (≥10% hidden): precision {precision:.3}, recall {recall:.3}", counts.len(), total[0], total[1], total[2]);
-    assert!(total[0] >= 25, "{total:?}");
+    assert!(total[0] * 5 >= counts.len(), "{total:?}");
     assert!(precision >= 0.95, "{total:?}");
     assert!(recall >= 0.90, "{total:?}");
 }
@@ -727,6 +792,71 @@ fn malformed_frames_are_error_records_and_the_run_goes_on() {
     assert!(dir.path().join("overlay/a-good.overlay.png").exists());
     let csv = std::fs::read_to_string(dir.path().join("out.csv")).unwrap();
     assert_eq!(csv.lines().count(), 9);
+}
+
+/// The paper's biprism is symmetric: every rotation that maps its cross of
+/// arms onto itself turns one labelling of its blobs into another that
+/// fits as well (seen tilted about its X axis with its centre on the
+/// optical axis, for one, its mirror image in the plane x = 0 is itself
+/// with P2 and P4 swapped). Each such frame is an error record naming its
+/// file and the ambiguity, and the run goes on to the next frame.
+#[test]
+fn an_ambiguous_identification_is_an_error_record_and_the_run_goes_on() {
+    use layout_opt::observer::Silent;
+    use layout_opt::track::workflow::{run, TrackOutputs};
+    let camera = Camera::paper();
+    let part = frames::Part::load(
+        &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("layouts/biprism-paper.json"),
+    );
+    let config = TrackConfig::new(&part.layout, camera);
+    let dir = tempfile::tempdir().unwrap();
+    let render = frames::noisy(camera, 2);
+    let on_axis = Scenario {
+        index: 0,
+        depth_mm: 500.0,
+        offset_x_mm: 0.0,
+        offset_y_mm: 0.0,
+        tilt_deg: 30.0,
+        pan_deg: 0.0,
+        roll_deg: 0.0,
+        sigma_px: 0.5,
+    };
+    let names = ["a-mirror.png", "b-oblique.png"];
+    for (name, pose) in names
+        .iter()
+        .zip([on_axis.pose(), centred(&camera, 400.0, 35.0, 25.0, 20.0)])
+    {
+        let frame = part.render(&render, &pose).expose(9, 0);
+        std::fs::write(dir.path().join(name), frame.to_png()).unwrap();
+    }
+    let out = dir.path().join("out.jsonl");
+    let outputs = TrackOutputs {
+        json_lines: Some(out.clone()),
+        csv: None,
+        overlay_dir: None,
+    };
+    let result = run(&config, &[dir.path().to_path_buf()], &outputs, &mut Silent).unwrap();
+    let lines: Vec<serde_json::Value> = std::fs::read_to_string(&out)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(lines.len(), 2);
+    for (line, name) in lines.iter().zip(names) {
+        assert!(
+            line["frame"].as_str().unwrap().ends_with(name),
+            "{name}: {line}"
+        );
+        let error = line["error"]
+            .as_str()
+            .unwrap_or_else(|| panic!("{name}: {line}"));
+        assert!(
+            error.contains("ambiguous identification") && error.contains("ambiguity 1.0"),
+            "{name}: {error}"
+        );
+        assert!(line["R"].is_null(), "{name}: {line}");
+    }
+    assert_eq!(result.tracked(), 0);
 }
 
 /// Paints a bright disc of radius `radius_px` centred at `(cx, cy)` over

@@ -44,9 +44,53 @@ impl Part {
         )
     }
 
-    /// The render's ground truth at `pose` alone (no image).
-    pub fn truth(&self, camera: &Camera, pose: &Pose) -> FrameTruth {
-        frame_truth(&self.scene, &self.names, pose, camera).unwrap()
+    /// The render's ground truth at `pose` alone (no image), with the
+    /// hidden fractions counted over `rays` limb rays (the render's own
+    /// truth: [`layout_opt::render::truth::SILHOUETTE_RAYS`]; the geometry
+    /// is exact either way): tracing the part is the cost of a truth, and a
+    /// search for clean views traces many.
+    pub fn truth_over(&self, camera: &Camera, pose: &Pose, rays: usize) -> FrameTruth {
+        let balls = Scene::spheres_only(self.scene.spheres());
+        let mut truth = frame_truth(&balls, &self.names, pose, camera).unwrap();
+        for (k, sphere) in truth.spheres.iter_mut().enumerate() {
+            sphere.hidden =
+                layout_opt::render::truth::hidden_fractions(&self.scene, pose, camera, k, rays);
+        }
+        truth
+    }
+
+    /// Renders the part at `pose` through `config`'s camera, a [`crop`] of
+    /// `camera` that holds every disc of `truth` (traced at `camera`, no
+    /// sphere cut by its image) wholly: the truth is `truth` moved to the
+    /// window's pixels, not traced again (nothing of a disc leaves the
+    /// window, so its hidden fractions are the same).
+    pub fn render_window(
+        &self,
+        config: &RenderConfig,
+        pose: &Pose,
+        camera: &Camera,
+        truth: &FrameTruth,
+    ) -> Rendered {
+        let window = &config.camera;
+        let shift = Vector2::new(camera.cx() - window.cx(), camera.cy() - window.cy());
+        let mut moved = truth.clone();
+        for sphere in &mut moved.spheres {
+            assert_eq!(sphere.hidden.outside_image, 0.0, "{}", sphere.name);
+            let to = |p: [f64; 2]| [p[0] - shift.x, p[1] - shift.y];
+            sphere.ellipse_centre_px = to(sphere.ellipse_centre_px);
+            sphere.ellipse_centre_undistorted_px = to(sphere.ellipse_centre_undistorted_px);
+            sphere.projected_centre_px = to(sphere.projected_centre_px);
+            // The conic in the window's pixels: Tᵀ Q T with T taking a
+            // window pixel to the frame's.
+            let q = nalgebra::Matrix3::from(sphere.conic_px);
+            let t = nalgebra::Matrix3::new(1.0, 0.0, shift.x, 0.0, 1.0, shift.y, 0.0, 0.0, 1.0);
+            sphere.conic_px = (t.transpose() * q * t).into();
+        }
+        Rendered {
+            radiance: render_radiance(&self.scene, pose, config).unwrap(),
+            truth: moved,
+            config: config.clone(),
+        }
     }
 
     /// Renders the part at `pose` (no noise yet) with its ground truth.
@@ -194,6 +238,48 @@ pub fn paint_bar(rendered: &mut Rendered, bar: &Bar, level: f32) -> Vec<(f64, f6
             )
         })
         .collect()
+}
+
+/// `camera` cut down to the window of its image that holds the discs of
+/// the spheres `which` accepts (per `truth`, at `camera`) with `margin_px`
+/// round them, clipped to the image: the same lens with the principal
+/// point moved by the window's whole-pixel corner, so a render through it
+/// is the full frame's pixels in that window (and its truth the same
+/// spheres), at the cost of the window alone. The tracker then reads the
+/// marker with none of the frame's far background.
+pub fn crop(
+    camera: &Camera,
+    truth: &FrameTruth,
+    margin_px: f64,
+    which: impl Fn(usize) -> bool,
+) -> Camera {
+    let (mut low, mut high) = (
+        Vector2::new(f64::INFINITY, f64::INFINITY),
+        Vector2::new(f64::NEG_INFINITY, f64::NEG_INFINITY),
+    );
+    for (k, sphere) in truth.spheres.iter().enumerate() {
+        if !which(k) {
+            continue;
+        }
+        let reach = Vector2::repeat(sphere.semi_axes_px[0] + margin_px);
+        let centre = ellipse_centre(sphere);
+        low = low.inf(&(centre - reach));
+        high = high.sup(&(centre + reach));
+    }
+    let x0 = low.x.floor().max(0.0);
+    let y0 = low.y.floor().max(0.0);
+    let x1 = high.x.ceil().min(camera.width() as f64);
+    let y1 = high.y.ceil().min(camera.height() as f64);
+    Camera::new(
+        camera.fx(),
+        camera.fy(),
+        camera.cx() - x0,
+        camera.cy() - y0,
+        (x1 - x0).max(1.0) as u32,
+        (y1 - y0).max(1.0) as u32,
+        camera.distortion(),
+    )
+    .unwrap()
 }
 
 /// Exact ellipse centre of a sphere, raw px.
