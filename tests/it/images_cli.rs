@@ -101,6 +101,19 @@ fn images_report_their_figures_and_write_a_noise_law_that_a_second_run_reads() {
         "{run}"
     );
 
+    // The sample frames: three overlay PNGs linked from the report.
+    for role in ["nearest", "farthest", "worst"] {
+        let path = report.join("images").join(format!("{role}.png"));
+        let png = image::open(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        assert!(png.width() >= 40 && png.height() >= 40, "{role}");
+        assert!(png.width() <= 1280 && png.height() <= 720, "{role}");
+        assert!(
+            markdown.contains(&format!("](images/{role}.png)")),
+            "{role} not linked:\n{markdown}"
+        );
+    }
+    assert_eq!(json["samples"].as_array().unwrap().len(), 3, "{json}");
+
     let file = CalibrationFile::load(&law).unwrap();
     assert!(
         file.source.contains("--images") && file.source.contains("seed 7"),
@@ -173,6 +186,7 @@ fn image_figures_do_not_depend_on_the_thread_count() {
         (
             std::fs::read(out.join("images.csv")).unwrap(),
             std::fs::read(out.join("images.json")).unwrap(),
+            std::fs::read(out.join("images/worst.png")).unwrap(),
         )
     };
     assert_eq!(files("1"), files("2"));
