@@ -45,9 +45,9 @@ use crate::montecarlo::ScenarioOutcome;
 use crate::noise::calibrated::{fit, CalibratedSigma, FitQuality, SigmaSample};
 use crate::observer::{watch, Observer};
 use crate::pose::{rotation_error_deg, translation_error_mm};
-use crate::render::{RenderConfig, RenderError, Scene};
+use crate::render::{Appearance, Lighting, Noise, RenderConfig, RenderError, Scene};
 use crate::scenario::Scenario;
-use crate::track::{FrameAnalysis, GreyFrame, TrackConfig};
+use crate::track::{FrameAnalysis, GreyFrame, Threshold, TrackConfig};
 use crate::visibility::WorkingRange;
 use nalgebra::Vector3;
 use serde::Serialize;
@@ -75,28 +75,149 @@ pub const MIN_LAW_RADII: usize = 3;
 /// Progress phase of the image check: one step per visible scenario.
 pub const PHASE: &str = "images";
 
+/// The camera and lighting the image check renders with: the settings of
+/// `render` that a noise calibration stands for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum ImagePreset {
+    /// The paper's camera (validate's camera, by default the paper's
+    /// 1280×720, f 1301 px) with `render`'s defaults: retroreflective
+    /// spheres under a ring light, 4×4 supersampling, σ 0.5 px blur,
+    /// 8 bit, full well 10,000 e⁻, read noise 10 e⁻.
+    #[default]
+    Paper,
+    /// A typical machine-vision camera ([`machine_vision_camera`]: a
+    /// 1440×1080 global-shutter sensor of 3.45 µm pixels behind a 6 mm
+    /// lens, f 1739 px) with a ring light and retroreflective spheres:
+    /// full well 10,500 e⁻, read noise 2.2 e⁻, 8 bit, σ 0.5 px blur.
+    MachineVision,
+    /// A diffuse white print under room light: validate's camera, `render`'s
+    /// `diffuse` lighting preset (a lamp 30° off the axis and 15% ambient
+    /// light, white spheres, grey supports), the default sensor and blur,
+    /// and the tracker at a fixed threshold ([`DIFFUSE_THRESHOLD`]).
+    Diffuse,
+}
+
+/// The diffuse preset's fixed tracker threshold, fraction of full scale:
+/// above `render`'s diffuse supports facing the light (0.5), below its lit
+/// spheres (0.85).
+pub const DIFFUSE_THRESHOLD: f64 = 0.55;
+
+/// The machine-vision preset's camera: 1440×1080, 3.45 µm pixels, 6 mm
+/// lens (f = 6 / 0.00345 = 1739.1 px), principal point at the centre, no
+/// distortion.
+pub fn machine_vision_camera() -> Camera {
+    Camera::new(1739.1, 1739.1, 720.0, 540.0, 1440, 1080, [0.0; 5])
+        .expect("the preset's camera is valid")
+}
+
+impl ImagePreset {
+    /// Every preset, in CLI order.
+    pub const ALL: [ImagePreset; 3] = [
+        ImagePreset::Paper,
+        ImagePreset::MachineVision,
+        ImagePreset::Diffuse,
+    ];
+
+    /// Its CLI name.
+    pub fn name(self) -> &'static str {
+        match self {
+            ImagePreset::Paper => "paper",
+            ImagePreset::MachineVision => "machine-vision",
+            ImagePreset::Diffuse => "diffuse",
+        }
+    }
+
+    /// The camera the preset brings (None: validate's own).
+    pub fn camera(self) -> Option<Camera> {
+        match self {
+            ImagePreset::MachineVision => Some(machine_vision_camera()),
+            ImagePreset::Paper | ImagePreset::Diffuse => None,
+        }
+    }
+
+    /// The render settings for `camera`, noise seeded by `seed`.
+    pub fn render(self, camera: Camera, seed: u64) -> RenderConfig {
+        let mut render = RenderConfig::new(camera);
+        render.seed = seed;
+        match self {
+            ImagePreset::Paper => {}
+            ImagePreset::MachineVision => {
+                render.sensor.noise = Some(Noise {
+                    full_well_electrons: 10_500.0,
+                    read_noise_electrons: 2.2,
+                });
+            }
+            ImagePreset::Diffuse => {
+                render.appearance = Appearance::preset(Lighting::Diffuse);
+            }
+        }
+        render
+    }
+
+    /// The tracker's threshold for the preset: Otsu's for bright discs on
+    /// a dark part; for the diffuse print, whose grey supports Otsu's level
+    /// joins to the spheres, a fixed level above the lit supports.
+    pub fn threshold(self) -> Threshold {
+        match self {
+            ImagePreset::Paper | ImagePreset::MachineVision => Threshold::Otsu,
+            ImagePreset::Diffuse => Threshold::Fixed(DIFFUSE_THRESHOLD),
+        }
+    }
+
+    /// The preset in words, for the report.
+    pub fn describe(self) -> String {
+        let what = match self {
+            ImagePreset::Paper => "retroreflective spheres under a ring light, render's default sensor and optics",
+            ImagePreset::MachineVision => "1440×1080 machine-vision camera (f 1739 px), ring light and retroreflective spheres, full well 10,500 e⁻, read noise 2.2 e⁻",
+            ImagePreset::Diffuse => "diffuse white print under room light (render's diffuse lighting), render's default sensor and optics, tracker threshold fixed at 0.55",
+        };
+        format!("preset {}: {what}", self.name())
+    }
+}
+
+impl std::str::FromStr for ImagePreset {
+    type Err = ConfigError;
+    fn from_str(text: &str) -> Result<Self, ConfigError> {
+        ImagePreset::ALL
+            .into_iter()
+            .find(|p| p.name().eq_ignore_ascii_case(text.trim()))
+            .ok_or_else(|| {
+                ConfigError::new(
+                    "image_preset",
+                    format!("unknown preset \"{text}\"; use paper, machine-vision or diffuse"),
+                )
+            })
+    }
+}
+
 /// The image check's settings.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct ImageCheck {
     /// Noisy frames read back per scenario.
     pub trials: usize,
+    /// The camera and lighting rendered.
+    pub preset: ImagePreset,
 }
 
 impl Default for ImageCheck {
     fn default() -> Self {
         ImageCheck {
             trials: DEFAULT_IMAGE_TRIALS,
+            preset: ImagePreset::Paper,
         }
     }
 }
 
 impl ImageCheck {
-    /// Refuses a bad value, naming its field (`image_trials`).
+    /// Refuses a bad value, naming its field (`image_trials`). A preset
+    /// that brings its own camera needs validate's camera to be it.
     ///
     /// ```
     /// use layout_opt::validate::image_check::ImageCheck;
     /// assert!(ImageCheck::default().check().is_ok());
-    /// assert_eq!(ImageCheck { trials: 0 }.check().unwrap_err().field, "image_trials");
+    /// let zero = ImageCheck { trials: 0, ..ImageCheck::default() };
+    /// assert_eq!(zero.check().unwrap_err().field, "image_trials");
     /// ```
     pub fn check(&self) -> Result<(), ConfigError> {
         if self.trials == 0 {
@@ -338,7 +459,7 @@ pub fn run(
     observer: &mut impl Observer,
 ) -> Result<ImageSummary, ImageCheckError> {
     check.check()?;
-    let setup = Setup::new(config, outcomes)?;
+    let setup = Setup::new(config, check, outcomes)?;
     let chosen = visible(outcomes);
     let total = chosen.len() as u64;
     let stride = chosen.len().div_ceil(ESTIMATE_SCENARIOS).max(1);
@@ -423,7 +544,11 @@ struct Setup {
 
 impl Setup {
     /// The part and settings of the module docs.
-    fn new(config: Checked, outcomes: &[ScenarioOutcome]) -> Result<Self, ImageCheckError> {
+    fn new(
+        config: Checked,
+        check: &ImageCheck,
+        outcomes: &[ScenarioOutcome],
+    ) -> Result<Self, ImageCheckError> {
         let layout = &config.layout;
         let names: Vec<String> = layout.points.iter().map(|p| p.name.clone()).collect();
         // The part whose supports validate's visibility model counts: routed
@@ -436,9 +561,21 @@ impl Setup {
         };
         let options = config.structure.clone().unwrap_or_default();
         let scene = Scene::from_marker(marker_for_range(layout, &options, &range)?);
-        let mut render = RenderConfig::new(config.camera);
-        render.seed = config.monte_carlo.seed;
-        let track = TrackConfig::new(layout, config.camera);
+        if let Some(camera) = check.preset.camera() {
+            if camera != config.camera {
+                return Err(ConfigError::new(
+                    "image_preset",
+                    format!(
+                        "{} renders through its own camera; validate must use it too",
+                        check.preset.name()
+                    ),
+                )
+                .into());
+            }
+        }
+        let render = check.preset.render(config.camera, config.monte_carlo.seed);
+        let mut track = TrackConfig::new(layout, config.camera);
+        track.detector.threshold = check.preset.threshold();
         track.validate().map_err(|e| {
             ConfigError::new(
                 "images",
@@ -633,7 +770,7 @@ pub fn run_until(
     stop: &AtomicBool,
 ) -> Result<ImageSummary, ImageCheckError> {
     check.check()?;
-    let setup = Setup::new(config, outcomes)?;
+    let setup = Setup::new(config, check, outcomes)?;
     let done = AtomicU64::new(0);
     let count = |_: usize| on_done(done.fetch_add(1, Ordering::Relaxed) as usize + 1);
     let rendered = setup.check_all(check, outcomes, &visible(outcomes), &count, stop)?;
@@ -662,7 +799,7 @@ fn summarise(
     let mut summary = ImageSummary {
         check: *check,
         seed: config.monte_carlo.seed,
-        preset: "render defaults (retroreflective preset, default sensor and optics)".to_string(),
+        preset: check.preset.describe(),
         scenarios: rendered.len(),
         refused: BTreeMap::new(),
         frames: 0,
@@ -955,6 +1092,37 @@ mod tests {
     }
 
     #[test]
+    fn presets_parse_by_name_and_set_what_they_say() {
+        for preset in ImagePreset::ALL {
+            assert_eq!(preset.name().parse::<ImagePreset>().unwrap(), preset);
+        }
+        assert_eq!(
+            "glossy".parse::<ImagePreset>().unwrap_err().field,
+            "image_preset"
+        );
+        let camera = Camera::paper();
+        assert_eq!(
+            ImagePreset::Paper.render(camera, 3),
+            RenderConfig {
+                seed: 3,
+                ..RenderConfig::new(camera)
+            }
+        );
+        let vision = ImagePreset::MachineVision.camera().unwrap();
+        assert_eq!((vision.width(), vision.height()), (1440, 1080));
+        let render = ImagePreset::MachineVision.render(vision, 3);
+        assert_eq!(render.sensor.noise.unwrap().read_noise_electrons, 2.2);
+        assert!(render.validate().is_ok());
+        let diffuse = ImagePreset::Diffuse.render(camera, 3);
+        assert_eq!(diffuse.appearance.lighting, Lighting::Diffuse);
+        assert_eq!(
+            ImagePreset::Diffuse.threshold(),
+            Threshold::Fixed(DIFFUSE_THRESHOLD)
+        );
+        assert!(ImagePreset::Diffuse.camera().is_none());
+    }
+
+    #[test]
     fn a_law_needs_three_radii_and_zero_trials_are_refused() {
         let sample = |radius_px| SigmaSample {
             radius_px,
@@ -966,7 +1134,13 @@ mod tests {
         let three = [sample(5.0), sample(10.0), sample(20.0), sample(30.0)];
         assert!(matches!(noise_law(&three), NoiseLaw::Fitted { .. }));
         assert_eq!(
-            ImageCheck { trials: 0 }.check().unwrap_err().field,
+            ImageCheck {
+                trials: 0,
+                ..ImageCheck::default()
+            }
+            .check()
+            .unwrap_err()
+            .field,
             "image_trials"
         );
         assert_eq!(ImageCheck::default().trials, DEFAULT_IMAGE_TRIALS);

@@ -153,6 +153,51 @@ fn bad_image_flags_are_refused_by_name() {
         "{stderr}"
     );
     assert!(!law.exists());
+    let bogus = validate(dir.path(), &["--images", "--image-preset", "bogus"]).failure();
+    let stderr = String::from_utf8_lossy(&bogus.get_output().stderr).to_string();
+    assert!(
+        stderr.contains("--image-preset") && stderr.contains("unknown preset"),
+        "{stderr}"
+    );
+    let clash = validate(
+        dir.path(),
+        &[
+            "--images",
+            "--image-preset",
+            "machine-vision",
+            "--with-distortion",
+        ],
+    )
+    .failure();
+    let stderr = String::from_utf8_lossy(&clash.get_output().stderr).to_string();
+    assert!(stderr.contains("brings its own camera"), "{stderr}");
+}
+
+#[test]
+fn the_machine_vision_preset_renders_through_its_own_camera() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("mv");
+    validate(
+        &out,
+        &[
+            "--images",
+            "--image-trials",
+            "2",
+            "--image-preset",
+            "machine-vision",
+        ],
+    )
+    .success();
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("images.json")).unwrap()).unwrap();
+    assert_eq!(json["check"]["preset"], "machine-vision", "{json}");
+    assert!(json["posed_frames"].as_u64().unwrap() > 0, "{json}");
+    // Its 1440×1080 frames: the crop of a sample lies inside them, and
+    // validate's first-order model used the same camera.
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    let text = summary.to_string();
+    assert!(text.contains("1739.1") && text.contains("1440"), "{text}");
 }
 
 #[test]
