@@ -27,7 +27,9 @@
 //! front). The prediction at the measured σ is the first-order covariance
 //! of the pose the tracker solved: the spheres its pose used in at least
 //! half of the scenario's posed frames, each at its own measured σ (its
-//! view's, above), whatever the noise model. The assumed σ shown is the
+//! view's, above), whatever the noise model; beside it, the same with the
+//! first-order pose bias that those spheres' mean centre errors cause
+//! (`(Jᵀ W J)⁻¹ Jᵀ W b`) added in quadrature. The assumed σ shown is the
 //! RMS over the spheres of the noise model's σ at their disc radii.
 //! RMS figures over scenarios are the root of the mean of the
 //! per-scenario squares, over visible scenarios with an image pose and a
@@ -301,6 +303,11 @@ pub struct PoseComparison {
     pub predicted_translation_rms_mm: f64,
     /// First-order translation RMS at each scenario's measured σ, mm.
     pub predicted_at_measured_translation_rms_mm: f64,
+    /// The same with the pose bias that the spheres' measured mean centre
+    /// errors cause added in quadrature, degrees.
+    pub predicted_with_bias_rotation_rms_deg: f64,
+    /// Its translation counterpart, mm.
+    pub predicted_with_bias_translation_rms_mm: f64,
 }
 
 /// One scenario's image figures (a row of `images.csv`).
@@ -908,6 +915,8 @@ fn summarise(
                     image_rotation_deg: row.rotation_rms_deg,
                     predicted_rotation_deg: predicted.rms_rotation_deg,
                     at_measured_rotation_deg: at_measured.0,
+                    with_bias_rotation_deg: at_measured.0.hypot(at_measured.2),
+                    with_bias_translation_mm: at_measured.1.hypot(at_measured.3),
                     image_translation_mm: row.translation_rms_mm,
                     predicted_translation_mm: predicted.rms_translation_mm,
                     at_measured_translation_mm: at_measured.1,
@@ -973,23 +982,26 @@ struct PoseRow {
     image_translation_mm: f64,
     predicted_translation_mm: f64,
     at_measured_translation_mm: f64,
+    with_bias_rotation_deg: f64,
+    with_bias_translation_mm: f64,
     /// RMS over the spheres of the noise model's σ, px.
     assumed_sigma_px: f64,
 }
 
-/// The first-order (rotation RMS °, translation RMS mm) of the pose the
-/// tracker solved (module docs): the spheres in at least half its posed
-/// frames, each at its own measured σ; None when a sphere among them has
-/// no σ, or the pose is singular.
+/// The first-order (rotation RMS °, translation RMS mm, rotation bias °,
+/// translation bias mm) of the pose the tracker solved (module docs): the
+/// spheres in at least half its posed frames, each at its own measured σ,
+/// the bias from their measured mean centre errors; None when a sphere
+/// among them has no σ, or the pose is singular.
 fn prediction_at_measured(
     config: &Checked,
     pose: &crate::pose::Pose,
     images: &PoseImages,
     views: &[SphereView],
-) -> Option<(f64, f64)> {
+) -> Option<(f64, f64, f64, f64)> {
     let posed = images.rotation_error_deg.len();
     let positions = config.layout.positions();
-    let (mut object, mut sigmas) = (Vec::new(), Vec::new());
+    let (mut object, mut sigmas, mut biases) = (Vec::new(), Vec::new(), Vec::new());
     for (sphere, &count) in images.in_pose.iter().enumerate() {
         if posed == 0 || 2 * count < posed {
             continue;
@@ -1001,13 +1013,22 @@ fn prediction_at_measured(
         }
         object.push(positions[sphere]);
         sigmas.push(sigma);
+        biases.push(nalgebra::Vector2::from(view.mean));
     }
-    let covariance =
-        crate::error_model::first_order::pose_covariance(&config.camera, pose, &object, &sigmas)
-            .ok()?;
+    let (covariance, bias) = crate::error_model::first_order::pose_covariance_and_bias(
+        &config.camera,
+        pose,
+        &object,
+        &sigmas,
+        &biases,
+    )
+    .ok()?;
+    let covariance = covariance?;
     Some((
         covariance.rms_rotation_deg(),
         covariance.rms_translation_mm(),
+        bias.rotation_deg(),
+        bias.translation_norm_mm(),
     ))
 }
 
@@ -1027,6 +1048,8 @@ fn pose_comparison(rows: &[PoseRow], whole: &[(f64, f64, SphereView)]) -> Option
         image_translation_rms_mm: pooled(&|r| r.image_translation_mm),
         predicted_translation_rms_mm: pooled(&|r| r.predicted_translation_mm),
         predicted_at_measured_translation_rms_mm: pooled(&|r| r.at_measured_translation_mm),
+        predicted_with_bias_rotation_rms_deg: pooled(&|r| r.with_bias_rotation_deg),
+        predicted_with_bias_translation_rms_mm: pooled(&|r| r.with_bias_translation_mm),
     })
 }
 

@@ -150,10 +150,15 @@ pub fn markdown(images: &ImageSummary) -> String {
                 number(p.predicted_at_measured_rotation_rms_deg),
                 number(p.predicted_at_measured_translation_rms_mm),
             ]);
+            table.row([
+                "first order at the measured σ and centre bias".to_string(),
+                number(p.predicted_with_bias_rotation_rms_deg),
+                number(p.predicted_with_bias_translation_rms_mm),
+            ]);
             out.push_str(&table.markdown());
             let _ = writeln!(
                 out,
-                "\nOver {} scenarios (root mean square of the per-scenario RMS). The assumed σ is the noise model's per sphere (RMS shown); the measured σ pools the whole spheres' per-axis centre variance. The prediction at the measured σ is the first-order covariance of the pose the tracker solved: the spheres in at least half of its posed frames, each at its own measured σ, for any noise model. The images also carry the centres' systematic error, which no σ predicts.\n",
+                "\nOver {} scenarios (root mean square of the per-scenario RMS). The assumed σ is the noise model's per sphere (RMS shown); the measured σ pools the whole spheres' per-axis centre variance. The prediction at the measured σ is the first-order covariance of the pose the tracker solved: the spheres in at least half of its posed frames, each at its own measured σ, for any noise model; the last row adds in quadrature the first-order pose bias that those spheres' measured mean centre errors cause (the systematic part no σ predicts).\n",
                 p.scenarios
             );
         }

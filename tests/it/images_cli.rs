@@ -70,6 +70,7 @@ fn images_report_their_figures_and_write_a_noise_law_that_a_second_run_reads() {
         "### Centre error of whole spheres against disc radius",
         "### Centre error of whole spheres against depth",
         "first order at the measured σ",
+        "first order at the measured σ and centre bias",
         "### Partly hidden spheres with a biased centre",
         "### Noise law",
     ] {
@@ -93,6 +94,14 @@ fn images_report_their_figures_and_write_a_noise_law_that_a_second_run_reads() {
         .unwrap()
         / pose["predicted_rotation_rms_deg"].as_f64().unwrap();
     assert!((ratio / (measured / 0.5) - 1.0).abs() < 0.5, "{pose}");
+    // The measured centre bias only adds to the random part.
+    let random = pose["predicted_at_measured_rotation_rms_deg"]
+        .as_f64()
+        .unwrap();
+    let with_bias = pose["predicted_with_bias_rotation_rms_deg"]
+        .as_f64()
+        .unwrap();
+    assert!(with_bias >= random && with_bias < 0.5, "{pose}");
     assert!(json["by_radius"].as_array().unwrap().len() >= 2, "{json}");
     let run: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(report.join("run.json")).unwrap()).unwrap();
