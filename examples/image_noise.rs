@@ -14,14 +14,31 @@
 //! It prints each whole sphere's disc radius and centre σ, the frames lost
 //! or mislabelled, the pose errors, and the fitted law beside the best
 //! law of today's `size` form.
+//!
+//! **Cross-check.** On the same noisy frames (the same seeds), an
+//! independent centroid that shares nothing with `track`: each whole
+//! sphere's intensity-weighted centroid over the pixels within 1.2 disc
+//! radii of its exact ellipse centre, less the median of the ring from 1.4
+//! to 1.8 radii. Its per-axis σ about its mean is printed beside `track`'s
+//! centre σ and, with `CALIBRATION` (a noise calibration file, e.g.
+//! `calibration/paper.json`), beside that law's σ at the same radius:
+//!
+//! ```text
+//! cargo run --release --example image_noise -- LAYOUT TRIALS SEED CALIBRATION
+//! ```
 
 use layout_opt::camera::Camera;
 use layout_opt::layout::Layout;
 use layout_opt::mesh::{Marker, MarkerOptions};
 use layout_opt::noise::calibrated::fit;
+use layout_opt::noise::calibrated::CalibrationFile;
+use layout_opt::render::{frame_truth, render_radiance};
 use layout_opt::render::{RenderConfig, Scene};
+use layout_opt::track::GreyFrame;
 use layout_opt::track::TrackConfig;
-use layout_opt::validate::images::{check_pose, first_whole_view, sigma_samples};
+use layout_opt::validate::images::{
+    check_pose, first_whole_view, noisy_frame, sigma_samples, WHOLE_SPHERE_HIDDEN,
+};
 use rayon::prelude::*;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -31,6 +48,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .map_or("layouts/biprism-search.json", String::as_str);
     let trials: usize = args.get(1).map_or(Ok(40), |s| s.parse())?;
     let seed: u64 = args.get(2).map_or(Ok(7), |s| s.parse())?;
+    let calibration = args
+        .get(3)
+        .map(|path| CalibrationFile::load(std::path::Path::new(path)))
+        .transpose()?;
     let layout = Layout::load(std::path::Path::new(path))?;
     let names: Vec<String> = layout.points.iter().map(|p| p.name.clone()).collect();
     let scene = Scene::from_marker(Marker::design(&layout, &MarkerOptions::default())?);
@@ -45,15 +66,17 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .enumerate()
         .map(|(frame, &depth)| {
             let pose = first_whole_view(&scene, &names, &camera, depth).ok()??;
-            check_pose(&scene, &names, &render, &track, &pose, frame as u64, trials)
-                .ok()
-                .map(|images| (depth, images))
+            let images =
+                check_pose(&scene, &names, &render, &track, &pose, frame as u64, trials).ok()?;
+            let centroids = centroid_sigmas(&scene, &names, &render, &pose, frame as u64, trials);
+            Some((depth, images, centroids))
         })
         .collect();
     println!("{path}, {trials} noisy frames per view, seed {seed}, retroreflective preset, default sensor");
     println!("depth mm | disc radius px (whole spheres) | centre σ px | lost | mislabelled | rotation RMS °");
     let mut all = Vec::new();
-    for (depth, images) in results.iter().flatten() {
+    let mut cross = Vec::new();
+    for (depth, images, centroids) in results.iter().flatten() {
         let samples = sigma_samples(std::slice::from_ref(images));
         let radii: Vec<String> = samples
             .iter()
@@ -73,7 +96,37 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             images.lost.values().sum::<usize>(),
             images.mislabelled_frames
         );
+        for sample in &samples {
+            // The centroid of the same sphere: matched by radius, which is
+            // the sphere's own exact disc radius in both.
+            if let Some(&(_, sigma)) = centroids
+                .iter()
+                .find(|(r, _)| (r - sample.radius_px).abs() < 1e-9)
+            {
+                cross.push((sample.radius_px, sample.sigma_px, sigma));
+            }
+        }
         all.extend(samples);
+    }
+    cross.sort_by(|a, b| a.0.total_cmp(&b.0));
+    println!("\ncross-check: whole spheres, track's centre σ beside an independent centroid's σ (same frames){}", if calibration.is_some() { " and the calibration's σ(r)" } else { "" });
+    println!(
+        "radius px | track σ px | centroid σ px | centroid / track{}",
+        if calibration.is_some() {
+            " | law σ px | law / centroid"
+        } else {
+            ""
+        }
+    );
+    for (radius, track_sigma, centroid_sigma) in &cross {
+        let law = calibration.as_ref().map_or(String::new(), |file| {
+            let sigma = file.sigma().expect("checked on load").sigma(*radius);
+            format!(" | {sigma:.5} | {:.2}", sigma / centroid_sigma)
+        });
+        println!(
+            "{radius:.1} | {track_sigma:.5} | {centroid_sigma:.5} | {:.2}{law}",
+            centroid_sigma / track_sigma
+        );
     }
     let (law, quality) = fit(&all)?;
     println!(
@@ -87,4 +140,86 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         quality.size_law_rms_relative_residual
     );
     Ok(())
+}
+
+/// Per whole sphere: (disc radius px, per-axis σ px of its independent
+/// centroid over the `trials` noisy frames of `frame`; module docs).
+fn centroid_sigmas(
+    scene: &Scene,
+    names: &[String],
+    render: &RenderConfig,
+    pose: &layout_opt::pose::Pose,
+    frame: u64,
+    trials: usize,
+) -> Vec<(f64, f64)> {
+    let Ok(truth) = frame_truth(scene, names, pose, &render.camera) else {
+        return Vec::new();
+    };
+    let Ok(radiance) = render_radiance(scene, pose, render) else {
+        return Vec::new();
+    };
+    let frames: Vec<GreyFrame> = (0..trials as u64)
+        .map(|trial| noisy_frame(&radiance, render, frame, trial))
+        .collect();
+    truth
+        .spheres
+        .iter()
+        .filter(|s| {
+            s.hidden.by_support + s.hidden.by_sphere + s.hidden.outside_image < WHOLE_SPHERE_HIDDEN
+        })
+        .filter_map(|s| {
+            let radius = 0.5 * (s.semi_axes_px[0] + s.semi_axes_px[1]);
+            let centres: Vec<[f64; 2]> = frames
+                .iter()
+                .filter_map(|f| centroid(f, s.ellipse_centre_px, radius))
+                .collect();
+            let n = centres.len() as f64;
+            if n < 2.0 {
+                return None;
+            }
+            let mean = centres
+                .iter()
+                .fold([0.0; 2], |m, c| [m[0] + c[0] / n, m[1] + c[1] / n]);
+            let spread: f64 = centres
+                .iter()
+                .map(|c| (c[0] - mean[0]).powi(2) + (c[1] - mean[1]).powi(2))
+                .sum();
+            Some((radius, (spread / (2.0 * (n - 1.0))).sqrt()))
+        })
+        .collect()
+}
+
+/// The background-subtracted intensity-weighted centroid of the disc of
+/// radius 1.2 `radius` about `centre`, the background the median of the
+/// ring from 1.4 to 1.8 `radius`; None off the image.
+fn centroid(frame: &GreyFrame, centre: [f64; 2], radius: f64) -> Option<[f64; 2]> {
+    let reach = (1.8 * radius).ceil() as i64 + 1;
+    let (cx, cy) = (centre[0].round() as i64, centre[1].round() as i64);
+    let (width, height) = (i64::from(frame.width()), i64::from(frame.height()));
+    if cx - reach < 0 || cy - reach < 0 || cx + reach >= width || cy + reach >= height {
+        return None;
+    }
+    let mut ring = Vec::new();
+    let mut disc = Vec::new();
+    for y in cy - reach..=cy + reach {
+        for x in cx - reach..=cx + reach {
+            let d = (x as f64 - centre[0]).hypot(y as f64 - centre[1]) / radius;
+            let v = f64::from(frame.at(x as u32, y as u32));
+            if d <= 1.2 {
+                disc.push((x as f64, y as f64, v));
+            } else if (1.4..=1.8).contains(&d) {
+                ring.push(v);
+            }
+        }
+    }
+    ring.sort_by(f64::total_cmp);
+    let background = *ring.get(ring.len() / 2)?;
+    let (mut sum, mut sx, mut sy) = (0.0, 0.0, 0.0);
+    for (x, y, v) in disc {
+        let w = (v - background).max(0.0);
+        sum += w;
+        sx += w * x;
+        sy += w * y;
+    }
+    (sum > 0.0).then(|| [sx / sum, sy / sum])
 }

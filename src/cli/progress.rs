@@ -26,7 +26,7 @@ fn unit(phase: &str) -> &'static str {
     use layout_opt::search::{PHASE_COMPARE, PHASE_SEARCH, PHASE_VALIDATE};
     match phase {
         PHASE_SEARCH => "iterations",
-        PHASE_COMPARE | PHASE_VALIDATE => "scenarios",
+        PHASE_COMPARE | PHASE_VALIDATE | layout_opt::validate::image_check::PHASE => "scenarios",
         _ => "steps",
     }
 }

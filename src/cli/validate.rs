@@ -104,7 +104,16 @@ pub fn run(args: ValidateArgs, global: &GlobalOptions) -> anyhow::Result<()> {
         Some(path) => naming_file(Layout::load(path), "layout", path)?,
         None => Layout::paper_biprism(),
     };
-    let camera = args.camera.camera()?;
+    let camera = match args.images.preset_camera() {
+        Some(camera) => {
+            anyhow::ensure!(
+                args.camera.camera.is_none() && !args.camera.with_distortion,
+                "--image-preset machine-vision brings its own camera; leave out --camera and --with-distortion"
+            );
+            camera
+        }
+        None => args.camera.camera()?,
+    };
     let solvers = parse_solvers(&args.solvers)?;
     let tilt_step = default_tilt_step_deg(&solvers);
     let paper = ScenarioGrid::paper_protocol(tilt_step);

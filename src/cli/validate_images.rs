@@ -1,7 +1,7 @@
 //! The image-check flags of `validate` (`--images` and its companions).
 
 use clap::Args;
-use layout_opt::validate::image_check::{ImageCheck, DEFAULT_IMAGE_TRIALS};
+use layout_opt::validate::image_check::{ImageCheck, ImagePreset, DEFAULT_IMAGE_TRIALS};
 use std::path::PathBuf;
 
 /// Flags of the image-level check.
@@ -17,6 +17,13 @@ pub struct ImageArgs {
     /// Noisy frames read back per visible scenario with --images.
     #[arg(long, value_name = "N", default_value_t = DEFAULT_IMAGE_TRIALS)]
     image_trials: usize,
+    /// Camera and lighting of --images (docs/calibration.md): paper (the
+    /// paper's camera, retroreflective spheres, render's defaults),
+    /// machine-vision (a 1440×1080 camera with f 1739 px, ring light,
+    /// retroreflective spheres; it also becomes validate's camera, so
+    /// --camera is refused) or diffuse (a white print under room light).
+    #[arg(long, value_name = "PRESET", default_value = "paper")]
+    image_preset: ImagePreset,
     /// Fit σ = a / r^b + c to the whole spheres' centre σ from --images and
     /// write it as a noise calibration file (docs/formats.md), for
     /// `--noise-model calibrated:FILE`.
@@ -29,7 +36,13 @@ impl ImageArgs {
     pub fn check(&self) -> Option<ImageCheck> {
         self.images.then_some(ImageCheck {
             trials: self.image_trials,
+            preset: self.image_preset,
         })
+    }
+
+    /// The camera the image preset brings, if any.
+    pub fn preset_camera(&self) -> Option<layout_opt::camera::Camera> {
+        self.images.then(|| self.image_preset.camera()).flatten()
     }
 
     /// Where to write the fitted noise law.
@@ -44,6 +57,7 @@ pub fn image_flag(field: &str) -> Option<&'static str> {
         "image_trials" => Some("--image-trials"),
         "write_noise_model" => Some("--write-noise-model"),
         "images" => Some("--images"),
+        "image_preset" => Some("--image-preset"),
         _ => None,
     }
 }

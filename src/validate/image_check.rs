@@ -22,27 +22,36 @@
 //! than [`WHOLE_SPHERE_HIDDEN`]); a partly hidden sphere whose bias exceeds
 //! [`BIAS_SIGMAS`] times its own σ is listed as biased.
 //!
-//! **Pose.** The first-order prediction scales linearly with σ, so the
-//! prediction at the measured σ is the prediction at the assumed σ (the
-//! scenario's σ, exact for the isotropic noise model) times the ratio of
-//! the scenario's measured σ (the whole spheres' σ pooled as above) to it.
+//! **Pose.** The first-order prediction at the assumed σ is the
+//! Monte-Carlo run's (the noise model's σ per sphere, every sphere in
+//! front). The prediction at the measured σ is the first-order covariance
+//! of the pose the tracker solved: the spheres its pose used in at least
+//! half of the scenario's posed frames, each at its own measured σ (its
+//! view's, above), whatever the noise model; beside it, the same with the
+//! first-order pose bias that those spheres' mean centre errors cause
+//! (`(Jᵀ W J)⁻¹ Jᵀ W b`) added in quadrature. The assumed σ shown is the
+//! RMS over the spheres of the noise model's σ at their disc radii.
 //! RMS figures over scenarios are the root of the mean of the
 //! per-scenario squares, over visible scenarios with an image pose and a
 //! first-order prediction.
 
 use super::config::Checked;
 use super::images::{
-    check_pose, sigma_samples, sphere_views, PoseImages, SphereView, WHOLE_SPHERE_HIDDEN,
+    check_pose, sample_frame, sigma_samples, sphere_views, PoseImages, SphereView,
+    WHOLE_SPHERE_HIDDEN,
 };
+use crate::camera::Camera;
 use crate::config::ConfigError;
 use crate::mesh::marker_for_range;
 use crate::montecarlo::ScenarioOutcome;
 use crate::noise::calibrated::{fit, CalibratedSigma, FitQuality, SigmaSample};
 use crate::observer::{watch, Observer};
-use crate::render::{RenderConfig, RenderError, Scene};
+use crate::pose::{rotation_error_deg, translation_error_mm};
+use crate::render::{Appearance, Lighting, Noise, RenderConfig, RenderError, Scene};
 use crate::scenario::Scenario;
-use crate::track::TrackConfig;
+use crate::track::{FrameAnalysis, GreyFrame, Threshold, TrackConfig};
 use crate::visibility::WorkingRange;
+use nalgebra::Vector3;
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -68,28 +77,149 @@ pub const MIN_LAW_RADII: usize = 3;
 /// Progress phase of the image check: one step per visible scenario.
 pub const PHASE: &str = "images";
 
+/// The camera and lighting the image check renders with: the settings of
+/// `render` that a noise calibration stands for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum ImagePreset {
+    /// The paper's camera (validate's camera, by default the paper's
+    /// 1280×720, f 1301 px) with `render`'s defaults: retroreflective
+    /// spheres under a ring light, 4×4 supersampling, σ 0.5 px blur,
+    /// 8 bit, full well 10,000 e⁻, read noise 10 e⁻.
+    #[default]
+    Paper,
+    /// A typical machine-vision camera ([`machine_vision_camera`]: a
+    /// 1440×1080 global-shutter sensor of 3.45 µm pixels behind a 6 mm
+    /// lens, f 1739 px) with a ring light and retroreflective spheres:
+    /// full well 10,500 e⁻, read noise 2.2 e⁻, 8 bit, σ 0.5 px blur.
+    MachineVision,
+    /// A diffuse white print under room light: validate's camera, `render`'s
+    /// `diffuse` lighting preset (a lamp 30° off the axis and 15% ambient
+    /// light, white spheres, grey supports), the default sensor and blur,
+    /// and the tracker at a fixed threshold ([`DIFFUSE_THRESHOLD`]).
+    Diffuse,
+}
+
+/// The diffuse preset's fixed tracker threshold, fraction of full scale:
+/// above `render`'s diffuse supports facing the light (0.5), below its lit
+/// spheres (0.85).
+pub const DIFFUSE_THRESHOLD: f64 = 0.55;
+
+/// The machine-vision preset's camera: 1440×1080, 3.45 µm pixels, 6 mm
+/// lens (f = 6 / 0.00345 = 1739.1 px), principal point at the centre, no
+/// distortion.
+pub fn machine_vision_camera() -> Camera {
+    Camera::new(1739.1, 1739.1, 720.0, 540.0, 1440, 1080, [0.0; 5])
+        .expect("the preset's camera is valid")
+}
+
+impl ImagePreset {
+    /// Every preset, in CLI order.
+    pub const ALL: [ImagePreset; 3] = [
+        ImagePreset::Paper,
+        ImagePreset::MachineVision,
+        ImagePreset::Diffuse,
+    ];
+
+    /// Its CLI name.
+    pub fn name(self) -> &'static str {
+        match self {
+            ImagePreset::Paper => "paper",
+            ImagePreset::MachineVision => "machine-vision",
+            ImagePreset::Diffuse => "diffuse",
+        }
+    }
+
+    /// The camera the preset brings (None: validate's own).
+    pub fn camera(self) -> Option<Camera> {
+        match self {
+            ImagePreset::MachineVision => Some(machine_vision_camera()),
+            ImagePreset::Paper | ImagePreset::Diffuse => None,
+        }
+    }
+
+    /// The render settings for `camera`, noise seeded by `seed`.
+    pub fn render(self, camera: Camera, seed: u64) -> RenderConfig {
+        let mut render = RenderConfig::new(camera);
+        render.seed = seed;
+        match self {
+            ImagePreset::Paper => {}
+            ImagePreset::MachineVision => {
+                render.sensor.noise = Some(Noise {
+                    full_well_electrons: 10_500.0,
+                    read_noise_electrons: 2.2,
+                });
+            }
+            ImagePreset::Diffuse => {
+                render.appearance = Appearance::preset(Lighting::Diffuse);
+            }
+        }
+        render
+    }
+
+    /// The tracker's threshold for the preset: Otsu's for bright discs on
+    /// a dark part; for the diffuse print, whose grey supports Otsu's level
+    /// joins to the spheres, a fixed level above the lit supports.
+    pub fn threshold(self) -> Threshold {
+        match self {
+            ImagePreset::Paper | ImagePreset::MachineVision => Threshold::Otsu,
+            ImagePreset::Diffuse => Threshold::Fixed(DIFFUSE_THRESHOLD),
+        }
+    }
+
+    /// The preset in words, for the report.
+    pub fn describe(self) -> String {
+        let what = match self {
+            ImagePreset::Paper => "retroreflective spheres under a ring light, render's default sensor and optics",
+            ImagePreset::MachineVision => "1440×1080 machine-vision camera (f 1739 px), ring light and retroreflective spheres, full well 10,500 e⁻, read noise 2.2 e⁻",
+            ImagePreset::Diffuse => "diffuse white print under room light (render's diffuse lighting), render's default sensor and optics, tracker threshold fixed at 0.55",
+        };
+        format!("preset {}: {what}", self.name())
+    }
+}
+
+impl std::str::FromStr for ImagePreset {
+    type Err = ConfigError;
+    fn from_str(text: &str) -> Result<Self, ConfigError> {
+        ImagePreset::ALL
+            .into_iter()
+            .find(|p| p.name().eq_ignore_ascii_case(text.trim()))
+            .ok_or_else(|| {
+                ConfigError::new(
+                    "image_preset",
+                    format!("unknown preset \"{text}\"; use paper, machine-vision or diffuse"),
+                )
+            })
+    }
+}
+
 /// The image check's settings.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct ImageCheck {
     /// Noisy frames read back per scenario.
     pub trials: usize,
+    /// The camera and lighting rendered.
+    pub preset: ImagePreset,
 }
 
 impl Default for ImageCheck {
     fn default() -> Self {
         ImageCheck {
             trials: DEFAULT_IMAGE_TRIALS,
+            preset: ImagePreset::Paper,
         }
     }
 }
 
 impl ImageCheck {
-    /// Refuses a bad value, naming its field (`image_trials`).
+    /// Refuses a bad value, naming its field (`image_trials`). A preset
+    /// that brings its own camera needs validate's camera to be it.
     ///
     /// ```
     /// use layout_opt::validate::image_check::ImageCheck;
     /// assert!(ImageCheck::default().check().is_ok());
-    /// assert_eq!(ImageCheck { trials: 0 }.check().unwrap_err().field, "image_trials");
+    /// let zero = ImageCheck { trials: 0, ..ImageCheck::default() };
+    /// assert_eq!(zero.check().unwrap_err().field, "image_trials");
     /// ```
     pub fn check(&self) -> Result<(), ConfigError> {
         if self.trials == 0 {
@@ -173,6 +303,11 @@ pub struct PoseComparison {
     pub predicted_translation_rms_mm: f64,
     /// First-order translation RMS at each scenario's measured σ, mm.
     pub predicted_at_measured_translation_rms_mm: f64,
+    /// The same with the pose bias that the spheres' measured mean centre
+    /// errors cause added in quadrature, degrees.
+    pub predicted_with_bias_rotation_rms_deg: f64,
+    /// Its translation counterpart, mm.
+    pub predicted_with_bias_translation_rms_mm: f64,
 }
 
 /// One scenario's image figures (a row of `images.csv`).
@@ -227,6 +362,31 @@ pub enum NoiseLaw {
     Unfitted(String),
 }
 
+/// One frame shown in the report: which scenario and realisation, why it
+/// was chosen, what the tracker made of it, and the frame itself.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SampleFrame {
+    /// Why it was chosen: `nearest`, `farthest` or `worst` (also its
+    /// file's stem under `images/`).
+    pub role: String,
+    /// The scenario.
+    pub scenario: Scenario,
+    /// The noise realisation.
+    pub trial: usize,
+    /// What the tracker made of it, in words.
+    pub outcome: String,
+    /// The noisy frame as tracked.
+    #[serde(skip)]
+    pub frame: GreyFrame,
+    /// The tracker's analysis of it.
+    #[serde(skip)]
+    pub analysis: FrameAnalysis,
+    /// The camera, the layout's sphere centres (mm) and radius (mm), for
+    /// the overlay's model outlines.
+    #[serde(skip)]
+    pub geometry: (Camera, Vec<Vector3<f64>>, f64),
+}
+
 /// Everything the image check found.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct ImageSummary {
@@ -265,6 +425,9 @@ pub struct ImageSummary {
     /// Per scenario, in grid order (`images.csv`; not in `summary.json`).
     #[serde(skip)]
     pub per_scenario: Vec<ScenarioImages>,
+    /// The frames the report shows: the nearest scenario, the farthest and
+    /// the worst ([`Setup::samples`]).
+    pub samples: Vec<SampleFrame>,
 }
 
 /// Pooled σ of sphere views (module docs), NaN when none.
@@ -288,42 +451,319 @@ fn rms(values: impl Iterator<Item = f64>) -> f64 {
     }
 }
 
+/// Scenarios timed first for [`run`]'s estimate, spread evenly over the
+/// visible ones (their results count like any other's).
+pub const ESTIMATE_SCENARIOS: usize = 4;
+
 /// [`run_until`] with progress as [`PHASE`] through `observer`, which may
-/// ask to stop.
+/// ask to stop, and a time estimate: [`ESTIMATE_SCENARIOS`] scenarios
+/// spread over the grid are checked first and timed, and the whole
+/// check's time, scaled from theirs, is logged before the rest run.
 pub fn run(
     config: Checked,
     check: &ImageCheck,
     outcomes: &[ScenarioOutcome],
     observer: &mut impl Observer,
 ) -> Result<ImageSummary, ImageCheckError> {
+    check.check()?;
+    let setup = Setup::new(config, check, outcomes)?;
+    let chosen = visible(outcomes);
+    let total = chosen.len() as u64;
+    let stride = chosen.len().div_ceil(ESTIMATE_SCENARIOS).max(1);
+    let first: Vec<usize> = chosen.iter().step_by(stride).copied().collect();
+    let rest: Vec<usize> = chosen
+        .iter()
+        .enumerate()
+        .filter(|(k, _)| k % stride != 0)
+        .map(|(_, &i)| i)
+        .collect();
     let done = AtomicU64::new(0);
     let stop = AtomicBool::new(false);
-    let total = outcomes
-        .iter()
-        .filter(|o| o.visibility.is_visible())
-        .count() as u64;
-    watch(
+    let on_done = |_: usize| {
+        done.fetch_add(1, Ordering::Relaxed);
+    };
+    // Start the worker threads before timing anything.
+    rayon::broadcast(|_| ());
+    let started = std::time::Instant::now();
+    let mut rendered = watch(
         observer,
         PHASE,
         total,
         || done.load(Ordering::Relaxed),
         Some(&stop),
-        || {
-            run_until(
-                config,
-                check,
-                outcomes,
-                &|finished| done.store(finished as u64, Ordering::Relaxed),
-                &stop,
-            )
-        },
-    )
+        || setup.check_all(check, outcomes, &first, &on_done, &stop),
+    )?;
+    let seconds = started.elapsed().as_secs_f64();
+    if !rest.is_empty() {
+        observer.log(&format!(
+            "image check: about {} for {} visible scenarios × {} frames on {} threads (the first {} scenarios took {:.1} s)",
+            minutes(seconds * chosen.len() as f64 / first.len() as f64),
+            chosen.len(),
+            check.trials,
+            rayon::current_num_threads(),
+            first.len(),
+            seconds
+        ));
+        rendered.extend(watch(
+            observer,
+            PHASE,
+            total,
+            || done.load(Ordering::Relaxed),
+            Some(&stop),
+            || setup.check_all(check, outcomes, &rest, &on_done, &stop),
+        )?);
+    }
+    rendered.sort_by_key(|r| r.outcome_index);
+    setup.summarise(config, check, outcomes, &rendered)
+}
+
+/// An estimate's duration: whole seconds below two minutes, else minutes
+/// to one decimal.
+fn minutes(seconds: f64) -> String {
+    if seconds < 120.0 {
+        format!("{seconds:.0} s")
+    } else {
+        format!("{:.1} min", seconds / 60.0)
+    }
 }
 
 /// What one visible scenario gave.
 struct Rendered {
     outcome_index: usize,
     images: Result<PoseImages, String>,
+}
+
+/// The indices of the visible scenarios of `outcomes`.
+fn visible(outcomes: &[ScenarioOutcome]) -> Vec<usize> {
+    (0..outcomes.len())
+        .filter(|&i| outcomes[i].visibility.is_visible())
+        .collect()
+}
+
+/// What every scenario's check shares: the part, the renderer's and the
+/// tracker's settings.
+struct Setup {
+    names: Vec<String>,
+    scene: Scene,
+    render: RenderConfig,
+    track: TrackConfig,
+}
+
+impl Setup {
+    /// The part and settings of the module docs.
+    fn new(
+        config: Checked,
+        check: &ImageCheck,
+        outcomes: &[ScenarioOutcome],
+    ) -> Result<Self, ImageCheckError> {
+        let layout = &config.layout;
+        let names: Vec<String> = layout.points.iter().map(|p| p.name.clone()).collect();
+        // The part whose supports validate's visibility model counts: routed
+        // for validate's own scenarios, with its structure options (export's
+        // defaults under --no-supports, which the model then ignores).
+        let range = WorkingRange {
+            camera: config.camera,
+            scenarios: outcomes.iter().map(|o| o.scenario).collect(),
+            max_hidden: config.max_hidden()?,
+        };
+        let options = config.structure.clone().unwrap_or_default();
+        let scene = Scene::from_marker(marker_for_range(layout, &options, &range)?);
+        if let Some(camera) = check.preset.camera() {
+            if camera != config.camera {
+                return Err(ConfigError::new(
+                    "image_preset",
+                    format!(
+                        "{} renders through its own camera; validate must use it too",
+                        check.preset.name()
+                    ),
+                )
+                .into());
+            }
+        }
+        let render = check.preset.render(config.camera, config.monte_carlo.seed);
+        let mut track = TrackConfig::new(layout, config.camera);
+        track.detector.threshold = check.preset.threshold();
+        track.validate().map_err(|e| {
+            ConfigError::new(
+                "images",
+                format!("the tracker cannot read {}: {e}", layout.name),
+            )
+        })?;
+        Ok(Setup {
+            names,
+            scene,
+            render,
+            track,
+        })
+    }
+
+    /// Checks the scenarios `chosen` (indices into `outcomes`) in
+    /// parallel, calling `on_done` once per scenario finished; a set `stop`
+    /// ends it with [`ImageCheckError::Interrupted`].
+    fn check_all(
+        &self,
+        check: &ImageCheck,
+        outcomes: &[ScenarioOutcome],
+        chosen: &[usize],
+        on_done: &(dyn Fn(usize) + Sync),
+        stop: &AtomicBool,
+    ) -> Result<Vec<Rendered>, ImageCheckError> {
+        use rayon::prelude::*;
+        chosen
+            .par_iter()
+            .map(|&outcome_index| {
+                if stop.load(Ordering::Relaxed) {
+                    return Err(ImageCheckError::Interrupted);
+                }
+                let scenario = &outcomes[outcome_index].scenario;
+                let images = match check_pose(
+                    &self.scene,
+                    &self.names,
+                    &self.render,
+                    &self.track,
+                    &scenario.pose(),
+                    scenario.index as u64,
+                    check.trials,
+                ) {
+                    Ok(images) => Ok(images),
+                    Err(error) => Err(refusal(error)?),
+                };
+                on_done(outcome_index);
+                Ok(Rendered {
+                    outcome_index,
+                    images,
+                })
+            })
+            .collect()
+    }
+
+    /// The summary of `rendered` with its sample frames.
+    fn summarise(
+        &self,
+        config: Checked,
+        check: &ImageCheck,
+        outcomes: &[ScenarioOutcome],
+        rendered: &[Rendered],
+    ) -> Result<ImageSummary, ImageCheckError> {
+        let mut summary = summarise(config, check, outcomes, &self.names, rendered);
+        summary.samples = self.samples(config, outcomes, rendered)?;
+        Ok(summary)
+    }
+
+    /// The report's sample frames, rendered again from their seeds: realisation
+    /// 0 of the nearest rendered scenario and of the farthest (by depth,
+    /// the first in grid order on a tie), and the worst frame
+    /// ([`super::images::FrameRank`]) of the scenario whose worst frame is
+    /// worst (the one with the most failed frames, then the largest
+    /// rotation RMS, on a tie).
+    fn samples(
+        &self,
+        config: Checked,
+        outcomes: &[ScenarioOutcome],
+        rendered: &[Rendered],
+    ) -> Result<Vec<SampleFrame>, ImageCheckError> {
+        let posed: Vec<(&Scenario, &PoseImages)> = rendered
+            .iter()
+            .filter_map(|r| {
+                r.images
+                    .as_ref()
+                    .ok()
+                    .map(|images| (&outcomes[r.outcome_index].scenario, images))
+            })
+            .collect();
+        let by_depth = |far: bool| {
+            posed.iter().copied().reduce(|best, next| {
+                let better = if far {
+                    next.0.depth_mm > best.0.depth_mm
+                } else {
+                    next.0.depth_mm < best.0.depth_mm
+                };
+                if better {
+                    next
+                } else {
+                    best
+                }
+            })
+        };
+        let failures = |images: &PoseImages| {
+            images.lost.values().sum::<usize>()
+                + images.mislabelled_frames
+                + images.frames_missing_a_whole_sphere
+        };
+        let worst = posed.iter().copied().reduce(|best, next| {
+            let key = |(_, images): (&Scenario, &PoseImages)| {
+                (
+                    images.worst_rank.failure,
+                    failures(images),
+                    rms(images.rotation_error_deg.iter().copied()),
+                )
+            };
+            let (a, b) = (key(next), key(best));
+            let worse = (a.0, a.1)
+                .cmp(&(b.0, b.1))
+                .then(a.2.total_cmp(&b.2))
+                .is_gt();
+            if worse {
+                next
+            } else {
+                best
+            }
+        });
+        let chosen = [
+            ("nearest", by_depth(false).map(|(s, _)| (s, 0))),
+            ("farthest", by_depth(true).map(|(s, _)| (s, 0))),
+            ("worst", worst.map(|(s, images)| (s, images.worst_trial))),
+        ];
+        let geometry = (
+            config.camera,
+            self.track.object.clone(),
+            self.track.radius_mm(),
+        );
+        let mut samples = Vec::new();
+        for (role, choice) in chosen {
+            let Some((scenario, trial)) = choice else {
+                continue;
+            };
+            let pose = scenario.pose();
+            let (frame, analysis) = sample_frame(
+                &self.scene,
+                &self.render,
+                &self.track,
+                &pose,
+                scenario.index as u64,
+                trial,
+            )
+            .map_err(ImageCheckError::Render)?;
+            let outcome = match (&analysis.outcome, &analysis.pose) {
+                (Ok(_), Some(estimate)) => format!(
+                    "posed, rotation error {}°, translation error {} mm",
+                    crate::report::number::significant(
+                        Some(rotation_error_deg(&pose.rotation, &estimate.rotation)),
+                        2
+                    ),
+                    crate::report::number::significant(
+                        Some(translation_error_mm(
+                            &pose.translation,
+                            &estimate.translation
+                        )),
+                        2
+                    )
+                ),
+                (Err(error), _) => format!("no pose: {error}"),
+                (Ok(_), None) => "no pose".to_string(),
+            };
+            samples.push(SampleFrame {
+                role: role.to_string(),
+                scenario: *scenario,
+                trial,
+                outcome,
+                frame,
+                analysis,
+                geometry: geometry.clone(),
+            });
+        }
+        Ok(samples)
+    }
 }
 
 /// Renders and reads back every visible scenario of `outcomes` (module
@@ -336,60 +776,12 @@ pub fn run_until(
     on_done: &(dyn Fn(usize) + Sync),
     stop: &AtomicBool,
 ) -> Result<ImageSummary, ImageCheckError> {
-    use rayon::prelude::*;
     check.check()?;
-    let layout = &config.layout;
-    let names: Vec<String> = layout.points.iter().map(|p| p.name.clone()).collect();
-    // The part whose supports validate's visibility model counts: routed
-    // for validate's own scenarios, with its structure options (export's
-    // defaults under --no-supports, which the model then ignores).
-    let range = WorkingRange {
-        camera: config.camera,
-        scenarios: outcomes.iter().map(|o| o.scenario).collect(),
-        max_hidden: config.max_hidden()?,
-    };
-    let options = config.structure.clone().unwrap_or_default();
-    let scene = Scene::from_marker(marker_for_range(layout, &options, &range)?);
-    let mut render = RenderConfig::new(config.camera);
-    render.seed = config.monte_carlo.seed;
-    let track = TrackConfig::new(layout, config.camera);
-    track.validate().map_err(|e| {
-        ConfigError::new(
-            "images",
-            format!("the tracker cannot read {}: {e}", layout.name),
-        )
-    })?;
-    let chosen: Vec<usize> = (0..outcomes.len())
-        .filter(|&i| outcomes[i].visibility.is_visible())
-        .collect();
+    let setup = Setup::new(config, check, outcomes)?;
     let done = AtomicU64::new(0);
-    let rendered: Vec<Rendered> = chosen
-        .par_iter()
-        .map(|&outcome_index| {
-            if stop.load(Ordering::Relaxed) {
-                return Err(ImageCheckError::Interrupted);
-            }
-            let scenario = &outcomes[outcome_index].scenario;
-            let images = match check_pose(
-                &scene,
-                &names,
-                &render,
-                &track,
-                &scenario.pose(),
-                scenario.index as u64,
-                check.trials,
-            ) {
-                Ok(images) => Ok(images),
-                Err(error) => Err(refusal(error)?),
-            };
-            on_done(done.fetch_add(1, Ordering::Relaxed) as usize + 1);
-            Ok(Rendered {
-                outcome_index,
-                images,
-            })
-        })
-        .collect::<Result<_, _>>()?;
-    Ok(summarise(config, check, outcomes, &names, &rendered))
+    let count = |_: usize| on_done(done.fetch_add(1, Ordering::Relaxed) as usize + 1);
+    let rendered = setup.check_all(check, outcomes, &visible(outcomes), &count, stop)?;
+    setup.summarise(config, check, outcomes, &rendered)
 }
 
 /// A pose the renderer refuses, as a reason; any other render error as
@@ -414,7 +806,7 @@ fn summarise(
     let mut summary = ImageSummary {
         check: *check,
         seed: config.monte_carlo.seed,
-        preset: "render defaults (retroreflective preset, default sensor and optics)".to_string(),
+        preset: check.preset.describe(),
         scenarios: rendered.len(),
         refused: BTreeMap::new(),
         frames: 0,
@@ -429,12 +821,12 @@ fn summarise(
         biased: Vec::new(),
         noise_law: NoiseLaw::Unfitted(String::new()),
         per_scenario: Vec::new(),
+        samples: Vec::new(),
     };
     // (radius, depth, view) of every whole sphere view.
     let mut whole: Vec<(f64, f64, SphereView)> = Vec::new();
     let mut samples: Vec<SigmaSample> = Vec::new();
-    // (image rotation², predicted, ratio, image translation², predicted, assumed σ, measured σ)
-    let mut pose_rows: Vec<[f64; 6]> = Vec::new();
+    let mut pose_rows: Vec<PoseRow> = Vec::new();
     for item in rendered {
         let outcome = &outcomes[item.outcome_index];
         let scenario = &outcome.scenario;
@@ -507,16 +899,29 @@ fn summarise(
             .fold(f64::NAN, f64::max);
         row.rotation_rms_deg = rms(images.rotation_error_deg.iter().copied());
         row.translation_rms_mm = rms(images.translation_error_mm.iter().copied());
-        if let Some(predicted) = predicted {
-            if row.posed > 0 && scenario_sigma.is_finite() && scenario.sigma_px > 0.0 {
-                pose_rows.push([
-                    row.rotation_rms_deg,
-                    predicted.rms_rotation_deg,
-                    row.translation_rms_mm,
-                    predicted.rms_translation_mm,
-                    scenario.sigma_px,
-                    scenario_sigma,
-                ]);
+        if let (Some(predicted), Some(at_measured)) = (
+            predicted,
+            prediction_at_measured(&config, &scenario.pose(), images, &views),
+        ) {
+            if row.posed > 0 && scenario_sigma.is_finite() {
+                let assumed = rms(images.radius_px.iter().enumerate().map(|(i, &r)| {
+                    config.monte_carlo.noise.point_sigma(
+                        scenario.sigma_px,
+                        config.layout.points[i].sigma_px,
+                        r,
+                    )
+                }));
+                pose_rows.push(PoseRow {
+                    image_rotation_deg: row.rotation_rms_deg,
+                    predicted_rotation_deg: predicted.rms_rotation_deg,
+                    at_measured_rotation_deg: at_measured.0,
+                    with_bias_rotation_deg: at_measured.0.hypot(at_measured.2),
+                    with_bias_translation_mm: at_measured.1.hypot(at_measured.3),
+                    image_translation_mm: row.translation_rms_mm,
+                    predicted_translation_mm: predicted.rms_translation_mm,
+                    at_measured_translation_mm: at_measured.1,
+                    assumed_sigma_px: assumed,
+                });
             }
         }
         samples.extend(sigma_samples(std::slice::from_ref(images)));
@@ -568,22 +973,83 @@ fn bins(
         .collect()
 }
 
+/// One scenario's pose figures: from the images, first order at the
+/// assumed σ and at the measured σ.
+struct PoseRow {
+    image_rotation_deg: f64,
+    predicted_rotation_deg: f64,
+    at_measured_rotation_deg: f64,
+    image_translation_mm: f64,
+    predicted_translation_mm: f64,
+    at_measured_translation_mm: f64,
+    with_bias_rotation_deg: f64,
+    with_bias_translation_mm: f64,
+    /// RMS over the spheres of the noise model's σ, px.
+    assumed_sigma_px: f64,
+}
+
+/// The first-order (rotation RMS °, translation RMS mm, rotation bias °,
+/// translation bias mm) of the pose the tracker solved (module docs): the
+/// spheres in at least half its posed frames, each at its own measured σ,
+/// the bias from their measured mean centre errors; None when a sphere
+/// among them has no σ, or the pose is singular.
+fn prediction_at_measured(
+    config: &Checked,
+    pose: &crate::pose::Pose,
+    images: &PoseImages,
+    views: &[SphereView],
+) -> Option<(f64, f64, f64, f64)> {
+    let posed = images.rotation_error_deg.len();
+    let positions = config.layout.positions();
+    let (mut object, mut sigmas, mut biases) = (Vec::new(), Vec::new(), Vec::new());
+    for (sphere, &count) in images.in_pose.iter().enumerate() {
+        if posed == 0 || 2 * count < posed {
+            continue;
+        }
+        let view = views.iter().find(|v| v.sphere == sphere)?;
+        let sigma = view.sigma_px();
+        if !(sigma > 0.0 && sigma.is_finite()) {
+            return None;
+        }
+        object.push(positions[sphere]);
+        sigmas.push(sigma);
+        biases.push(nalgebra::Vector2::from(view.mean));
+    }
+    let (covariance, bias) = crate::error_model::first_order::pose_covariance_and_bias(
+        &config.camera,
+        pose,
+        &object,
+        &sigmas,
+        &biases,
+    )
+    .ok()?;
+    let covariance = covariance?;
+    Some((
+        covariance.rms_rotation_deg(),
+        covariance.rms_translation_mm(),
+        bias.rotation_deg(),
+        bias.translation_norm_mm(),
+    ))
+}
+
 /// The pooled pose comparison (module docs), None without scenarios.
-fn pose_comparison(rows: &[[f64; 6]], whole: &[(f64, f64, SphereView)]) -> Option<PoseComparison> {
+fn pose_comparison(rows: &[PoseRow], whole: &[(f64, f64, SphereView)]) -> Option<PoseComparison> {
     if rows.is_empty() {
         return None;
     }
-    let pooled = |f: &dyn Fn(&[f64; 6]) -> f64| rms(rows.iter().map(f));
+    let pooled = |f: &dyn Fn(&PoseRow) -> f64| rms(rows.iter().map(f));
     Some(PoseComparison {
         scenarios: rows.len(),
-        assumed_sigma_px: pooled(&|r| r[4]),
+        assumed_sigma_px: pooled(&|r| r.assumed_sigma_px),
         measured_sigma_px: pooled_sigma(whole.iter().map(|(_, _, v)| v)),
-        image_rotation_rms_deg: pooled(&|r| r[0]),
-        predicted_rotation_rms_deg: pooled(&|r| r[1]),
-        predicted_at_measured_rotation_rms_deg: pooled(&|r| r[1] * r[5] / r[4]),
-        image_translation_rms_mm: pooled(&|r| r[2]),
-        predicted_translation_rms_mm: pooled(&|r| r[3]),
-        predicted_at_measured_translation_rms_mm: pooled(&|r| r[3] * r[5] / r[4]),
+        image_rotation_rms_deg: pooled(&|r| r.image_rotation_deg),
+        predicted_rotation_rms_deg: pooled(&|r| r.predicted_rotation_deg),
+        predicted_at_measured_rotation_rms_deg: pooled(&|r| r.at_measured_rotation_deg),
+        image_translation_rms_mm: pooled(&|r| r.image_translation_mm),
+        predicted_translation_rms_mm: pooled(&|r| r.predicted_translation_mm),
+        predicted_at_measured_translation_rms_mm: pooled(&|r| r.at_measured_translation_mm),
+        predicted_with_bias_rotation_rms_deg: pooled(&|r| r.with_bias_rotation_deg),
+        predicted_with_bias_translation_rms_mm: pooled(&|r| r.with_bias_translation_mm),
     })
 }
 
@@ -628,6 +1094,12 @@ mod tests {
             mislabelled_frames: 0,
             frames_missing_a_whole_sphere: 0,
             lost: BTreeMap::new(),
+            in_pose: vec![0; sphere + 1],
+            worst_trial: 0,
+            worst_rank: super::super::images::FrameRank {
+                failure: 0,
+                rotation_error_deg: 0.0,
+            },
         };
         sphere_views(&images).pop().unwrap()
     }
@@ -643,6 +1115,37 @@ mod tests {
     }
 
     #[test]
+    fn presets_parse_by_name_and_set_what_they_say() {
+        for preset in ImagePreset::ALL {
+            assert_eq!(preset.name().parse::<ImagePreset>().unwrap(), preset);
+        }
+        assert_eq!(
+            "glossy".parse::<ImagePreset>().unwrap_err().field,
+            "image_preset"
+        );
+        let camera = Camera::paper();
+        assert_eq!(
+            ImagePreset::Paper.render(camera, 3),
+            RenderConfig {
+                seed: 3,
+                ..RenderConfig::new(camera)
+            }
+        );
+        let vision = ImagePreset::MachineVision.camera().unwrap();
+        assert_eq!((vision.width(), vision.height()), (1440, 1080));
+        let render = ImagePreset::MachineVision.render(vision, 3);
+        assert_eq!(render.sensor.noise.unwrap().read_noise_electrons, 2.2);
+        assert!(render.validate().is_ok());
+        let diffuse = ImagePreset::Diffuse.render(camera, 3);
+        assert_eq!(diffuse.appearance.lighting, Lighting::Diffuse);
+        assert_eq!(
+            ImagePreset::Diffuse.threshold(),
+            Threshold::Fixed(DIFFUSE_THRESHOLD)
+        );
+        assert!(ImagePreset::Diffuse.camera().is_none());
+    }
+
+    #[test]
     fn a_law_needs_three_radii_and_zero_trials_are_refused() {
         let sample = |radius_px| SigmaSample {
             radius_px,
@@ -654,7 +1157,13 @@ mod tests {
         let three = [sample(5.0), sample(10.0), sample(20.0), sample(30.0)];
         assert!(matches!(noise_law(&three), NoiseLaw::Fitted { .. }));
         assert_eq!(
-            ImageCheck { trials: 0 }.check().unwrap_err().field,
+            ImageCheck {
+                trials: 0,
+                ..ImageCheck::default()
+            }
+            .check()
+            .unwrap_err()
+            .field,
             "image_trials"
         );
         assert_eq!(ImageCheck::default().trials, DEFAULT_IMAGE_TRIALS);

@@ -136,7 +136,7 @@ pub fn markdown(images: &ImageSummary) -> String {
             ]);
             table.row([
                 format!(
-                    "first order at the assumed σ ({} px)",
+                    "first order at the assumed σ ({} px RMS)",
                     number(p.assumed_sigma_px)
                 ),
                 number(p.predicted_rotation_rms_deg),
@@ -150,10 +150,15 @@ pub fn markdown(images: &ImageSummary) -> String {
                 number(p.predicted_at_measured_rotation_rms_deg),
                 number(p.predicted_at_measured_translation_rms_mm),
             ]);
+            table.row([
+                "first order at the measured σ and centre bias".to_string(),
+                number(p.predicted_with_bias_rotation_rms_deg),
+                number(p.predicted_with_bias_translation_rms_mm),
+            ]);
             out.push_str(&table.markdown());
             let _ = writeln!(
                 out,
-                "\nOver {} scenarios (root mean square of the per-scenario RMS). The measured σ of a scenario pools its whole spheres' per-axis centre variance; the prediction at it is the one at the scenario's σ times their ratio (the first-order model is linear in σ; exact for the isotropic model).\n",
+                "\nOver {} scenarios (root mean square of the per-scenario RMS). The assumed σ is the noise model's per sphere (RMS shown); the measured σ pools the whole spheres' per-axis centre variance. The prediction at the measured σ is the first-order covariance of the pose the tracker solved: the spheres in at least half of its posed frames, each at its own measured σ, for any noise model; the last row adds in quadrature the first-order pose bias that those spheres' measured mean centre errors cause (the systematic part no σ predicts).\n",
                 p.scenarios
             );
         }
@@ -192,9 +197,132 @@ pub fn markdown(images: &ImageSummary) -> String {
         out.push('\n');
     }
     let _ = writeln!(out, "### Noise law\n\n{}\n", law_line(&images.noise_law));
+    if !images.samples.is_empty() {
+        let _ = writeln!(
+            out,
+            "### Sample frames\n\nAs `track` read them, cropped to the part (its overlay: crosses at the blobs, green whole, red flagged as partly hidden, with their labels; blue, the model's outline at the tracked pose).\n"
+        );
+        for sample in &images.samples {
+            let _ = writeln!(
+                out,
+                "![{role}]({dir}/{role}.png)\n\n*{Role}*: {scenario}, noise realisation {trial}; {outcome}.\n",
+                role = sample.role,
+                dir = SAMPLE_DIR,
+                Role = capitalised(&sample.role),
+                scenario = super::summary::describe_scenario(&sample.scenario),
+                trial = sample.trial,
+                outcome = sample.outcome,
+            );
+        }
+    }
     out
 }
 
+/// The report's folder of sample frames.
+pub const SAMPLE_DIR: &str = "images";
+
+fn capitalised(word: &str) -> String {
+    let mut chars = word.chars();
+    chars.next().map_or(String::new(), |first| {
+        first.to_uppercase().chain(chars).collect()
+    })
+}
+
+/// Margin around the part in a sample frame's crop, px.
+pub const SAMPLE_MARGIN_PX: f64 = 40.0;
+
+/// The sample frames as `track`'s overlay PNGs, cropped to the part (every
+/// sphere's disc at the true pose and every blob, with
+/// [`SAMPLE_MARGIN_PX`] around them, at the camera's resolution): (file
+/// name under [`SAMPLE_DIR`], bytes).
+pub fn sample_pngs(images: &ImageSummary) -> Vec<(String, Vec<u8>)> {
+    images
+        .samples
+        .iter()
+        .map(|sample| {
+            let (camera, object, radius_mm) = &sample.geometry;
+            let png = crate::track::report::overlay_png(
+                &sample.frame,
+                &sample.analysis,
+                camera,
+                object,
+                *radius_mm,
+                sample.analysis.pose.as_ref(),
+            );
+            (format!("{}.png", sample.role), crop(sample, png))
+        })
+        .collect()
+}
+
+/// `png` cropped to the part (see [`sample_pngs`]); unchanged when it
+/// cannot be decoded.
+fn crop(sample: &super::image_check::SampleFrame, png: Vec<u8>) -> Vec<u8> {
+    let (camera, object, radius_mm) = &sample.geometry;
+    let pose = sample.scenario.pose();
+    let mut extent = [
+        f64::INFINITY,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        f64::NEG_INFINITY,
+    ];
+    let mut include = |x: f64, y: f64, r: f64| {
+        extent = [
+            extent[0].min(x - r),
+            extent[1].min(y - r),
+            extent[2].max(x + r),
+            extent[3].max(y + r),
+        ];
+    };
+    for p in object {
+        let centre = pose.transform(p);
+        if let Some(pixel) = camera.project(&centre) {
+            include(
+                pixel.x,
+                pixel.y,
+                camera.fx() * radius_mm / centre.z.max(1e-9),
+            );
+        }
+    }
+    if let Some(detection) = &sample.analysis.detection {
+        for blob in &detection.blobs {
+            let [x, y] = blob.ellipse_centre_px;
+            include(x, y, blob.semi_axes_px[0]);
+        }
+    }
+    let Ok(image) = image::load_from_memory(&png) else {
+        return png;
+    };
+    let (width, height) = (image.width() as f64, image.height() as f64);
+    let left = (extent[0] - SAMPLE_MARGIN_PX)
+        .floor()
+        .clamp(0.0, width - 1.0);
+    let top = (extent[1] - SAMPLE_MARGIN_PX)
+        .floor()
+        .clamp(0.0, height - 1.0);
+    let right = (extent[2] + SAMPLE_MARGIN_PX)
+        .ceil()
+        .clamp(left + 1.0, width);
+    let bottom = (extent[3] + SAMPLE_MARGIN_PX)
+        .ceil()
+        .clamp(top + 1.0, height);
+    if !(left.is_finite() && top.is_finite() && right.is_finite() && bottom.is_finite()) {
+        return png;
+    }
+    let cropped = image.crop_imm(
+        left as u32,
+        top as u32,
+        (right - left) as u32,
+        (bottom - top) as u32,
+    );
+    let mut bytes = Vec::new();
+    match cropped.write_to(
+        &mut std::io::Cursor::new(&mut bytes),
+        image::ImageFormat::Png,
+    ) {
+        Ok(()) => bytes,
+        Err(_) => png,
+    }
+}
 /// `images.csv`: one row per visible scenario.
 pub fn scenario_table(images: &ImageSummary) -> Table {
     let mut table = Table::new([

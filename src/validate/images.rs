@@ -23,9 +23,9 @@
 use crate::noise::calibrated::SigmaSample;
 use crate::pose::{rotation_error_deg, translation_error_mm, Pose};
 use crate::render::{
-    expose, frame_truth, render_radiance, FrameTruth, RenderConfig, RenderError, Scene,
+    expose, frame_truth, render_radiance, FrameTruth, Radiance, RenderConfig, RenderError, Scene,
 };
-use crate::track::{analyse, GreyFrame, TrackConfig};
+use crate::track::{analyse, FrameAnalysis, GreyFrame, TrackConfig};
 use nalgebra::{Rotation3, Vector2, Vector3};
 use serde::Serialize;
 use std::collections::BTreeMap;
@@ -66,6 +66,58 @@ pub struct PoseImages {
     pub frames_missing_a_whole_sphere: usize,
     /// Frames that gave no pose, by the tracker's reason.
     pub lost: BTreeMap<String, usize>,
+    /// Per sphere: the frames whose pose used it.
+    pub in_pose: Vec<usize>,
+    /// The worst frame's realisation ([`FrameRank`]): the first lost one,
+    /// else the first mislabelled or missing a whole sphere, else the one
+    /// with the largest rotation error.
+    pub worst_trial: usize,
+    /// Its rank.
+    pub worst_rank: FrameRank,
+}
+
+/// How bad one frame is, worst greatest: a lost frame, then one with a
+/// wrong label or a whole sphere left out, then by rotation error.
+#[derive(Debug, Clone, Copy, PartialEq, PartialOrd, Serialize)]
+pub struct FrameRank {
+    /// 2: no pose; 1: a wrong label or a whole sphere without a blob; 0:
+    /// neither.
+    pub failure: u8,
+    /// Rotation error, degrees (0 without a pose).
+    pub rotation_error_deg: f64,
+}
+
+/// The noisy frame of realisation `trial` of frame `frame` of `radiance`.
+pub fn noisy_frame(
+    radiance: &Radiance,
+    render: &RenderConfig,
+    frame: u64,
+    trial: u64,
+) -> GreyFrame {
+    let digital = expose(radiance, &render.sensor, render.seed, frame, trial);
+    GreyFrame::new(
+        digital.width as u32,
+        digital.height as u32,
+        digital.bit_depth,
+        digital.values,
+    )
+    .expect("the sensor writes a frame of its own size and depth")
+}
+
+/// The noisy frame that [`check_pose`] read as realisation `trial` of
+/// `frame`, rendered again, and what `track` made of it.
+pub fn sample_frame(
+    scene: &Scene,
+    render: &RenderConfig,
+    track: &TrackConfig,
+    pose: &Pose,
+    frame: u64,
+    trial: usize,
+) -> Result<(GreyFrame, FrameAnalysis), RenderError> {
+    let radiance = render_radiance(scene, pose, render)?;
+    let image = noisy_frame(&radiance, render, frame, trial as u64);
+    let analysis = analyse(track, &image);
+    Ok((image, analysis))
 }
 
 /// Renders `pose` once and reads it back `trials` times (module docs).
@@ -106,30 +158,33 @@ pub fn check_pose(
         mislabelled_frames: 0,
         frames_missing_a_whole_sphere: 0,
         lost: BTreeMap::new(),
+        in_pose: vec![0; truth.spheres.len()],
+        worst_trial: 0,
+        worst_rank: FrameRank {
+            failure: 0,
+            rotation_error_deg: f64::NEG_INFINITY,
+        },
     };
     for trial in 0..trials {
-        let digital = expose(&radiance, &render.sensor, render.seed, frame, trial as u64);
-        let image = GreyFrame::new(
-            digital.width as u32,
-            digital.height as u32,
-            digital.bit_depth,
-            digital.values,
-        )
-        .expect("the sensor writes a frame of its own size and depth");
+        let image = noisy_frame(&radiance, render, frame, trial as u64);
         let analysis = analyse(track, &image);
-        read_frame(&mut outcome, &truth, &exact, pose, &analysis);
+        let rank = read_frame(&mut outcome, &truth, &exact, pose, &analysis);
+        if rank > outcome.worst_rank {
+            outcome.worst_rank = rank;
+            outcome.worst_trial = trial;
+        }
     }
     Ok(outcome)
 }
 
-/// Adds one tracked frame's figures to `outcome`.
+/// Adds one tracked frame's figures to `outcome`; returns the frame's rank.
 fn read_frame(
     outcome: &mut PoseImages,
     truth: &FrameTruth,
     exact: &[Vector2<f64>],
     pose: &Pose,
-    analysis: &crate::track::FrameAnalysis,
-) {
+    analysis: &FrameAnalysis,
+) -> FrameRank {
     let mut seen = vec![false; exact.len()];
     let mut mislabelled = false;
     if let Some(detection) = &analysis.detection {
@@ -161,26 +216,39 @@ fn read_frame(
         .zip(&seen)
         .any(|((_, &hidden), &seen)| hidden < WHOLE_SPHERE_HIDDEN && !seen);
     outcome.frames_missing_a_whole_sphere += usize::from(whole_missed);
+    let mut rank = FrameRank {
+        failure: u8::from(mislabelled || whole_missed),
+        rotation_error_deg: 0.0,
+    };
     match (&analysis.outcome, &analysis.pose) {
-        (Ok(_), Some(estimate)) => {
-            outcome
-                .rotation_error_deg
-                .push(rotation_error_deg(&pose.rotation, &estimate.rotation));
+        (Ok(tracked), Some(estimate)) => {
+            for (count, residual) in outcome
+                .in_pose
+                .iter_mut()
+                .zip(&tracked.figures.residuals_px)
+            {
+                *count += usize::from(residual.is_some());
+            }
+            rank.rotation_error_deg = rotation_error_deg(&pose.rotation, &estimate.rotation);
+            outcome.rotation_error_deg.push(rank.rotation_error_deg);
             outcome.translation_error_mm.push(translation_error_mm(
                 &pose.translation,
                 &estimate.translation,
             ));
         }
         (Err(error), _) => {
+            rank.failure = 2;
             *outcome
                 .lost
                 .entry(lost_reason(&error.to_string()))
                 .or_default() += 1;
         }
         (Ok(_), None) => {
+            rank.failure = 2;
             *outcome.lost.entry("no pose".to_string()).or_default() += 1;
         }
     }
+    rank
 }
 
 /// A tracker error's kind: its message up to the first figure, so that

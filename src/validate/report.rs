@@ -87,6 +87,12 @@ fn write_images(dir: &Path, images: &super::image_check::ImageSummary) -> Result
         .csv()
         .map_err(|e| ReportError::write(&csv_path, e))?;
     write_text(&csv_path, &csv)?;
+    let samples = dir.join(super::image_report::SAMPLE_DIR);
+    for (name, png) in super::image_report::sample_pngs(images) {
+        std::fs::create_dir_all(&samples).map_err(|e| ReportError::write(&samples, e))?;
+        let path = samples.join(name);
+        crate::files::write_atomic(&path, &png).map_err(|e| ReportError::write(&path, e))?;
+    }
     let json_path = dir.join("images.json");
     let json =
         serde_json::to_string_pretty(images).map_err(|e| ReportError::write(&json_path, e))?;

@@ -70,6 +70,7 @@ fn images_report_their_figures_and_write_a_noise_law_that_a_second_run_reads() {
         "### Centre error of whole spheres against disc radius",
         "### Centre error of whole spheres against depth",
         "first order at the measured σ",
+        "first order at the measured σ and centre bias",
         "### Partly hidden spheres with a biased centre",
         "### Noise law",
     ] {
@@ -93,6 +94,14 @@ fn images_report_their_figures_and_write_a_noise_law_that_a_second_run_reads() {
         .unwrap()
         / pose["predicted_rotation_rms_deg"].as_f64().unwrap();
     assert!((ratio / (measured / 0.5) - 1.0).abs() < 0.5, "{pose}");
+    // The measured centre bias only adds to the random part.
+    let random = pose["predicted_at_measured_rotation_rms_deg"]
+        .as_f64()
+        .unwrap();
+    let with_bias = pose["predicted_with_bias_rotation_rms_deg"]
+        .as_f64()
+        .unwrap();
+    assert!(with_bias >= random && with_bias < 0.5, "{pose}");
     assert!(json["by_radius"].as_array().unwrap().len() >= 2, "{json}");
     let run: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(report.join("run.json")).unwrap()).unwrap();
@@ -100,6 +109,19 @@ fn images_report_their_figures_and_write_a_noise_law_that_a_second_run_reads() {
         run["image_seconds"].as_f64().is_some_and(|s| s >= 0.0),
         "{run}"
     );
+
+    // The sample frames: three overlay PNGs linked from the report.
+    for role in ["nearest", "farthest", "worst"] {
+        let path = report.join("images").join(format!("{role}.png"));
+        let png = image::open(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        assert!(png.width() >= 40 && png.height() >= 40, "{role}");
+        assert!(png.width() <= 1280 && png.height() <= 720, "{role}");
+        assert!(
+            markdown.contains(&format!("](images/{role}.png)")),
+            "{role} not linked:\n{markdown}"
+        );
+    }
+    assert_eq!(json["samples"].as_array().unwrap().len(), 3, "{json}");
 
     let file = CalibrationFile::load(&law).unwrap();
     assert!(
@@ -140,6 +162,51 @@ fn bad_image_flags_are_refused_by_name() {
         "{stderr}"
     );
     assert!(!law.exists());
+    let bogus = validate(dir.path(), &["--images", "--image-preset", "bogus"]).failure();
+    let stderr = String::from_utf8_lossy(&bogus.get_output().stderr).to_string();
+    assert!(
+        stderr.contains("--image-preset") && stderr.contains("unknown preset"),
+        "{stderr}"
+    );
+    let clash = validate(
+        dir.path(),
+        &[
+            "--images",
+            "--image-preset",
+            "machine-vision",
+            "--with-distortion",
+        ],
+    )
+    .failure();
+    let stderr = String::from_utf8_lossy(&clash.get_output().stderr).to_string();
+    assert!(stderr.contains("brings its own camera"), "{stderr}");
+}
+
+#[test]
+fn the_machine_vision_preset_renders_through_its_own_camera() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("mv");
+    validate(
+        &out,
+        &[
+            "--images",
+            "--image-trials",
+            "2",
+            "--image-preset",
+            "machine-vision",
+        ],
+    )
+    .success();
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("images.json")).unwrap()).unwrap();
+    assert_eq!(json["check"]["preset"], "machine-vision", "{json}");
+    assert!(json["posed_frames"].as_u64().unwrap() > 0, "{json}");
+    // Its 1440×1080 frames: the crop of a sample lies inside them, and
+    // validate's first-order model used the same camera.
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    let text = summary.to_string();
+    assert!(text.contains("1739.1") && text.contains("1440"), "{text}");
 }
 
 #[test]
@@ -173,6 +240,7 @@ fn image_figures_do_not_depend_on_the_thread_count() {
         (
             std::fs::read(out.join("images.csv")).unwrap(),
             std::fs::read(out.join("images.json")).unwrap(),
+            std::fs::read(out.join("images/worst.png")).unwrap(),
         )
     };
     assert_eq!(files("1"), files("2"));

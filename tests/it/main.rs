@@ -15,6 +15,7 @@ mod bad_input;
 mod conformance_generator;
 mod export;
 mod identifiability;
+mod images_calibration;
 mod noise_free;
 mod noisy;
 mod plots;
