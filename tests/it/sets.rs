@@ -1,0 +1,401 @@
+//! Marker sets (issue #29): the set file and its refusals,
+//! cross-identifiability between markers (two copies, mirror images, a set
+//! of distinct markers), identification against a set and blob grouping.
+
+use layout_opt::camera::Camera;
+use layout_opt::identifiability::{required_margin_px, IdentifiabilitySettings};
+use layout_opt::layout::{Layout, LayoutPoint};
+use layout_opt::montecarlo::Target;
+use layout_opt::noise::NoiseModel;
+use layout_opt::pnp::ml;
+use layout_opt::pnp::unlabelled::UnlabelledOptions;
+use layout_opt::pose::Pose;
+use layout_opt::scenario::{Scenario, ScenarioGrid};
+use layout_opt::set::{
+    cross_matrix, cross_scenario, group_blobs, identify_in_set, set_file_json, set_trials,
+    write_set, MarkerSet, SetError,
+};
+use layout_opt::sphere_image::Observation;
+use nalgebra::{Rotation3, Vector2, Vector3};
+
+const DIAMETER_MM: f64 = 8.0;
+
+/// Four asymmetric 7-point markers of about 100 mm, spheres at least 20 mm
+/// apart, each a different shape.
+fn four_markers() -> Vec<Vec<Vector3<f64>>> {
+    vec![
+        vec![
+            Vector3::new(0.0, 0.0, 0.0),
+            Vector3::new(48.0, 6.0, 0.0),
+            Vector3::new(-12.0, 40.0, 9.0),
+            Vector3::new(18.0, -31.0, 36.0),
+            Vector3::new(-38.0, -14.0, -22.0),
+            Vector3::new(29.0, 33.0, -27.0),
+            Vector3::new(-30.0, 22.0, 30.0),
+        ],
+        vec![
+            Vector3::new(0.0, 0.0, 0.0),
+            Vector3::new(-45.0, 0.0, 10.0),
+            Vector3::new(5.0, -47.0, -5.0),
+            Vector3::new(35.0, 30.0, 20.0),
+            Vector3::new(-20.0, 35.0, -35.0),
+            Vector3::new(40.0, -20.0, -30.0),
+            Vector3::new(10.0, 10.0, 45.0),
+        ],
+        vec![
+            Vector3::new(0.0, 0.0, 0.0),
+            Vector3::new(30.0, 0.0, 0.0),
+            Vector3::new(-25.0, 28.0, 0.0),
+            Vector3::new(0.0, -45.0, 20.0),
+            Vector3::new(45.0, 40.0, 25.0),
+            Vector3::new(-40.0, -30.0, 35.0),
+            Vector3::new(15.0, 20.0, -40.0),
+        ],
+        vec![
+            Vector3::new(0.0, 0.0, 0.0),
+            Vector3::new(25.0, -40.0, 0.0),
+            Vector3::new(-50.0, 10.0, 5.0),
+            Vector3::new(20.0, 45.0, -10.0),
+            Vector3::new(-10.0, -25.0, -40.0),
+            Vector3::new(45.0, 5.0, 40.0),
+            Vector3::new(-25.0, 35.0, 35.0),
+        ],
+    ]
+}
+
+fn layout(name: &str, points: &[Vector3<f64>]) -> Layout {
+    Layout {
+        name: name.to_string(),
+        points: points
+            .iter()
+            .enumerate()
+            .map(|(k, p)| LayoutPoint::new(format!("S{k}"), *p))
+            .collect(),
+        sphere_diameter_mm: DIAMETER_MM,
+        family: None,
+        provenance: None,
+    }
+}
+
+fn settings(trials: usize) -> IdentifiabilitySettings {
+    IdentifiabilitySettings {
+        min_correct: 0.999,
+        trials,
+        seed: 29,
+        observation: Observation::Centre,
+        noise: NoiseModel::default(),
+    }
+}
+
+fn grid(depths: &str, tilts: &str, pans: &str) -> Vec<Scenario> {
+    ScenarioGrid::new(
+        depths.parse().unwrap(),
+        "0".parse().unwrap(),
+        "0".parse().unwrap(),
+        tilts.parse().unwrap(),
+        pans.parse().unwrap(),
+        "0".parse().unwrap(),
+        "0.5".parse().unwrap(),
+    )
+    .unwrap()
+    .scenarios()
+}
+
+fn targets<'a>(
+    camera: &'a Camera,
+    objects: &'a [Vec<Vector3<f64>>],
+    sigmas: &'a [Option<f64>],
+) -> Vec<Target<'a>> {
+    objects
+        .iter()
+        .map(|object| Target {
+            camera,
+            object,
+            sphere_diameter_mm: DIAMETER_MM,
+            point_sigma_px: &sigmas[..object.len()],
+        })
+        .collect()
+}
+
+#[test]
+fn a_set_file_round_trips_and_bad_sets_are_refused_naming_the_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let markers = four_markers();
+    let layouts: Vec<Layout> = markers[..2]
+        .iter()
+        .enumerate()
+        .map(|(k, m)| layout(&format!("m{k}"), m))
+        .collect();
+    let path = write_set(dir.path(), "pair", &layouts).unwrap();
+    assert_eq!(path, dir.path().join("pair.set.json"));
+    let set = MarkerSet::load(&path).unwrap();
+    assert_eq!(set.name, "pair");
+    assert_eq!(set.names(), ["pair-1", "pair-2"]);
+    assert_eq!(set.objects()[1], markers[1]);
+    set.check_distinct().unwrap();
+
+    // A missing layout: the error names it.
+    let missing = dir.path().join("missing.set.json");
+    std::fs::write(
+        &missing,
+        set_file_json("x", &["pair-1.json".into(), "nowhere.json".into()]),
+    )
+    .unwrap();
+    let error = MarkerSet::load(&missing).unwrap_err();
+    assert!(matches!(error, SetError::Layout { .. }), "{error}");
+    assert!(error.to_string().contains("nowhere.json"), "{error}");
+
+    // One marker: too few.
+    let single = dir.path().join("single.set.json");
+    std::fs::write(&single, set_file_json("x", &["pair-1.json".into()])).unwrap();
+    let error = MarkerSet::load(&single).unwrap_err().to_string();
+    assert!(
+        error.contains("lists 1 markers") && error.contains("single.set.json"),
+        "{error}"
+    );
+
+    // Another format.
+    let wrong = dir.path().join("wrong.set.json");
+    std::fs::write(
+        &wrong,
+        r#"{"format": "layout-opt-layout", "version": 1, "name": "x", "markers": ["a.json", "b.json"]}"#,
+    )
+    .unwrap();
+    let error = MarkerSet::load(&wrong).unwrap_err().to_string();
+    assert!(
+        error.contains("layout-opt-set") && error.contains("wrong.set.json"),
+        "{error}"
+    );
+
+    // Different sphere diameters.
+    let mut big = layout("big", &markers[2]);
+    big.sphere_diameter_mm = 12.0;
+    big.save_atomic(&dir.path().join("big.json")).unwrap();
+    let mixed = dir.path().join("mixed.set.json");
+    std::fs::write(
+        &mixed,
+        set_file_json("x", &["pair-1.json".into(), "big.json".into()]),
+    )
+    .unwrap();
+    let error = MarkerSet::load(&mixed).unwrap_err().to_string();
+    assert!(
+        error.contains("big.json") && error.contains("12"),
+        "{error}"
+    );
+}
+
+/// Two copies of one marker (the second moved and relabelled): the set is
+/// refused by `check_distinct`, and the cross matrix, computed anyway,
+/// finds every visible view confusable (0% cross-identifiable, margin 0).
+#[test]
+fn two_copies_of_one_marker_are_refused_and_zero_percent_cross_identifiable() {
+    let dir = tempfile::tempdir().unwrap();
+    let original = four_markers().remove(0);
+    let motion = Pose::new(
+        Rotation3::from_euler_angles(0.3, 0.2, -0.5),
+        Vector3::new(4.0, -3.0, 2.0),
+    );
+    let mut copy: Vec<Vector3<f64>> = original.iter().map(|p| motion.transform(p)).collect();
+    copy.rotate_left(2);
+    let path = write_set(
+        dir.path(),
+        "twins",
+        &[layout("a", &original), layout("b", &copy)],
+    )
+    .unwrap();
+    let set = MarkerSet::load(&path).unwrap();
+    let error = set.check_distinct().unwrap_err().to_string();
+    assert!(
+        error.contains("twins-1.json")
+            && error.contains("twins-2.json")
+            && error.contains("same marker"),
+        "{error}"
+    );
+
+    let camera = Camera::paper();
+    let objects = set.objects();
+    let sigmas = vec![None; 7];
+    let targets = targets(&camera, &objects, &sigmas);
+    let scenarios = grid("300,600", "-20,20", "0");
+    let matrix = cross_matrix(&targets, &set.names(), &scenarios, &settings(0));
+    for pair in &matrix.pairs {
+        assert!(pair.visible > 0);
+        assert_eq!(pair.cross_identifiable, 0, "{pair:?}");
+        assert!(pair.smallest_margin_px.unwrap() < 1e-3, "{pair:?}");
+        assert!(pair.worst_confusion > 0.3, "{pair:?}");
+    }
+    assert_eq!(matrix.worst_share(), 0.0);
+    assert!(!matrix.meets_floor());
+}
+
+/// A marker and its mirror image (z ↦ −z). Under orthographic projection
+/// the mirror explains every view exactly (the Necker reversal); under
+/// perspective it departs by the relief over the depth. Independently of
+/// the set's search, the mirror is fitted at the Necker pose with the true
+/// correspondences: wherever that fit lies within the gate, the cross
+/// prediction finds a fit at least as good, and wherever its residual is
+/// below the margin the floor needs, the view is counted confusable. Far
+/// views are confusable, near ones are not.
+#[test]
+fn a_mirror_image_is_caught_wherever_it_fits_within_the_gate() {
+    let camera = Camera::paper();
+    let original = four_markers().remove(1);
+    let mirror: Vec<Vector3<f64>> = original
+        .iter()
+        .map(|p| Vector3::new(p.x, p.y, -p.z))
+        .collect();
+    let objects = vec![original.clone(), mirror.clone()];
+    let sigmas = vec![None; 7];
+    let targets = targets(&camera, &objects, &sigmas);
+    let settings = settings(0);
+    let scenarios = grid("250,1000,2500", "-15,15", "0,20");
+    let required = required_margin_px(0.5, settings.max_wrong());
+    let focal = camera.fx().min(camera.fy());
+    let (mut fits, mut confusable, mut clear) = (0, 0, 0);
+    for scenario in &scenarios {
+        let Some(prediction) = cross_scenario(&targets[0], &mirror, scenario, &settings) else {
+            continue;
+        };
+        // The Necker pose: rows r1·M, r2·M, their cross product.
+        let truth = scenario.pose();
+        let r = truth.rotation.matrix();
+        let m = nalgebra::Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, -1.0));
+        let (r1, r2) = (r.row(0) * m, r.row(1) * m);
+        let r3 = r1.cross(&r2);
+        let necker = Pose::new(
+            Rotation3::from_matrix_unchecked(nalgebra::Matrix3::from_rows(&[r1, r2, r3])),
+            truth.translation,
+        );
+        let image: Vec<Vector2<f64>> = original
+            .iter()
+            .map(|p| truth.project_normalised(p))
+            .collect();
+        let fitted = ml::refine(&necker, &mirror, &image);
+        let residuals: Vec<f64> = mirror
+            .iter()
+            .zip(&image)
+            .map(|(p, m)| focal * (fitted.project_normalised(p) - m).norm())
+            .collect();
+        let worst = residuals.iter().copied().fold(0.0, f64::max);
+        let norm = residuals.iter().map(|r| r * r).sum::<f64>().sqrt();
+        if worst <= prediction.gate_px {
+            fits += 1;
+            let margin = prediction
+                .margin_px
+                .unwrap_or_else(|| panic!("scenario {}: the mirror fits within the gate (norm {norm} px) but no margin was found", scenario.index));
+            assert!(
+                margin <= norm + 1e-6,
+                "scenario {}: margin {margin} > {norm}",
+                scenario.index
+            );
+        }
+        if norm < required {
+            confusable += 1;
+            assert!(
+                prediction.confusion_probability > settings.max_wrong(),
+                "scenario {}: a mirror within {norm} px is not counted confusable: {prediction:?}",
+                scenario.index
+            );
+        }
+        if prediction.margin_px.is_none_or(|m| m > 2.0 * required) {
+            clear += 1;
+        }
+    }
+    assert!(confusable > 0, "no far view is confusable");
+    assert!(clear > 0, "no near view tells the mirror apart");
+    assert!(fits >= confusable);
+}
+
+/// A set of four distinct markers: the noise-free blobs of every marker in
+/// every visible view, shuffled, name the right marker with the right
+/// labels; a few seeded noisy trials at σ = 0.5 px never name another
+/// marker where the prediction says the pair is cross-identifiable.
+#[test]
+fn noise_free_views_of_a_four_marker_set_name_the_right_marker_and_labels() {
+    let camera = Camera::paper();
+    let objects = four_markers();
+    let sigmas = vec![None; 7];
+    let targets = targets(&camera, &objects, &sigmas);
+    let scenarios = grid("300,500", "-30,30", "-30,30");
+    let focal = camera.fx().min(camera.fy());
+    let options = UnlabelledOptions::with_gate_px(2.5, focal, 1);
+    let mut views = 0;
+    for (i, object) in objects.iter().enumerate() {
+        for scenario in &scenarios {
+            let truth = scenario.pose();
+            let order: Vec<usize> = (0..object.len())
+                .map(|k| (3 * k + i) % object.len())
+                .collect();
+            let image: Vec<Vector2<f64>> = order
+                .iter()
+                .map(|&k| truth.project_normalised(&object[k]))
+                .collect();
+            let found = identify_in_set(&objects, &image, &options).unwrap();
+            assert_eq!(found.marker, i, "marker {i} scenario {}", scenario.index);
+            assert_eq!(
+                found.best.labels, order,
+                "marker {i} scenario {}",
+                scenario.index
+            );
+            views += 1;
+        }
+    }
+    assert_eq!(views, 4 * scenarios.len());
+
+    let small = grid("400", "20", "0");
+    let settings = settings(3);
+    let matrix = cross_matrix(
+        &targets,
+        &["a".into(), "b".into(), "c".into(), "d".into()],
+        &small,
+        &settings,
+    );
+    assert_eq!(matrix.pairs.len(), 12);
+    assert!(matrix.meets_floor(), "{matrix:?}");
+    let (counts, named) = set_trials(&targets, &small, &settings);
+    for (i, c) in counts.iter().enumerate() {
+        assert_eq!(c.trials, 3 * small.len(), "{c:?}");
+        assert_eq!(c.wrong_marker, 0, "marker {i}: {c:?}");
+        assert_eq!(named[i][i], c.trials - c.failed);
+    }
+}
+
+/// Two markers in one frame: the blobs, mixed and shuffled, are grouped
+/// into both markers with the right labels.
+#[test]
+fn blobs_of_two_markers_in_one_frame_are_grouped_by_the_joint_fit() {
+    let objects = four_markers();
+    let objects = vec![objects[0].clone(), objects[2].clone()];
+    let poses = [
+        Pose::new(
+            Rotation3::from_euler_angles(0.3, -0.2, 0.1),
+            Vector3::new(-90.0, 10.0, 500.0),
+        ),
+        Pose::new(
+            Rotation3::from_euler_angles(-0.2, 0.4, 1.0),
+            Vector3::new(80.0, -20.0, 550.0),
+        ),
+    ];
+    let mut blobs: Vec<(usize, usize, Vector2<f64>)> = Vec::new();
+    for (marker, (object, pose)) in objects.iter().zip(&poses).enumerate() {
+        for (k, p) in object.iter().enumerate() {
+            blobs.push((marker, k, pose.project_normalised(p)));
+        }
+    }
+    // A fixed shuffle that interleaves the two markers.
+    let order: Vec<usize> = (0..blobs.len())
+        .map(|k| (5 * k + 3) % blobs.len())
+        .collect();
+    let image: Vec<Vector2<f64>> = order.iter().map(|&k| blobs[k].2).collect();
+    let options = UnlabelledOptions::with_gate_px(2.5, Camera::paper().fx(), 1);
+    let groups = group_blobs(&objects, &image, &options);
+    assert_eq!(groups.len(), 2, "{groups:?}");
+    for (marker, group) in groups.iter().enumerate() {
+        assert_eq!(group.marker, marker);
+        assert_eq!(group.blobs.len(), 7);
+        for (&blob, &label) in group.blobs.iter().zip(&group.labels) {
+            let (truth_marker, truth_label, _) = blobs[order[blob]];
+            assert_eq!((truth_marker, truth_label), (marker, label));
+        }
+    }
+}
