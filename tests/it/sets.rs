@@ -399,3 +399,134 @@ fn blobs_of_two_markers_in_one_frame_are_grouped_by_the_joint_fit() {
         }
     }
 }
+
+/// `solve --unlabelled --set`: frames of one marker, of two markers mixed,
+/// and with one blob missing name each marker, its blobs and labels and
+/// its pose; a set file naming a missing layout is refused before any
+/// work, naming the layout.
+#[cfg(feature = "cli")]
+#[test]
+fn solve_set_names_the_marker_and_labels_of_each_blob_group() {
+    use assert_cmd::Command;
+    let dir = tempfile::tempdir().unwrap();
+    let markers = four_markers();
+    let layouts: Vec<Layout> = markers[..3]
+        .iter()
+        .enumerate()
+        .map(|(k, m)| layout(&format!("m{k}"), m))
+        .collect();
+    let set = write_set(dir.path(), "trio", &layouts).unwrap();
+    let camera = Camera::paper();
+    let poses = [
+        Pose::new(
+            Rotation3::from_euler_angles(0.2, 0.3, -0.4),
+            Vector3::new(-70.0, 15.0, 450.0),
+        ),
+        Pose::new(
+            Rotation3::from_euler_angles(-0.3, -0.1, 0.7),
+            Vector3::new(75.0, -10.0, 520.0),
+        ),
+    ];
+    let project = |marker: usize, pose: &Pose, k: usize| {
+        let p = camera
+            .project(&pose.transform(&markers[marker][k]))
+            .unwrap();
+        [p.x, p.y]
+    };
+    // Frame a: marker 3 alone, reversed. Frame b: markers 2 and 1
+    // interleaved. Frame c: marker 1 with point 4 missing.
+    let frame_a: Vec<[f64; 2]> = (0..7).rev().map(|k| project(2, &poses[0], k)).collect();
+    let mut frame_b = Vec::new();
+    for k in 0..7 {
+        frame_b.push(project(1, &poses[0], k));
+        frame_b.push(project(0, &poses[1], 6 - k));
+    }
+    let frame_c: Vec<[f64; 2]> = [0, 1, 2, 3, 5, 6]
+        .iter()
+        .map(|&k| project(0, &poses[1], k))
+        .collect();
+    let batch = serde_json::json!({
+        "camera": {"fx": camera.fx(), "fy": camera.fy(), "cx": camera.cx(), "cy": camera.cy()},
+        "problems": [
+            {"id": "a", "image_points": frame_a},
+            {"id": "b", "image_points": frame_b},
+            {"id": "c", "image_points": frame_c},
+        ],
+    });
+    let input = dir.path().join("frames.json");
+    let output = dir.path().join("found.json");
+    std::fs::write(&input, batch.to_string()).unwrap();
+    Command::cargo_bin("layout-opt")
+        .unwrap()
+        .args(["solve", "--quiet", "--unlabelled", "--set"])
+        .arg(&set)
+        .arg("--problems")
+        .arg(&input)
+        .arg("--output")
+        .arg(&output)
+        .assert()
+        .success();
+    let result: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&output).unwrap()).unwrap();
+    assert_eq!(result["set"], "trio");
+    let results = result["results"].as_array().unwrap();
+    let found = |frame: usize| -> Vec<(usize, Vec<usize>, Vec<usize>)> {
+        results[frame]["markers"]
+            .as_array()
+            .unwrap_or_else(|| panic!("frame {frame}: {}", results[frame]))
+            .iter()
+            .map(|m| {
+                assert!(m["reprojection_rms_px"].as_f64().unwrap() < 1e-6, "{m}");
+                (
+                    m["marker"].as_u64().unwrap() as usize,
+                    serde_json::from_value(m["blobs"].clone()).unwrap(),
+                    serde_json::from_value(m["labels"].clone()).unwrap(),
+                )
+            })
+            .collect()
+    };
+    assert_eq!(
+        found(0),
+        vec![(3, (0..7).collect(), (0..7).rev().collect())]
+    );
+    assert_eq!(
+        found(1),
+        vec![
+            (
+                1,
+                (0..7).map(|k| 2 * k + 1).collect(),
+                (0..7).rev().collect()
+            ),
+            (2, (0..7).map(|k| 2 * k).collect(), (0..7).collect()),
+        ]
+    );
+    assert_eq!(
+        found(2),
+        vec![(1, (0..6).collect(), vec![0, 1, 2, 3, 5, 6])]
+    );
+    assert_eq!(results[1]["unexplained"], serde_json::json!([]));
+    let translation: Vec<f64> =
+        serde_json::from_value(results[1]["markers"][0]["translation"].clone()).unwrap();
+    assert!((translation[2] - 520.0).abs() < 1e-6, "{translation:?}");
+
+    // A set naming a missing layout: refused before any work.
+    let broken = dir.path().join("broken.set.json");
+    std::fs::write(
+        &broken,
+        set_file_json("x", &["trio-1.json".into(), "gone.json".into()]),
+    )
+    .unwrap();
+    let assert = Command::cargo_bin("layout-opt")
+        .unwrap()
+        .args(["solve", "--quiet", "--unlabelled", "--set"])
+        .arg(&broken)
+        .arg("--problems")
+        .arg(&input)
+        .assert()
+        .failure();
+    let stderr = String::from_utf8_lossy(&assert.get_output().stderr).to_string();
+    assert!(
+        stderr.contains("gone.json") && stderr.contains("--set"),
+        "{stderr}"
+    );
+}
