@@ -530,3 +530,62 @@ fn solve_set_names_the_marker_and_labels_of_each_blob_group() {
         "{stderr}"
     );
 }
+
+/// `search --set 2` on a small grid: two layouts and the set file beside
+/// the layout path, the report with each marker's accuracy alone and in
+/// the set and the cross matrix; the set file loads and its markers are
+/// distinct and cross-identifiable. `--set 9` is refused before any work,
+/// with nothing written.
+#[cfg(feature = "cli")]
+#[test]
+fn search_set_writes_the_markers_the_set_file_and_the_cross_matrix() {
+    use assert_cmd::Command;
+    let dir = tempfile::tempdir().unwrap();
+    let layout_path = dir.path().join("layouts").join("duo.json");
+    let report = dir.path().join("report");
+    let search = |markers: &str| {
+        let mut command = Command::cargo_bin("layout-opt").unwrap();
+        command
+            .args(["--quiet", "search", "--set", markers, "--starts", "1"])
+            .args(["--iterations", "40", "--depth", "300,600", "--tilt=-30,30"])
+            .args(["--name", "duo", "--out"])
+            .arg(&layout_path)
+            .arg("--report")
+            .arg(&report);
+        command
+    };
+    let assert = search("9").assert().failure();
+    let stderr = String::from_utf8_lossy(&assert.get_output().stderr).to_string();
+    assert!(
+        stderr.contains("--set must be 2 to 8 markers, got 9"),
+        "{stderr}"
+    );
+    assert!(!dir.path().join("layouts").exists() && !report.exists());
+
+    search("2").assert().success();
+    let set = MarkerSet::load(&dir.path().join("layouts").join("duo.set.json")).unwrap();
+    assert_eq!(set.names(), ["duo-1", "duo-2"]);
+    set.check_distinct().unwrap();
+    let text = std::fs::read_to_string(report.join("set-report.md")).unwrap();
+    assert!(
+        text.contains("| 1 (duo-1) |") && text.contains("| 2 (duo-2) |"),
+        "{text}"
+    );
+    assert!(text.contains("Smallest cross margin, px"), "{text}");
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(report.join("set.json")).unwrap()).unwrap();
+    let pairs = summary["matrix"]["pairs"].as_array().unwrap();
+    assert_eq!(pairs.len(), 2);
+    for pair in pairs {
+        assert!(pair["visible"].as_u64().unwrap() > 0, "{pair}");
+        assert_eq!(pair["failing"], serde_json::json!([]), "{pair}");
+    }
+    // The objective is the worst marker's accuracy.
+    let worst = summary["markers"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|m| m["accuracy"].as_f64().unwrap())
+        .fold(f64::MIN, f64::max);
+    assert_eq!(summary["objective"].as_f64().unwrap(), worst);
+}
