@@ -305,6 +305,17 @@ pub fn set_report(outcome: &SetSearchOutcome, command: &str) -> String {
             m.seed
         ));
     }
+    text.push_str(&matrix_markdown(&outcome.matrix));
+    text
+}
+
+/// The cross matrix as Markdown tables: the smallest cross margin (px),
+/// the mean predicted confusion rate per viewpoint and the viewpoints
+/// failing the floor, row the marker seen, column the rival.
+pub fn matrix_markdown(matrix: &CrossMatrix) -> String {
+    let sig = |v: f64, digits: usize| crate::report::number::significant(Some(v), digits);
+    let n = matrix.markers.len();
+    let mut text = String::new();
     for (title, cell) in [
         (
             "Smallest cross margin, px (row: the marker seen; column: the marker offered as the model; > gate: no fit within the gate)",
@@ -326,7 +337,7 @@ pub fn set_report(outcome: &SetSearchOutcome, command: &str) -> String {
         for i in 0..n {
             text.push_str(&format!("| {} |", i + 1));
             for j in 0..n {
-                let value = match outcome.matrix.pair(i, j) {
+                let value = match matrix.pair(i, j) {
                     None => "—".to_string(),
                     Some(p) => match cell {
                         0 => p

@@ -589,3 +589,68 @@ fn search_set_writes_the_markers_the_set_file_and_the_cross_matrix() {
         .fold(f64::MIN, f64::max);
     assert_eq!(summary["objective"].as_f64().unwrap(), worst);
 }
+
+/// `validate SET.json`: a set of two distinct markers gets the report with
+/// each marker and the cross matrix; a set of two copies of one marker is
+/// refused before any work, naming both files.
+#[cfg(feature = "cli")]
+#[test]
+fn validate_set_reports_each_marker_and_refuses_two_copies() {
+    use assert_cmd::Command;
+    let dir = tempfile::tempdir().unwrap();
+    let markers = four_markers();
+    let set = write_set(
+        dir.path(),
+        "pair",
+        &[layout("a", &markers[0]), layout("b", &markers[3])],
+    )
+    .unwrap();
+    let out = dir.path().join("report");
+    Command::cargo_bin("layout-opt")
+        .unwrap()
+        .args(["--quiet", "validate"])
+        .arg(&set)
+        .args(["--identify-trials", "2", "--depth", "400", "--tilt=-20,20"])
+        .arg("--out")
+        .arg(&out)
+        .assert()
+        .success();
+    let report = std::fs::read_to_string(out.join("set-report.md")).unwrap();
+    assert!(report.contains("| 1 (pair-1) | pair-1.json |"), "{report}");
+    assert!(report.contains("| 2 (pair-2) | pair-2.json |"), "{report}");
+    assert!(report.contains("Smallest cross margin, px"), "{report}");
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("set.json")).unwrap()).unwrap();
+    let trials = summary["trials"].as_array().unwrap();
+    assert_eq!(trials.len(), 2);
+    for counts in trials {
+        assert!(counts["trials"].as_u64().unwrap() > 0, "{counts}");
+        assert_eq!(counts["wrong_marker"], 0, "{counts}");
+    }
+
+    let copy = dir.path().join("copy.json");
+    std::fs::copy(dir.path().join("pair-1.json"), &copy).unwrap();
+    let twins = dir.path().join("twins.set.json");
+    std::fs::write(
+        &twins,
+        set_file_json("twins", &["pair-1.json".into(), "copy.json".into()]),
+    )
+    .unwrap();
+    let twin_out = dir.path().join("twin-report");
+    let assert = Command::cargo_bin("layout-opt")
+        .unwrap()
+        .args(["--quiet", "validate"])
+        .arg(&twins)
+        .arg("--out")
+        .arg(&twin_out)
+        .assert()
+        .failure();
+    let stderr = String::from_utf8_lossy(&assert.get_output().stderr).to_string();
+    assert!(
+        stderr.contains("pair-1.json")
+            && stderr.contains("copy.json")
+            && stderr.contains("same marker"),
+        "{stderr}"
+    );
+    assert!(!twin_out.exists());
+}
