@@ -547,7 +547,7 @@ fn search_set_writes_the_markers_the_set_file_and_the_cross_matrix() {
         let mut command = Command::cargo_bin("layout-opt").unwrap();
         command
             .args(["--quiet", "search", "--set", markers, "--starts", "1"])
-            .args(["--iterations", "40", "--depth", "300,600", "--tilt=-30,30"])
+            .args(["--iterations", "40", "--depth", "400", "--tilt=-30,30"])
             .args(["--name", "duo", "--out"])
             .arg(&layout_path)
             .arg("--report")
