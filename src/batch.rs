@@ -491,6 +491,283 @@ fn solved(
     }
 }
 
+/// One frame of `solve --unlabelled --set`: blobs only (a problem's
+/// `object_points`, if any, are ignored: the set gives the markers).
+#[derive(Debug, Clone, Deserialize)]
+struct SetProblemInput {
+    image_points: Vec<[f64; 2]>,
+    #[serde(default)]
+    sphere_diameter: Option<f64>,
+}
+
+/// A batch of frames for a marker set (docs/formats.md, "`solve` batch").
+#[derive(Debug)]
+pub struct SetBatch {
+    /// The camera of every frame.
+    pub camera: Camera,
+    /// The frames, in file order, with their ids; a frame that did not
+    /// parse carries its error.
+    frames: Vec<(String, Result<SetProblemInput, String>)>,
+}
+
+/// One marker found in a frame.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SetMarkerResult {
+    /// The marker's number in the set (1 is the set file's first).
+    pub marker: usize,
+    /// The marker's layout name.
+    pub name: String,
+    /// The blobs it explains (indices into the frame's image points).
+    pub blobs: Vec<usize>,
+    /// For each of `blobs`, the index of the marker's point it is.
+    pub labels: Vec<usize>,
+    /// Rotation matrix, row-major, marker → camera.
+    pub rotation: [[f64; 3]; 3],
+    /// Translation, mm.
+    pub translation: [f64; 3],
+    /// RMS reprojection error over its blobs, px.
+    pub reprojection_rms_px: f64,
+}
+
+/// One entry of a set batch's output.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum SetProblemResult {
+    /// The markers found in a frame.
+    Solved {
+        /// Caller's identifier.
+        id: String,
+        /// Every marker found, by marker number.
+        markers: Vec<SetMarkerResult>,
+        /// Blobs no marker explains.
+        unexplained: Vec<usize>,
+        /// Wall time of the grouping and the final fits, seconds.
+        seconds: f64,
+    },
+    /// A frame that could not be solved, and why.
+    Failed {
+        /// Caller's identifier.
+        id: String,
+        /// What was wrong.
+        error: String,
+    },
+}
+
+/// The output document of a set batch.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SetBatchOutput {
+    /// Stable name of the solver of the final fits.
+    pub solver: String,
+    /// The set's name.
+    pub set: String,
+    /// One entry per frame, in input order.
+    pub results: Vec<SetProblemResult>,
+}
+
+impl SetBatch {
+    /// Parses a batch whose problems are frames of blobs.
+    pub fn from_json(text: &str) -> Result<SetBatch, BatchError> {
+        let raw: RawBatch =
+            serde_json::from_str(text).map_err(|e| BatchError::Malformed(e.to_string()))?;
+        let spec: CameraSpec = serde_json::from_value(raw.camera)
+            .map_err(|e| BatchError::Malformed(format!("camera: {e}")))?;
+        let camera = spec.into_camera()?;
+        let frames = raw
+            .problems
+            .into_iter()
+            .enumerate()
+            .map(|(index, value)| {
+                let id = value
+                    .get("id")
+                    .and_then(|id| id.as_str().map(str::to_owned))
+                    .unwrap_or(format!("#{index}"));
+                let parsed = serde_json::from_value::<SetProblemInput>(value)
+                    .map_err(|e| format!("malformed problem: {e}"));
+                (id, parsed)
+            })
+            .collect();
+        Ok(SetBatch { camera, frames })
+    }
+
+    /// The number of frames.
+    pub fn len(&self) -> usize {
+        self.frames.len()
+    }
+
+    /// Whether there are no frames.
+    pub fn is_empty(&self) -> bool {
+        self.frames.is_empty()
+    }
+
+    /// Finds the set's markers in every frame: the blobs are grouped by
+    /// the best joint fit ([`crate::set::group_blobs`]), then each marker's
+    /// pose is `solver` on its blobs (with a sphere diameter, `ml`'s
+    /// sphere-image fit).
+    pub fn solve(
+        &self,
+        set: &crate::set::MarkerSet,
+        solver: Solver,
+        sphere_diameter_mm: Option<f64>,
+        config: UnlabelledConfig,
+        mut on_progress: impl FnMut(usize),
+    ) -> SetBatchOutput {
+        let objects = set.objects();
+        let names = set.names();
+        let results = self
+            .frames
+            .iter()
+            .enumerate()
+            .map(|(index, (id, frame))| {
+                let result = match frame {
+                    Ok(frame) => solve_frame(
+                        &self.camera,
+                        solver,
+                        id,
+                        frame,
+                        (&objects, &names),
+                        frame.sphere_diameter.or(sphere_diameter_mm),
+                        config,
+                    ),
+                    Err(error) => SetProblemResult::Failed {
+                        id: id.clone(),
+                        error: error.clone(),
+                    },
+                };
+                on_progress(index + 1);
+                result
+            })
+            .collect();
+        SetBatchOutput {
+            solver: solver.name().to_string(),
+            set: set.name.clone(),
+            results,
+        }
+    }
+}
+
+/// One frame of a set batch.
+fn solve_frame(
+    camera: &Camera,
+    solver: Solver,
+    id: &str,
+    frame: &SetProblemInput,
+    (objects, names): (&[Vec<Vector3<f64>>], &[String]),
+    sphere_diameter_mm: Option<f64>,
+    config: UnlabelledConfig,
+) -> SetProblemResult {
+    let failed = |error: String| SetProblemResult::Failed {
+        id: id.to_string(),
+        error,
+    };
+    if !(config.gate_px > 0.0 && config.gate_px.is_finite()) {
+        return failed(format!(
+            "the gate must be a positive number of px, got {}",
+            config.gate_px
+        ));
+    }
+    if let Some(diameter_mm) = sphere_diameter_mm {
+        if let Err(error) = check_sphere_diameter(diameter_mm, solver) {
+            return failed(error);
+        }
+    }
+    let pixels: Vec<Vector2<f64>> = frame
+        .image_points
+        .iter()
+        .map(|p| Vector2::new(p[0], p[1]))
+        .collect();
+    let mut normalised = Vec::with_capacity(pixels.len());
+    for (index, pixel) in pixels.iter().enumerate() {
+        if !pixel.iter().all(|v| v.is_finite()) {
+            return failed(format!("image point {index} has a non-finite coordinate"));
+        }
+        match camera.pixel_to_normalised(pixel) {
+            Ok(m) => normalised.push(m),
+            Err(e) => return failed(format!("image point {index}: {e}")),
+        }
+    }
+    let options = UnlabelledOptions::with_gate_px(
+        config.gate_px,
+        camera.fx().min(camera.fy()),
+        config.max_missing,
+    );
+    let start = Instant::now();
+    let groups = crate::set::group_blobs(objects, &normalised, &options);
+    if groups.is_empty() {
+        return failed(format!(
+            "no marker of the set fits {} of the {} blobs within the {} px gate",
+            if config.max_missing > 0 {
+                "all but one"
+            } else {
+                "all"
+            },
+            pixels.len(),
+            config.gate_px
+        ));
+    }
+    let mut markers = Vec::with_capacity(groups.len());
+    let mut claimed = vec![false; pixels.len()];
+    for group in &groups {
+        let matched: Vec<Vector3<f64>> = group
+            .labels
+            .iter()
+            .map(|&k| objects[group.marker][k])
+            .collect();
+        let blobs: Vec<Vector2<f64>> = group.blobs.iter().map(|&b| normalised[b]).collect();
+        let blob_pixels: Vec<Vector2<f64>> = group.blobs.iter().map(|&b| pixels[b]).collect();
+        let (pose, rms) = match sphere_diameter_mm {
+            Some(diameter_mm) => match ml_sphere::solve(&matched, &blobs, 0.5 * diameter_mm) {
+                Ok(pose) => {
+                    let rms = ellipse_centre_rms_px(
+                        camera,
+                        &pose,
+                        &matched,
+                        &blob_pixels,
+                        0.5 * diameter_mm,
+                    );
+                    (pose, rms)
+                }
+                Err(e) => {
+                    return failed(format!(
+                        "marker {}: the final fit failed: {e}",
+                        group.marker + 1
+                    ))
+                }
+            },
+            None => match solver.solve_best(&matched, &blobs) {
+                Ok(pose) => {
+                    let rms = reprojection_rms_px(camera, &pose, &matched, &blob_pixels);
+                    (pose, rms)
+                }
+                Err(e) => {
+                    return failed(format!(
+                        "marker {}: the final fit failed: {e}",
+                        group.marker + 1
+                    ))
+                }
+            },
+        };
+        for &b in &group.blobs {
+            claimed[b] = true;
+        }
+        let r = pose.rotation.matrix();
+        markers.push(SetMarkerResult {
+            marker: group.marker + 1,
+            name: names[group.marker].clone(),
+            blobs: group.blobs.clone(),
+            labels: group.labels.clone(),
+            rotation: std::array::from_fn(|row| std::array::from_fn(|col| r[(row, col)])),
+            translation: [pose.translation.x, pose.translation.y, pose.translation.z],
+            reprojection_rms_px: rms,
+        });
+    }
+    SetProblemResult::Solved {
+        id: id.to_string(),
+        markers,
+        unexplained: (0..pixels.len()).filter(|&b| !claimed[b]).collect(),
+        seconds: start.elapsed().as_secs_f64(),
+    }
+}
+
 /// A demonstration batch: the paper's biprism seen by the paper's camera (with
 /// its real-image distortion) at a few poses along the working range, with
 /// seeded Gaussian pixel noise of `sigma_px`. Used when `solve` runs without

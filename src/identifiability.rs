@@ -235,8 +235,9 @@ pub fn predict(
 
 /// The margin (px) and predicted wrong-label probability of one wrong
 /// labelling: `assigned[j]` is the object point it gives blob `j`, fitted
-/// at `pose`; the truth gives blob `j` `object[j]` at `truth`.
-fn wrong_probability(
+/// at `pose`; the truth gives blob `j` `object[j]` at `truth`. The wrong
+/// points may come from another marker ([`crate::set`]'s cross margin).
+pub fn wrong_probability(
     camera: &Camera,
     truth: &Pose,
     pose: &Pose,
@@ -346,11 +347,11 @@ impl ScenarioIdentifiability {
 }
 
 /// Noise-free observations (px, normalised) and per-point σ (px).
-type CleanView = (Vec<Vector2<f64>>, Vec<Vector2<f64>>, Vec<f64>);
+pub(crate) type CleanView = (Vec<Vector2<f64>>, Vec<Vector2<f64>>, Vec<f64>);
 
 /// The trials' noise-free observations of `target` in `scenario`, px and
 /// normalised, with the per-point σ; None when a sphere is not in front.
-fn clean_view(
+pub(crate) fn clean_view(
     target: &Target,
     scenario: &Scenario,
     observation: Observation,

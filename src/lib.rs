@@ -33,6 +33,7 @@ pub mod report;
 pub mod reproduce;
 pub mod scenario;
 pub mod search;
+pub mod set;
 pub mod sphere_image;
 pub mod spread;
 pub mod statistics;

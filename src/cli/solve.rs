@@ -3,8 +3,12 @@
 use super::{progress, GlobalOptions};
 use anyhow::Context;
 use clap::Args;
-use layout_opt::batch::{demo_batch_json, Batch, ProblemResult, UnlabelledConfig, DEFAULT_GATE_PX};
+use layout_opt::batch::{
+    demo_batch_json, Batch, ProblemResult, SetBatch, SetProblemResult, UnlabelledConfig,
+    DEFAULT_GATE_PX,
+};
 use layout_opt::pnp::Solver;
+use layout_opt::set::MarkerSet;
 use layout_opt::track::uncertainty::solve_figures;
 use std::path::PathBuf;
 
@@ -42,6 +46,13 @@ pub struct SolveArgs {
     /// at σ = 0.5 px; raise it for noisier blobs.
     #[arg(long, value_name = "PX", requires = "unlabelled", default_value_t = DEFAULT_GATE_PX)]
     gate_px: f64,
+    /// With --unlabelled: the blobs of each problem come from the markers
+    /// of this set file (layouts/<name>.set.json); a problem's object_points
+    /// are ignored. Blobs are grouped into markers by the best joint fit,
+    /// and each result lists the markers found, each with its number, name,
+    /// blobs, labels and pose, and the blobs no marker explains.
+    #[arg(long, value_name = "SET.json", requires = "unlabelled")]
+    set: Option<PathBuf>,
 }
 
 /// Noise of the built-in demo batch, px.
@@ -88,6 +99,9 @@ pub fn run(args: SolveArgs, global: &GlobalOptions) -> anyhow::Result<()> {
             "--sphere-diameter needs --solver ml (the solver that fits the sphere-image model); {} fits projected centres",
             solver
         );
+    }
+    if let Some(set) = &args.set {
+        return run_set(&args, set, &text, &source, solver, global);
     }
     let batch = Batch::from_json(&text).with_context(|| format!("in {source}"))?;
     let bar = progress::bar(batch.problems.len() as u64, "solving", global.quiet);
@@ -154,6 +168,11 @@ pub fn run(args: SolveArgs, global: &GlobalOptions) -> anyhow::Result<()> {
             String::new()
         }
     );
+    emit(&args, json, &summary)
+}
+
+/// Writes the output document where `--output` says, or to stdout.
+fn emit(args: &SolveArgs, json: String, summary: &str) -> anyhow::Result<()> {
     match &args.output {
         Some(path) => {
             layout_opt::files::write_atomic(path, (json + "\n").as_bytes())
@@ -166,4 +185,50 @@ pub fn run(args: SolveArgs, global: &GlobalOptions) -> anyhow::Result<()> {
         }
     }
     Ok(())
+}
+
+/// `solve --unlabelled --set SET.json`: the set's markers in every frame.
+fn run_set(
+    args: &SolveArgs,
+    set_path: &std::path::Path,
+    text: &str,
+    source: &str,
+    solver: Solver,
+    global: &GlobalOptions,
+) -> anyhow::Result<()> {
+    let set = MarkerSet::load(set_path).context("--set")?;
+    set.check_distinct().context("--set")?;
+    let batch = SetBatch::from_json(text).with_context(|| format!("in {source}"))?;
+    let bar = progress::bar(batch.len() as u64, "solving", global.quiet);
+    let config = UnlabelledConfig {
+        gate_px: args.gate_px,
+        ..UnlabelledConfig::default()
+    };
+    let output = batch.solve(&set, solver, args.sphere_diameter, config, |done| {
+        bar.set_position(done as u64)
+    });
+    bar.finish_and_clear();
+    let json = serde_json::to_string_pretty(&output)?;
+    let (mut frames, mut found, mut failed) = (0, 0, 0);
+    for result in &output.results {
+        match result {
+            SetProblemResult::Solved { markers, .. } => {
+                frames += 1;
+                found += markers.len();
+            }
+            SetProblemResult::Failed { .. } => failed += 1,
+        }
+    }
+    let summary = format!(
+        "{solver} (unlabelled, set {} of {} markers): {found} markers found in {frames} of {} frames from {source}{}",
+        set.name,
+        set.members.len(),
+        output.results.len(),
+        if failed > 0 {
+            format!("; {failed} with errors (see their \"error\" entries)")
+        } else {
+            String::new()
+        }
+    );
+    emit(args, json, &summary)
 }

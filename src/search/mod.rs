@@ -96,6 +96,7 @@ pub(crate) mod front;
 pub(crate) mod identify;
 pub(crate) mod optimise;
 pub mod report;
+pub mod set;
 pub mod summary;
 pub mod workflow;
 

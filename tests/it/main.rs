@@ -20,6 +20,7 @@ mod noise_free;
 mod noisy;
 mod plots;
 mod render;
+mod sets;
 mod sphere_image;
 mod sqpnp_crosscheck;
 mod track;

@@ -192,6 +192,36 @@ pub struct SearchArgs {
     /// Availability levels of the front's sweep above the unconstrained one.
     #[arg(long, default_value_t = 8, value_name = "N", requires = "front")]
     pub(super) front_levels: usize,
+    /// Design a set of N markers (2–8) that one camera tells apart, over
+    /// this working range and envelope: <name>-1.json … <name>-N.json and
+    /// <name>.set.json beside the layout, set-report.md and set.json in the
+    /// report directory. Markers are searched in turn, each kept when no
+    /// earlier marker is confusable with it (docs/commands.md).
+    #[arg(long, value_name = "N")]
+    pub(super) set: Option<usize>,
+    /// With --set: score the set by its worst marker's accuracy or the mean.
+    #[arg(long, value_enum, default_value = "worst", requires = "set")]
+    pub(super) set_objective: SetObjectiveName,
+    /// With --set: least predicted probability, per viewpoint, that another
+    /// marker is not taken for the one seen; every pair must meet it in a
+    /// 99.9% share of the viewpoints where the marker is visible.
+    #[arg(
+        long,
+        default_value = "99.9%",
+        value_name = "PROBABILITY",
+        requires = "set"
+    )]
+    pub(super) min_cross_identifiability: IdentifiabilityShare,
+    /// With --set: searches per marker before the set is refused.
+    #[arg(long, default_value_t = layout_opt::search::set::DEFAULT_SET_TRIES, value_name = "N", requires = "set")]
+    pub(super) set_tries: usize,
+}
+
+/// How a set's markers are scored together.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub(super) enum SetObjectiveName {
+    Worst,
+    Mean,
 }
 
 /// A share given as `0.999`, `99.9%` or `none`.

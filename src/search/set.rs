@@ -1,0 +1,359 @@
+//! `search --set N`: N markers designed for one working range and one
+//! envelope, each meeting the single-marker floors, no two confusable.
+//!
+//! **Method** (sequential design with the earlier markers as fixed
+//! rivals): marker 1 is the single-marker search's winner (the
+//! optimiser's multistart, then the identifiability repair rounds), with
+//! the configuration's seed: what one marker reaches alone. Marker k is
+//! searched the same way from the seed of its try; its winner is kept
+//! when it is admissible (constraints, availability and identifiability
+//! floors) and the cross matrix between it and every marker kept before
+//! meets the cross floor in both directions (over every
+//! [`SetSearchSettings::cross_thinning`]th scenario of the working
+//! volume). Otherwise the next try runs from another seed; after
+//! [`SetSearchSettings::tries`] tries the set is refused with the reason.
+//! The set's objective is the worst (or the mean) of its markers'
+//! accuracies; each marker's accuracy beside marker 1's is the price of
+//! being told apart. The final cross matrix is computed over every
+//! scenario.
+
+use super::analysis::Analysis;
+use super::identify::{enforce_identifiability, Quiet};
+use super::optimise;
+use super::SearchError;
+use super::{IdentifiabilityFigures, SearchConfig};
+use crate::identifiability::IdentifiabilitySettings;
+use crate::layout::Layout;
+use crate::montecarlo::Target;
+use crate::scenario::Scenario;
+use crate::set::{cross_matrix, CrossMatrix, MAX_MARKERS, MIN_MARKERS};
+use serde::Serialize;
+use std::sync::atomic::AtomicBool;
+use std::sync::Arc;
+use std::time::Instant;
+
+/// Default tries per marker.
+pub const DEFAULT_SET_TRIES: usize = 4;
+/// Default thinning of the scenarios the tries' cross check uses: 1, every
+/// scenario, since checking every 4th let a 4-marker set through whose
+/// full matrix failed 1 to 7 of 166 viewpoints in five pairs (the cross
+/// check costs seconds beside a search's minutes).
+pub const DEFAULT_CROSS_THINNING: usize = 1;
+/// Seed step between tries (a prime, so tries of different markers do
+/// not share seeds).
+pub const TRY_SEED_STEP: u64 = 7919;
+
+/// How the set's markers are scored together.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum SetObjective {
+    /// The worst marker's accuracy.
+    Worst,
+    /// The mean of the markers' accuracies.
+    Mean,
+}
+
+/// The set's own settings.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SetSearchSettings {
+    /// Markers in the set (2 to 8).
+    pub markers: usize,
+    /// How the markers' accuracies are scored together.
+    pub objective: SetObjective,
+    /// Per-viewpoint floor of cross-identifiability: a viewpoint counts
+    /// when the predicted confusion probability is at most 1 − this, and a
+    /// pair meets the floor when this share of its viewpoints counts.
+    pub min_cross: f64,
+    /// Searches per marker at most.
+    pub tries: usize,
+    /// Every this many scenarios join the tries' cross check.
+    pub cross_thinning: usize,
+}
+
+/// One marker of a designed set.
+#[derive(Debug, Clone, Serialize)]
+pub struct SetMarker {
+    /// The layout (named `<name>-k`).
+    pub layout: Layout,
+    /// Its accuracy (1 = the paper's biprism in the envelope; lower is
+    /// better).
+    pub accuracy: f64,
+    /// The optimiser seed of the try that was kept.
+    pub seed: u64,
+    /// Tries it took.
+    pub tries: usize,
+    /// Its identifiability over the working volume.
+    pub identifiability: Option<IdentifiabilityFigures>,
+}
+
+/// A designed set.
+#[derive(Debug, Clone, Serialize)]
+pub struct SetSearchOutcome {
+    /// The set's settings.
+    pub settings: SetSearchSettings,
+    /// The markers, in set order.
+    pub markers: Vec<SetMarker>,
+    /// What one marker reaches alone: marker 1's accuracy (the
+    /// single-marker search's winner).
+    pub alone_accuracy: f64,
+    /// The set's objective: the worst or mean accuracy.
+    pub objective: f64,
+    /// The cross matrix over every scenario of the working volume.
+    pub matrix: CrossMatrix,
+    /// Scenarios in the working volume.
+    pub scenarios: usize,
+    /// Seconds of the whole design.
+    pub seconds: f64,
+}
+
+/// Refuses a set size outside 2…8, before any work.
+pub fn check_set_size(markers: usize) -> Result<(), SearchError> {
+    if !(MIN_MARKERS..=MAX_MARKERS).contains(&markers) {
+        return Err(SearchError::Config(crate::config::ConfigError::new(
+            "set",
+            format!("must be {MIN_MARKERS} to {MAX_MARKERS} markers, got {markers}"),
+        )));
+    }
+    Ok(())
+}
+
+/// Designs the set (module docs). `on_try(marker, try, accepted)` hears
+/// each try's end.
+pub fn design_set(
+    config: &SearchConfig,
+    set: &SetSearchSettings,
+    stop: &AtomicBool,
+    on_try: &dyn Fn(usize, usize, bool),
+) -> Result<SetSearchOutcome, SearchError> {
+    check_set_size(set.markers)?;
+    if !(set.min_cross > 0.0 && set.min_cross < 1.0) {
+        return Err(SearchError::Config(crate::config::ConfigError::new(
+            "min_cross_identifiability",
+            format!("must be a share in (0, 1), got {}", set.min_cross),
+        )));
+    }
+    if set.tries == 0 || set.cross_thinning == 0 {
+        return Err(SearchError::Config(crate::config::ConfigError::new(
+            "set_tries",
+            "and the cross thinning must be at least 1".to_string(),
+        )));
+    }
+    let started = Instant::now();
+    let analysis = Analysis::new(config)?;
+    let family = analysis.family();
+    let evaluator = analysis.evaluator();
+    let scenarios: Vec<Scenario> = evaluator.scenarios().to_vec();
+    let thinned: Vec<Scenario> = scenarios
+        .iter()
+        .step_by(set.cross_thinning)
+        .copied()
+        .collect();
+    let cross_settings = IdentifiabilitySettings {
+        min_correct: set.min_cross,
+        trials: 0,
+        seed: config.objective.seed,
+        observation: config.objective.observation,
+        noise: config.objective.noise,
+    };
+    let diameter = config.constraints.sphere_diameter_mm;
+    let mut markers: Vec<SetMarker> = Vec::with_capacity(set.markers);
+    for k in 0..set.markers {
+        let mut best_share: Option<f64> = None;
+        let mut kept = None;
+        for attempt in 0..set.tries {
+            let seed = config
+                .search
+                .seed
+                .wrapping_add((k * set.tries + attempt) as u64 * TRY_SEED_STEP);
+            let settings = optimise::SearchSettings {
+                seed,
+                ..config.search.clone()
+            };
+            let outcome =
+                optimise::run(family, &evaluator, &settings, stop, Arc::new(Quiet), None)?;
+            let outcome = match config.min_identifiability {
+                Some(floor) => {
+                    enforce_identifiability(family, &evaluator, floor, &settings, outcome, stop)?.0
+                }
+                None => outcome,
+            };
+            let name = format!("{}-{}", config.name, k + 1);
+            let mut layout = family.layout(&name, &outcome.best.params);
+            let mut provenance = analysis.provenance();
+            provenance["set"] =
+                serde_json::json!({"marker": k + 1, "of": set.markers, "seed": seed});
+            layout.provenance = Some(provenance);
+            let evaluation = &outcome.best.evaluation;
+            let mut accepted = evaluation.admissible();
+            if accepted && !markers.is_empty() {
+                let mut objects: Vec<Vec<nalgebra::Vector3<f64>>> =
+                    markers.iter().map(|m| m.layout.positions()).collect();
+                objects.push(layout.positions());
+                let matrix = matrix_of(config, &objects, diameter, &thinned, &cross_settings);
+                let share = matrix.worst_share();
+                best_share = Some(best_share.map_or(share, |b: f64| b.max(share)));
+                accepted = matrix.meets_floor();
+            }
+            on_try(k + 1, attempt + 1, accepted);
+            if accepted {
+                kept = Some(SetMarker {
+                    layout,
+                    accuracy: evaluation.accuracy,
+                    seed,
+                    tries: attempt + 1,
+                    identifiability: evaluation.identifiability.clone(),
+                });
+                break;
+            }
+        }
+        match kept {
+            Some(marker) => markers.push(marker),
+            None => {
+                return Err(SearchError::Unsatisfiable(format!(
+                    "marker {} of {}: none of {} searches met the floors{}; a larger --envelope, more spheres (--points with --family custom), a lower --min-cross-identifiability or more --set-tries would make it feasible, or a smaller --set ({} markers were found)",
+                    k + 1,
+                    set.markers,
+                    set.tries,
+                    match best_share {
+                        Some(share) => format!(
+                            " (the best was cross-identifiable with the earlier markers in {:.1}% of the checked viewpoints, the floor {:.1}%)",
+                            100.0 * share,
+                            100.0 * set.min_cross
+                        ),
+                        None => " (none was admissible on its own)".to_string(),
+                    },
+                    markers.len()
+                )));
+            }
+        }
+    }
+    let objects: Vec<Vec<nalgebra::Vector3<f64>>> =
+        markers.iter().map(|m| m.layout.positions()).collect();
+    let mut matrix = matrix_of(config, &objects, diameter, &scenarios, &cross_settings);
+    matrix.markers = markers.iter().map(|m| m.layout.name.clone()).collect();
+    let accuracies: Vec<f64> = markers.iter().map(|m| m.accuracy).collect();
+    let objective = match set.objective {
+        SetObjective::Worst => accuracies.iter().copied().fold(f64::MIN, f64::max),
+        SetObjective::Mean => accuracies.iter().sum::<f64>() / accuracies.len() as f64,
+    };
+    Ok(SetSearchOutcome {
+        settings: set.clone(),
+        alone_accuracy: markers[0].accuracy,
+        objective,
+        markers,
+        matrix,
+        scenarios: scenarios.len(),
+        seconds: started.elapsed().as_secs_f64(),
+    })
+}
+
+/// The cross matrix of `objects` (one sphere diameter, no per-point σ).
+fn matrix_of(
+    config: &SearchConfig,
+    objects: &[Vec<nalgebra::Vector3<f64>>],
+    diameter: f64,
+    scenarios: &[Scenario],
+    settings: &IdentifiabilitySettings,
+) -> CrossMatrix {
+    let sigmas: Vec<Vec<Option<f64>>> = objects.iter().map(|o| vec![None; o.len()]).collect();
+    let targets: Vec<Target> = objects
+        .iter()
+        .zip(&sigmas)
+        .map(|(object, sigmas)| Target {
+            camera: &config.camera,
+            object,
+            sphere_diameter_mm: diameter,
+            point_sigma_px: sigmas,
+        })
+        .collect();
+    let names: Vec<String> = (1..=objects.len())
+        .map(|k| format!("{}-{k}", config.name))
+        .collect();
+    cross_matrix(&targets, &names, scenarios, settings)
+}
+
+/// The set's report: each marker's accuracy alone and in the set, and the
+/// N×N matrix of the smallest cross margin (px) and the predicted
+/// confusion rate (Markdown).
+pub fn set_report(outcome: &SetSearchOutcome, command: &str) -> String {
+    let sig = |v: f64, digits: usize| crate::report::number::significant(Some(v), digits);
+    let n = outcome.markers.len();
+    let mut text = format!(
+        "# Marker set: {} markers\n\n`{command}`\n\nDesigned in {:.1} s over {} scenarios. Objective ({}): {}. Cross floor: a viewpoint counts when the predicted confusion probability is at most {}; every pair meets the floor: {}.\n\n",
+        n,
+        outcome.seconds,
+        outcome.scenarios,
+        match outcome.settings.objective {
+            SetObjective::Worst => "the worst marker's accuracy",
+            SetObjective::Mean => "the mean accuracy",
+        },
+        sig(outcome.objective, 4),
+        sig(1.0 - outcome.settings.min_cross, 2),
+        if outcome.matrix.meets_floor() { "yes" } else { "no" },
+    );
+    text.push_str("## Markers\n\nAccuracy: the objective's accuracy term (1 = the paper's biprism scaled to the envelope; lower is better). Alone: what one marker reaches (marker 1, the single-marker search's winner).\n\n| marker | accuracy in the set | alone | price | identifiable | tries | seed |\n|---|---|---|---|---|---|---|\n");
+    for (k, m) in outcome.markers.iter().enumerate() {
+        let identifiable = m.identifiability.as_ref().map_or("—".to_string(), |f| {
+            format!("{} of {}", f.identifiable, f.checked)
+        });
+        text.push_str(&format!(
+            "| {} ({}) | {} | {} | {:+.1}% | {} | {} | {} |\n",
+            k + 1,
+            m.layout.name,
+            sig(m.accuracy, 4),
+            sig(outcome.alone_accuracy, 4),
+            100.0 * (m.accuracy / outcome.alone_accuracy - 1.0),
+            identifiable,
+            m.tries,
+            m.seed
+        ));
+    }
+    text.push_str(&matrix_markdown(&outcome.matrix));
+    text
+}
+
+/// The cross matrix as Markdown tables: the smallest cross margin (px),
+/// the mean predicted confusion rate per viewpoint and the viewpoints
+/// failing the floor, row the marker seen, column the rival.
+pub fn matrix_markdown(matrix: &CrossMatrix) -> String {
+    let sig = |v: f64, digits: usize| crate::report::number::significant(Some(v), digits);
+    let n = matrix.markers.len();
+    let mut text = String::new();
+    for (title, cell) in [
+        (
+            "Smallest cross margin, px (row: the marker seen; column: the marker offered as the model; > gate: no fit within the gate)",
+            0,
+        ),
+        (
+            "Predicted confusion rate per viewpoint (mean over the row marker's visible viewpoints)",
+            1,
+        ),
+        ("Viewpoints failing the cross floor", 2),
+    ] {
+        text.push_str(&format!("\n## {title}\n\n|  |"));
+        for j in 0..n {
+            text.push_str(&format!(" {} |", j + 1));
+        }
+        text.push_str("\n|---|");
+        text.push_str(&"---|".repeat(n));
+        text.push('\n');
+        for i in 0..n {
+            text.push_str(&format!("| {} |", i + 1));
+            for j in 0..n {
+                let value = match matrix.pair(i, j) {
+                    None => "—".to_string(),
+                    Some(p) => match cell {
+                        0 => p
+                            .smallest_margin_px
+                            .map_or("> gate".to_string(), |m| sig(m, 3)),
+                        1 => sig(p.mean_confusion, 2),
+                        _ => format!("{} of {}", p.failing.len(), p.visible),
+                    },
+                };
+                text.push_str(&format!(" {value} |"));
+            }
+            text.push('\n');
+        }
+    }
+    text
+}
