@@ -173,29 +173,39 @@ pub struct BatchOutput {
     pub results: Vec<ProblemResult>,
 }
 
+/// A batch document's camera and, per problem, its id (its `id`, else
+/// `#index`) and the problem parsed as `P`, or why it could not be: a
+/// malformed problem stops only itself.
+#[allow(clippy::type_complexity)]
+fn parse_document<P: serde::de::DeserializeOwned>(
+    text: &str,
+) -> Result<(Camera, Vec<(String, Result<P, String>)>), BatchError> {
+    let raw: RawBatch =
+        serde_json::from_str(text).map_err(|e| BatchError::Malformed(e.to_string()))?;
+    let spec: CameraSpec = serde_json::from_value(raw.camera)
+        .map_err(|e| BatchError::Malformed(format!("camera: {e}")))?;
+    let camera = spec.into_camera()?;
+    let problems = raw
+        .problems
+        .into_iter()
+        .enumerate()
+        .map(|(index, value)| {
+            let id = value
+                .get("id")
+                .and_then(|id| id.as_str().map(str::to_owned))
+                .unwrap_or_else(|| format!("#{index}"));
+            let parsed =
+                serde_json::from_value::<P>(value).map_err(|e| format!("malformed problem: {e}"));
+            (id, parsed)
+        })
+        .collect();
+    Ok((camera, problems))
+}
+
 impl Batch {
     /// Parses a batch document.
     pub fn from_json(text: &str) -> Result<Batch, BatchError> {
-        let raw: RawBatch =
-            serde_json::from_str(text).map_err(|e| BatchError::Malformed(e.to_string()))?;
-        let spec: CameraSpec = serde_json::from_value(raw.camera)
-            .map_err(|e| BatchError::Malformed(format!("camera: {e}")))?;
-        let camera = spec.into_camera()?;
-        let problems = raw
-            .problems
-            .into_iter()
-            .enumerate()
-            .map(|(index, value)| {
-                let fallback_id = format!("#{index}");
-                let id = value
-                    .get("id")
-                    .and_then(|id| id.as_str().map(str::to_owned))
-                    .unwrap_or(fallback_id);
-                let parsed = serde_json::from_value::<ProblemInput>(value)
-                    .map_err(|e| format!("malformed problem: {e}"));
-                (id, parsed)
-            })
-            .collect();
+        let (camera, problems) = parse_document(text)?;
         Ok(Batch { camera, problems })
     }
 
@@ -567,25 +577,7 @@ pub struct SetBatchOutput {
 impl SetBatch {
     /// Parses a batch whose problems are frames of blobs.
     pub fn from_json(text: &str) -> Result<SetBatch, BatchError> {
-        let raw: RawBatch =
-            serde_json::from_str(text).map_err(|e| BatchError::Malformed(e.to_string()))?;
-        let spec: CameraSpec = serde_json::from_value(raw.camera)
-            .map_err(|e| BatchError::Malformed(format!("camera: {e}")))?;
-        let camera = spec.into_camera()?;
-        let frames = raw
-            .problems
-            .into_iter()
-            .enumerate()
-            .map(|(index, value)| {
-                let id = value
-                    .get("id")
-                    .and_then(|id| id.as_str().map(str::to_owned))
-                    .unwrap_or(format!("#{index}"));
-                let parsed = serde_json::from_value::<SetProblemInput>(value)
-                    .map_err(|e| format!("malformed problem: {e}"));
-                (id, parsed)
-            })
-            .collect();
+        let (camera, frames) = parse_document(text)?;
         Ok(SetBatch { camera, frames })
     }
 

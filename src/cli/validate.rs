@@ -123,15 +123,7 @@ pub fn run(args: ValidateArgs, global: &GlobalOptions) -> anyhow::Result<()> {
     };
     let solvers = parse_solvers(&args.solvers)?;
     let tilt_step = default_tilt_step_deg(&solvers);
-    let paper = ScenarioGrid::paper_protocol(tilt_step);
-    let volume = args.volume.volume(
-        &args.grid,
-        VolumeDefaults {
-            grid: paper.clone(),
-            volume: WorkingVolume::Grid(paper),
-        },
-        global.seed,
-    )?;
+    let volume = protocol_volume(&args, tilt_step, global.seed)?;
     let grid_note = (tilt_step != DEFAULT_TILT_STEP_DEG
         && args.grid.tilt.is_none()
         && matches!(volume, WorkingVolume::Grid(_)))
@@ -241,6 +233,24 @@ fn flag_error(error: ConfigError, layout: &str) -> anyhow::Error {
     anyhow::anyhow!("{flag} {}", error.reason)
 }
 
+/// The volume the flags give, by default the paper's protocol grid with
+/// tilts `tilt_step_deg` apart.
+fn protocol_volume(
+    args: &ValidateArgs,
+    tilt_step_deg: f64,
+    seed: u64,
+) -> anyhow::Result<WorkingVolume> {
+    let paper = ScenarioGrid::paper_protocol(tilt_step_deg);
+    args.volume.volume(
+        &args.grid,
+        VolumeDefaults {
+            grid: paper.clone(),
+            volume: WorkingVolume::Grid(paper),
+        },
+        seed,
+    )
+}
+
 /// `validate SET.json`: each marker's identifiability and the set's cross
 /// matrix over the working volume, with seeded trials against the whole
 /// set; `set-report.md` and `set.json` in the output directory.
@@ -251,15 +261,7 @@ fn run_set(path: PathBuf, args: &ValidateArgs, global: &GlobalOptions) -> anyhow
     let set = MarkerSet::load(&path)?;
     set.check_distinct()?;
     let camera = args.camera.camera()?;
-    let paper = ScenarioGrid::paper_protocol(DEFAULT_TILT_STEP_DEG);
-    let volume = args.volume.volume(
-        &args.grid,
-        VolumeDefaults {
-            grid: paper.clone(),
-            volume: WorkingVolume::Grid(paper),
-        },
-        global.seed,
-    )?;
+    let volume = protocol_volume(args, DEFAULT_TILT_STEP_DEG, global.seed)?;
     let settings = IdentifiabilitySettings {
         min_correct: parse_probability(&args.identify_criterion).context("--identify-criterion")?,
         trials: args.identify_trials,

@@ -268,7 +268,6 @@ fn capsule_may_cover(
     b: &Vector3<f64>,
     radius: f64,
 ) -> bool {
-    let (pa, pb) = (a - eye, b - eye);
     let nearest = (eye - occluders::closest_on_segment(eye, a, b)).norm();
     if nearest <= radius {
         return true;
@@ -276,14 +275,29 @@ fn capsule_may_cover(
     if nearest - radius >= front {
         return false;
     }
+    let Some(least) = axis_on_plane(eye, axis, a, b, radius) else {
+        return true;
+    };
+    let grown = half_angle + (radius / nearest).asin();
+    grown >= std::f64::consts::FRAC_PI_2 || least < grown.tan()
+}
+
+/// The least distance from the cone's axis of the segment `a`–`b` seen on
+/// the plane one unit along `axis` from `eye` (where a straight line stays
+/// straight): the tangent of the least angle between `axis` and a point of
+/// the segment. `None` when an end lies within `radius` of the plane
+/// through the eye, or behind it (no plane to see it on).
+fn axis_on_plane(
+    eye: &Vector3<f64>,
+    axis: &Vector3<f64>,
+    a: &Vector3<f64>,
+    b: &Vector3<f64>,
+    radius: f64,
+) -> Option<f64> {
+    let (pa, pb) = (a - eye, b - eye);
     let (za, zb) = (pa.dot(axis), pb.dot(axis));
     if za <= radius || zb <= radius {
-        // An end beside or behind the camera: no plane to see it on.
-        return true;
-    }
-    let grown = half_angle + (radius / nearest).asin();
-    if grown >= std::f64::consts::FRAC_PI_2 {
-        return true;
+        return None;
     }
     let on_plane = |p: &Vector3<f64>, z: f64| (p - axis * z) / z;
     let (qa, qb) = (on_plane(&pa, za), on_plane(&pb, zb));
@@ -293,7 +307,7 @@ fn capsule_may_cover(
     } else {
         0.0
     };
-    (qa + ab * t).norm() < grown.tan()
+    Some((qa + ab * t).norm())
 }
 
 /// Whether a sphere's own cone (the hull of its ball (`a`, `radius_a`) and
@@ -626,21 +640,11 @@ fn least_tangent(
         return radius_mm * gamma.sin() / (distance - radius_mm * gamma.cos());
     }
     let capsule_angle = |a: &Vector3<f64>, b: &Vector3<f64>, radius: f64| {
-        let (pa, pb) = (a - eye, b - eye);
-        let (za, zb) = (pa.dot(axis), pb.dot(axis));
         let nearest = (eye - occluders::closest_on_segment(eye, a, b)).norm();
-        if za <= radius || zb <= radius || nearest <= radius {
-            return 0.0;
+        match axis_on_plane(eye, axis, a, b, radius) {
+            Some(least) if nearest > radius => (least.atan() - (radius / nearest).asin()).max(0.0),
+            _ => 0.0,
         }
-        let on_plane = |p: &Vector3<f64>, z: f64| (p - axis * z) / z;
-        let (qa, qb) = (on_plane(&pa, za), on_plane(&pb, zb));
-        let ab = qb - qa;
-        let t = if ab.norm_squared() > 0.0 {
-            (-qa.dot(&ab) / ab.norm_squared()).clamp(0.0, 1.0)
-        } else {
-            0.0
-        };
-        ((qa + ab * t).norm().atan() - (radius / nearest).asin()).max(0.0)
     };
     let angle = match part {
         Occluder::Capsule { a, b, radius } => capsule_angle(a, b, *radius),
