@@ -63,8 +63,11 @@ use std::path::Path;
 /// Most samples a sampled volume may hold (the Sobol sequence's length).
 pub const MAX_SAMPLES: usize = 1 << 16;
 /// Samples of the default sampled volume (a power of two, as Sobol points
-/// are best balanced in blocks of powers of two).
-pub const DEFAULT_SAMPLES: usize = 256;
+/// are best balanced in blocks of powers of two). With 256, the default
+/// search's winners sat on the availability floor of their own draw and
+/// fell short of the paper's biprism on independent grids; with 512 they
+/// meet it (docs/formats.md, "Default volume of `search`").
+pub const DEFAULT_SAMPLES: usize = 512;
 /// Bins of a sampled axis in the per-axis curves and the heatmaps.
 pub const AXIS_BINS: usize = 8;
 /// Largest cone half-angle, degrees: beyond 90° the marker's face points

@@ -913,7 +913,10 @@ mod tests {
         let base = SearchConfig::new("t", dir);
         let key = |config: &SearchConfig| Analysis::new(config).unwrap().checkpoint_key();
         let reference = key(&base);
-        assert_eq!(reference["volume"]["samples"], 256);
+        assert_eq!(
+            reference["volume"]["samples"],
+            crate::volume::DEFAULT_SAMPLES
+        );
         assert!(reference.get("grid").is_none());
         let mut other = base.clone();
         other.volume = super::super::config::default_volume(8);
