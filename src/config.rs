@@ -74,6 +74,18 @@ impl ConfigError {
     }
 }
 
+/// A share in [0, 1] written as a fraction (`0.999`) or a percentage
+/// (`99.9%`); `None` for anything else.
+pub fn parse_share(text: &str) -> Option<f64> {
+    let text = text.trim();
+    let (number, scale) = match text.strip_suffix('%') {
+        Some(percent) => (percent, 0.01),
+        None => (text, 1.0),
+    };
+    let share = number.trim().parse::<f64>().ok()? * scale;
+    (0.0..=1.0).contains(&share).then_some(share)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

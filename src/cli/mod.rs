@@ -11,6 +11,7 @@ mod solve;
 mod track;
 mod validate;
 mod validate_images;
+mod validate_set;
 mod volume;
 
 use clap::{Args, CommandFactory, FromArgMatches, Parser, Subcommand};

@@ -4,14 +4,15 @@
 //! and the outcome printed. The search itself is [`workflow::run`].
 
 mod flags;
+mod set;
 
 use super::common::{command_line, duration_text, naming_file, parse_solvers, SLOW_RUN_SECONDS};
 use super::volume::{volume_flag, VolumeDefaults};
 use super::{progress, GlobalOptions};
 use anyhow::Context;
 use clap::ValueEnum;
+use flags::FamilyName;
 pub use flags::SearchArgs;
-use flags::{FamilyName, SetObjectiveName};
 use layout_opt::config::ConfigError;
 use layout_opt::family::{Constraints, FamilyKind};
 use layout_opt::layout::Layout;
@@ -19,14 +20,11 @@ use layout_opt::search::config::{
     checkpoint_dir_beside, default_grid, default_polish_iterations, default_volume,
     report_dir_beside,
 };
-use layout_opt::search::set::{
-    check_set_size, design_set, set_report, SetObjective, SetSearchSettings, DEFAULT_CROSS_THINNING,
-};
+use layout_opt::search::set::SetSearchSettings;
 use layout_opt::search::{
     estimate, workflow, FrontOutput, FrontSettings, IdentifiabilityFloor, MeshExport,
     ObjectiveSettings, SearchConfig, SearchSettings,
 };
-use layout_opt::set::{write_set, MAX_MARKERS, MIN_MARKERS};
 use std::path::{Path, PathBuf};
 
 /// The flags as a search configuration; the default paths are relative to
@@ -178,38 +176,29 @@ fn flag_error(error: ConfigError) -> anyhow::Error {
 }
 
 pub fn run(args: SearchArgs, global: &GlobalOptions) -> anyhow::Result<()> {
-    let set = match args.set {
-        Some(markers) => {
-            check_set_size(markers).map_err(|_| {
-                anyhow::anyhow!(
-                    "--set must be {MIN_MARKERS} to {MAX_MARKERS} markers, got {markers}"
-                )
-            })?;
-            let Some(min_cross) = args.min_cross_identifiability.0 else {
-                anyhow::bail!("--min-cross-identifiability must be a probability, not none");
-            };
-            anyhow::ensure!(
-                min_cross > 0.0 && min_cross < 1.0,
-                "--min-cross-identifiability must be a probability between 0 and 1 (exclusive), got {min_cross}"
-            );
-            anyhow::ensure!(args.set_tries >= 1, "--set-tries must be at least 1");
-            Some(SetSearchSettings {
+    let set = args
+        .set
+        .map(|markers| {
+            SetSearchSettings::new(
                 markers,
-                objective: match args.set_objective {
-                    SetObjectiveName::Worst => SetObjective::Worst,
-                    SetObjectiveName::Mean => SetObjective::Mean,
-                },
-                min_cross,
-                tries: args.set_tries,
-                cross_thinning: DEFAULT_CROSS_THINNING,
+                args.set_objective,
+                args.min_cross_identifiability.0,
+                args.set_tries,
+            )
+            .map_err(|e| {
+                let flag = match e.field {
+                    "markers" => "--set",
+                    "min_cross" => "--min-cross-identifiability",
+                    _ => "--set-tries",
+                };
+                anyhow::anyhow!("{flag} {}", e.reason)
             })
-        }
-        None => None,
-    };
+        })
+        .transpose()?;
     let config = config(args, global)?;
     config.check().map_err(flag_error)?;
     if let Some(set) = set {
-        return run_set(&config, &set, global);
+        return set::run(&config, &set, global);
     }
     if !global.quiet {
         if let Some(estimate) =
@@ -234,71 +223,5 @@ pub fn run(args: SearchArgs, global: &GlobalOptions) -> anyhow::Result<()> {
             std::process::exit(progress::EXIT_INTERRUPTED);
         }
     }
-    Ok(())
-}
-
-/// `search --set N`: the set designed, its files and report written.
-fn run_set(
-    config: &SearchConfig,
-    set: &SetSearchSettings,
-    global: &GlobalOptions,
-) -> anyhow::Result<()> {
-    let layout_dir = config
-        .layout_path
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(Path::new("."))
-        .to_path_buf();
-    for dir in [&layout_dir, &config.report_dir] {
-        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
-        layout_opt::files::check_writable_dir(dir)
-            .with_context(|| format!("cannot write into {}; nothing was run", dir.display()))?;
-    }
-    progress::catch_ctrl_c();
-    let stop = std::sync::atomic::AtomicBool::new(false);
-    let quiet = global.quiet;
-    let outcome = design_set(config, set, &stop, &|marker, attempt, accepted| {
-        if !quiet {
-            eprintln!(
-                "marker {marker} of {}: try {attempt} {}",
-                set.markers,
-                if accepted {
-                    "kept"
-                } else {
-                    "refused (a floor not met)"
-                }
-            );
-        }
-    })
-    .map_err(|e| anyhow::anyhow!("--set {}: {e}", set.markers))?;
-    let layouts: Vec<Layout> = outcome.markers.iter().map(|m| m.layout.clone()).collect();
-    let set_path = write_set(&layout_dir, &config.name, &layouts)?;
-    let report = set_report(&outcome, &config.command);
-    let report_path = config.report_dir.join("set-report.md");
-    layout_opt::files::write_text_atomic(&report_path, &report)
-        .with_context(|| format!("cannot write {}", report_path.display()))?;
-    let json_path = config.report_dir.join("set.json");
-    layout_opt::files::write_text_atomic(
-        &json_path,
-        &(serde_json::to_string_pretty(&outcome)? + "\n"),
-    )
-    .with_context(|| format!("cannot write {}", json_path.display()))?;
-    let worst_margin = outcome
-        .matrix
-        .smallest_margin_px()
-        .map_or("above the gate everywhere".to_string(), |m| {
-            format!("{m:.2} px")
-        });
-    println!(
-        "{}: {} markers in {:.1} s; objective {:.4} (alone {:.4}); smallest cross margin {worst_margin}; cross floor met: {}; wrote {} and report {}",
-        config.name,
-        outcome.markers.len(),
-        outcome.seconds,
-        outcome.objective,
-        outcome.alone_accuracy,
-        if outcome.matrix.meets_floor() { "yes" } else { "no" },
-        set_path.display(),
-        report_path.display()
-    );
     Ok(())
 }

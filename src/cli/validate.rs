@@ -7,21 +7,18 @@ use super::{progress, GlobalOptions};
 use anyhow::Context;
 use clap::Args;
 use layout_opt::config::ConfigError;
-use layout_opt::error_model::fabrication::FabricationError;
 use layout_opt::layout::Layout;
 use layout_opt::mesh::MarkerOptions;
-use layout_opt::montecarlo::{MonteCarloConfig, MonteCarloError, DEFAULT_GROSS_THRESHOLD_DEG};
+use layout_opt::montecarlo::{MonteCarloConfig, DEFAULT_GROSS_THRESHOLD_DEG};
 use layout_opt::noise::NoiseModel;
 use layout_opt::scenario::ScenarioGrid;
 use layout_opt::sphere_image::Observation;
 use layout_opt::validate::config::default_tilt_step_deg;
-use layout_opt::validate::image_check::ImageCheckError;
 use layout_opt::validate::image_report;
 use layout_opt::validate::markdown::{console, fabrication_line};
 use layout_opt::validate::workflow::{WorkflowConfig, WorkflowError};
 use layout_opt::validate::{
-    self, IdentifiabilityCheck, ValidateConfig, ValidateError, DEFAULT_TILT_STEP_DEG,
-    POLYNOMIAL_TILT_STEP_DEG,
+    self, IdentifiabilityCheck, ValidateConfig, DEFAULT_TILT_STEP_DEG, POLYNOMIAL_TILT_STEP_DEG,
 };
 use layout_opt::volume::WorkingVolume;
 use std::path::PathBuf;
@@ -86,17 +83,13 @@ pub struct ValidateArgs {
 
 /// A probability strictly between 0 and 1, as `0.999` or `99.9%`.
 fn parse_probability(text: &str) -> anyhow::Result<f64> {
-    let text = text.trim();
-    let value = match text.strip_suffix('%') {
-        Some(number) => number.trim().parse::<f64>().map(|v| v / 100.0),
-        None => text.parse::<f64>(),
-    }
-    .map_err(|_| anyhow::anyhow!("'{text}' is not a probability (0.999 or 99.9%)"))?;
-    anyhow::ensure!(
-        value > 0.0 && value < 1.0,
-        "'{text}' must be a probability strictly between 0 and 1"
-    );
-    Ok(value)
+    layout_opt::config::parse_share(text)
+        .filter(|&p| p > 0.0 && p < 1.0)
+        .ok_or_else(|| {
+            anyhow::anyhow!(
+                "'{text}' is not a probability strictly between 0 and 1 (0.999 or 99.9%)"
+            )
+        })
 }
 
 pub fn run(args: ValidateArgs, global: &GlobalOptions) -> anyhow::Result<()> {
@@ -105,7 +98,22 @@ pub fn run(args: ValidateArgs, global: &GlobalOptions) -> anyhow::Result<()> {
         .as_ref()
         .filter(|p| p.to_string_lossy().ends_with(".set.json"))
     {
-        return run_set(path.clone(), &args, global);
+        let settings = layout_opt::identifiability::IdentifiabilitySettings {
+            min_correct: parse_probability(&args.identify_criterion)
+                .context("--identify-criterion")?,
+            trials: args.identify_trials,
+            seed: global.seed,
+            observation: args.observation,
+            noise: args.noise_model,
+        };
+        let volume = protocol_volume(&args, DEFAULT_TILT_STEP_DEG, global.seed)?;
+        return super::validate_set::run(
+            path,
+            &args.camera.camera()?,
+            &volume,
+            &settings,
+            args.out.clone(),
+        );
     }
     let layout = match &args.layout {
         Some(path) => naming_file(Layout::load(path), "layout", path)?,
@@ -180,19 +188,7 @@ pub fn run(args: ValidateArgs, global: &GlobalOptions) -> anyhow::Result<()> {
     let mut bars = progress::Bars::new(global.quiet);
     let result = validate::workflow::run(&config, &mut bars);
     bars.finish();
-    let interrupted = match &result {
-        Err(WorkflowError::Validate(ValidateError::MonteCarlo(MonteCarloError::Interrupted))) => {
-            Some("interrupted: no report written")
-        }
-        Err(WorkflowError::Validate(ValidateError::Fabrication(FabricationError::Interrupted))) => {
-            Some("interrupted during the fabrication check")
-        }
-        Err(WorkflowError::Validate(ValidateError::Images(ImageCheckError::Interrupted))) => {
-            Some("interrupted during the image check: no report written")
-        }
-        _ => None,
-    };
-    if let Some(message) = interrupted {
+    if let Some(message) = result.as_ref().err().and_then(WorkflowError::interrupted) {
         eprintln!("{message}");
         std::process::exit(super::progress::EXIT_INTERRUPTED);
     }
@@ -249,138 +245,4 @@ fn protocol_volume(
         },
         seed,
     )
-}
-
-/// `validate SET.json`: each marker's identifiability and the set's cross
-/// matrix over the working volume, with seeded trials against the whole
-/// set; `set-report.md` and `set.json` in the output directory.
-fn run_set(path: PathBuf, args: &ValidateArgs, global: &GlobalOptions) -> anyhow::Result<()> {
-    use layout_opt::identifiability::{self, IdentifiabilitySettings};
-    use layout_opt::montecarlo::Target;
-    use layout_opt::set::{cross_matrix, set_trials, MarkerSet};
-    let set = MarkerSet::load(&path)?;
-    set.check_distinct()?;
-    let camera = args.camera.camera()?;
-    let volume = protocol_volume(args, DEFAULT_TILT_STEP_DEG, global.seed)?;
-    let settings = IdentifiabilitySettings {
-        min_correct: parse_probability(&args.identify_criterion).context("--identify-criterion")?,
-        trials: args.identify_trials,
-        seed: global.seed,
-        observation: args.observation,
-        noise: args.noise_model,
-    };
-    let out_dir = args
-        .out
-        .clone()
-        .unwrap_or_else(|| PathBuf::from("reports").join(&set.name));
-    std::fs::create_dir_all(&out_dir)
-        .with_context(|| format!("cannot create {}", out_dir.display()))?;
-    layout_opt::files::check_writable_dir(&out_dir)
-        .with_context(|| format!("cannot write into {}; nothing was run", out_dir.display()))?;
-    let scenarios = volume.scenarios(&camera);
-    let objects = set.objects();
-    let sigmas: Vec<Vec<Option<f64>>> = set
-        .members
-        .iter()
-        .map(|m| m.layout.point_sigmas())
-        .collect();
-    let diameter = set.members[0].layout.sphere_diameter_mm;
-    let targets: Vec<Target> = objects
-        .iter()
-        .zip(&sigmas)
-        .map(|(object, sigmas)| Target {
-            camera: &camera,
-            object,
-            sphere_diameter_mm: diameter,
-            point_sigma_px: sigmas,
-        })
-        .collect();
-    let started = std::time::Instant::now();
-    let stop = std::sync::atomic::AtomicBool::new(false);
-    let prediction_only = IdentifiabilitySettings {
-        trials: 0,
-        ..settings
-    };
-    let mut own = Vec::new();
-    for target in &targets {
-        let results = identifiability::run_until(
-            target,
-            &scenarios,
-            &prediction_only,
-            &|_| true,
-            &|_| {},
-            &stop,
-        )
-        .unwrap_or_default();
-        let seen: Vec<_> = results
-            .iter()
-            .flatten()
-            .filter(|r| r.prediction.is_some())
-            .collect();
-        let identifiable = seen.iter().filter(|r| r.identifiable(&settings)).count();
-        own.push((identifiable, seen.len()));
-    }
-    let matrix = cross_matrix(&targets, &set.names(), &scenarios, &settings);
-    let (counts, named) = set_trials(&targets, &scenarios, &settings);
-    let seconds = started.elapsed().as_secs_f64();
-    let mut report = format!(
-        "# Marker set {}: {} markers\n\n`{}`\n\n{} scenarios; {} seeded trials per marker and visible scenario, each identified against the whole set (seed {}); {:.1} s. Cross floor: a viewpoint counts when the predicted confusion probability is at most {:.1e}; every pair meets it in {:.1}% of its visible viewpoints: {}.\n\n## Markers\n\n| marker | file | identifiable (predicted) | trials | named another marker | wrong labels | no fit |\n|---|---|---|---|---|---|---|\n",
-        set.name,
-        set.members.len(),
-        command_line(),
-        scenarios.len(),
-        settings.trials,
-        settings.seed,
-        seconds,
-        1.0 - settings.min_correct,
-        100.0 * settings.min_correct,
-        if matrix.meets_floor() { "yes" } else { "no" },
-    );
-    for (k, (member, c)) in set.members.iter().zip(&counts).enumerate() {
-        report.push_str(&format!(
-            "| {} ({}) | {} | {} of {} | {} | {} | {} | {} |\n",
-            k + 1,
-            member.layout.name,
-            member.file,
-            own[k].0,
-            own[k].1,
-            c.trials,
-            c.wrong_marker,
-            c.wrong_labels,
-            c.failed
-        ));
-    }
-    report.push_str(&layout_opt::search::set::matrix_markdown(&matrix));
-    let report_path = out_dir.join("set-report.md");
-    layout_opt::files::write_text_atomic(&report_path, &report)
-        .with_context(|| format!("cannot write {}", report_path.display()))?;
-    let json = serde_json::json!({
-        "set": set.name,
-        "markers": set.names(),
-        "identifiable": own.iter().map(|(i, v)| serde_json::json!({"identifiable": i, "visible": v})).collect::<Vec<_>>(),
-        "matrix": matrix,
-        "trials": counts,
-        "named": named,
-        "seconds": seconds,
-    });
-    let json_path = out_dir.join("set.json");
-    layout_opt::files::write_text_atomic(
-        &json_path,
-        &(serde_json::to_string_pretty(&json)? + "\n"),
-    )
-    .with_context(|| format!("cannot write {}", json_path.display()))?;
-    let confused: usize = counts.iter().map(|c| c.wrong_marker).sum();
-    let trials: usize = counts.iter().map(|c| c.trials).sum();
-    println!(
-        "set {}: {} markers over {} scenarios; smallest cross margin {}; cross floor met: {}; {confused} of {trials} trials named another marker; report in {}",
-        set.name,
-        set.members.len(),
-        scenarios.len(),
-        matrix
-            .smallest_margin_px()
-            .map_or("above the gate everywhere".to_string(), |m| format!("{m:.2} px")),
-        if matrix.meets_floor() { "yes" } else { "no" },
-        report_path.display()
-    );
-    Ok(())
 }

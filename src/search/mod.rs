@@ -259,22 +259,9 @@ impl FromStr for AvailabilityFloor {
         match text.trim() {
             "none" => Ok(AvailabilityFloor::None),
             "reference" => Ok(AvailabilityFloor::Reference),
-            other => {
-                let (number, scale) = match other.strip_suffix('%') {
-                    Some(percent) => (percent, 0.01),
-                    None => (other, 1.0),
-                };
-                let share = number
-                    .trim()
-                    .parse::<f64>()
-                    .map(|v| v * scale)
-                    .map_err(|_| ObjectiveError::BadFloor(other.to_string()))?;
-                if (0.0..=1.0).contains(&share) {
-                    Ok(AvailabilityFloor::Share(share))
-                } else {
-                    Err(ObjectiveError::BadFloor(other.to_string()))
-                }
-            }
+            other => crate::config::parse_share(other)
+                .map(AvailabilityFloor::Share)
+                .ok_or_else(|| ObjectiveError::BadFloor(other.to_string())),
         }
     }
 }

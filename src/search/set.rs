@@ -17,6 +17,8 @@
 //! being told apart. The final cross matrix is computed over every
 //! scenario.
 
+pub mod validation;
+
 use super::analysis::Analysis;
 use super::identify::{enforce_identifiability, Quiet};
 use super::optimise;
@@ -51,6 +53,54 @@ pub enum SetObjective {
     Worst,
     /// The mean of the markers' accuracies.
     Mean,
+}
+
+impl std::str::FromStr for SetObjective {
+    type Err = String;
+    fn from_str(text: &str) -> Result<Self, Self::Err> {
+        match text.trim() {
+            "worst" => Ok(SetObjective::Worst),
+            "mean" => Ok(SetObjective::Mean),
+            other => Err(format!(
+                "unknown set objective '{other}'; use worst or mean"
+            )),
+        }
+    }
+}
+
+impl SetSearchSettings {
+    /// Settings for `markers` markers, each checked before any work; the
+    /// first bad value is named by its field.
+    pub fn new(
+        markers: usize,
+        objective: SetObjective,
+        min_cross: Option<f64>,
+        tries: usize,
+    ) -> Result<Self, crate::config::ConfigError> {
+        use crate::config::ConfigError;
+        if !(MIN_MARKERS..=MAX_MARKERS).contains(&markers) {
+            return Err(ConfigError::new(
+                "markers",
+                format!("must be {MIN_MARKERS} to {MAX_MARKERS} markers, got {markers}"),
+            ));
+        }
+        let min_cross = min_cross.filter(|p| *p > 0.0 && *p < 1.0).ok_or_else(|| {
+            ConfigError::new(
+                "min_cross",
+                "must be a probability between 0 and 1 (exclusive)",
+            )
+        })?;
+        if tries == 0 {
+            return Err(ConfigError::new("tries", "must be at least 1"));
+        }
+        Ok(SetSearchSettings {
+            markers,
+            objective,
+            min_cross,
+            tries,
+            cross_thinning: DEFAULT_CROSS_THINNING,
+        })
+    }
 }
 
 /// The set's own settings.

@@ -49,6 +49,28 @@ pub enum WorkflowError {
     },
 }
 
+impl WorkflowError {
+    /// What the run was doing when Ctrl-C stopped it, for an interrupted
+    /// run; `None` for any other error.
+    pub fn interrupted(&self) -> Option<&'static str> {
+        use crate::error_model::fabrication::FabricationError;
+        use crate::montecarlo::MonteCarloError;
+        use crate::validate::image_check::ImageCheckError;
+        match self {
+            WorkflowError::Validate(ValidateError::MonteCarlo(MonteCarloError::Interrupted)) => {
+                Some("interrupted: no report written")
+            }
+            WorkflowError::Validate(ValidateError::Fabrication(FabricationError::Interrupted)) => {
+                Some("interrupted during the fabrication check")
+            }
+            WorkflowError::Validate(ValidateError::Images(ImageCheckError::Interrupted)) => {
+                Some("interrupted during the image check: no report written")
+            }
+            _ => None,
+        }
+    }
+}
+
 /// Every input of a validation run: the analysis's configuration and where
 /// and how the run writes.
 #[derive(Debug, Clone)]

@@ -200,8 +200,13 @@ pub struct SearchArgs {
     #[arg(long, value_name = "N")]
     pub(super) set: Option<usize>,
     /// With --set: score the set by its worst marker's accuracy or the mean.
-    #[arg(long, value_enum, default_value = "worst", requires = "set")]
-    pub(super) set_objective: SetObjectiveName,
+    #[arg(
+        long,
+        default_value = "worst",
+        value_name = "worst|mean",
+        requires = "set"
+    )]
+    pub(super) set_objective: layout_opt::search::set::SetObjective,
     /// With --set: least predicted probability, per viewpoint, that another
     /// marker is not taken for the one seen; every pair must meet it in a
     /// 99.9% share of the viewpoints where the marker is visible.
@@ -217,13 +222,6 @@ pub struct SearchArgs {
     pub(super) set_tries: usize,
 }
 
-/// How a set's markers are scored together.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub(super) enum SetObjectiveName {
-    Worst,
-    Mean,
-}
-
 /// A share given as `0.999`, `99.9%` or `none`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(super) struct IdentifiabilityShare(pub(super) Option<f64>);
@@ -235,18 +233,10 @@ impl std::str::FromStr for IdentifiabilityShare {
         if text == "none" {
             return Ok(Self(None));
         }
-        let (number, scale) = match text.strip_suffix('%') {
-            Some(number) => (number, 0.01),
-            None => (text, 1.0),
-        };
-        let share = number
-            .trim()
-            .parse::<f64>()
-            .map(|v| v * scale)
-            .map_err(|_| format!("'{text}' is not a share (0.999, 99.9% or none)"))?;
-        if !(0.0..=1.0).contains(&share) {
-            return Err(format!("'{text}' is not a share between 0 and 1 (0%…100%)"));
-        }
-        Ok(Self(Some(share)))
+        layout_opt::config::parse_share(text)
+            .map(|share| Self(Some(share)))
+            .ok_or_else(|| {
+                format!("'{text}' is not a share between 0 and 1 (0.999, 99.9% or none)")
+            })
     }
 }
