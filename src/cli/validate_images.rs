@@ -24,6 +24,13 @@ pub struct ImageArgs {
     /// --camera is refused) or diffuse (a white print under room light).
     #[arg(long, value_name = "PRESET", default_value = "paper")]
     image_preset: ImagePreset,
+    /// Render the spheres alone with --images, without the part's supports
+    /// and plate (nothing can then cut into an outline).
+    #[arg(long)]
+    image_spheres_only: bool,
+    /// Lens blur σ of --images, px (0: none); default the preset's.
+    #[arg(long, value_name = "PX")]
+    image_blur: Option<f64>,
     /// Fit σ = a / r^b + c to the whole spheres' centre σ from --images and
     /// write it as a noise calibration file (docs/formats.md), for
     /// `--noise-model calibrated:FILE`.
@@ -37,6 +44,8 @@ impl ImageArgs {
         self.images.then_some(ImageCheck {
             trials: self.image_trials,
             preset: self.image_preset,
+            spheres_only: self.image_spheres_only,
+            blur_sigma_px: self.image_blur,
         })
     }
 
@@ -58,6 +67,7 @@ pub fn image_flag(field: &str) -> Option<&'static str> {
         "write_noise_model" => Some("--write-noise-model"),
         "images" => Some("--images"),
         "image_preset" => Some("--image-preset"),
+        "image_blur" => Some("--image-blur"),
         _ => None,
     }
 }
