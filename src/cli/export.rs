@@ -21,7 +21,8 @@ use std::path::PathBuf;
 #[derive(Debug, Args)]
 pub struct ExportArgs {
     /// Layout file: JSON (see README), or OBJ (a point set, or one object
-    /// per sphere). Without it, the paper's biprism.
+    /// per sphere), or a set file (layout-opt-set): every marker, numbered.
+    /// Without it, the paper's biprism.
     #[arg(value_name = "LAYOUT")]
     layout: Option<PathBuf>,
     /// Formats to write, comma-separated: stl (mm, Z up), 3mf (mm, Z up,
@@ -184,30 +185,21 @@ fn working_range(args: &ExportArgs, layout: &Layout) -> anyhow::Result<Option<Wo
 }
 
 pub fn run(args: ExportArgs, global: &GlobalOptions) -> anyhow::Result<()> {
+    if let Some(path) = args
+        .layout
+        .as_ref()
+        .filter(|p| super::export_set::is_set_file(p))
+    {
+        anyhow::ensure!(
+            args.sphere_diameter.is_none(),
+            "--sphere-diameter does not apply to a set: its layouts give the diameter"
+        );
+        let set = super::export_set::load(path)?;
+        let options = export_options(&args, &set.members[0].layout)?;
+        return super::export_set::run(&set, &options, &args.out, global);
+    }
     let (layout, source) = load_layout(&args)?;
-    let view_cone = view_cone_deg(args.view_cone, args.tilt.as_deref(), args.pan.as_deref());
-    anyhow::ensure!(
-        args.view_cone.is_some() || view_cone < 80.0,
-        "--tilt and --pan reach {view_cone:.1}° from the main view; the view cone must stay below 80°: narrow the ranges or give --view-cone"
-    );
-    let working_range = working_range(&args, &layout)?;
-    let options = ExportOptions {
-        formats: args.format.clone(),
-        marker: MarkerOptions {
-            strut_diameter_mm: args.strut_diameter,
-            min_feature_mm: args.min_feature,
-            view: args.view,
-            mount: args.mount,
-            mount_holes: args.mount_holes.clone(),
-            structure: args.structure,
-            view_cone_deg: view_cone,
-            bed: args.bed,
-            working_views: Vec::new(),
-        },
-        resolution_mm: args.resolution,
-        allow_occlusion: args.allow_occlusion,
-        working_range,
-    };
+    let options = export_options(&args, &layout)?;
     let config = ExportConfig {
         layout,
         options,
@@ -225,4 +217,32 @@ pub fn run(args: ExportArgs, global: &GlobalOptions) -> anyhow::Result<()> {
 
     print!("{}", summary(&report));
     Ok(())
+}
+
+/// The export's options from the flags (`layout` gives the working range
+/// recorded in its provenance, when the flags give none).
+fn export_options(args: &ExportArgs, layout: &Layout) -> anyhow::Result<ExportOptions> {
+    let view_cone = view_cone_deg(args.view_cone, args.tilt.as_deref(), args.pan.as_deref());
+    anyhow::ensure!(
+        args.view_cone.is_some() || view_cone < 80.0,
+        "--tilt and --pan reach {view_cone:.1}° from the main view; the view cone must stay below 80°: narrow the ranges or give --view-cone"
+    );
+    let working_range = working_range(args, layout)?;
+    Ok(ExportOptions {
+        formats: args.format.clone(),
+        marker: MarkerOptions {
+            strut_diameter_mm: args.strut_diameter,
+            min_feature_mm: args.min_feature,
+            view: args.view,
+            mount: args.mount,
+            mount_holes: args.mount_holes.clone(),
+            structure: args.structure,
+            view_cone_deg: view_cone,
+            bed: args.bed,
+            working_views: Vec::new(),
+        },
+        resolution_mm: args.resolution,
+        allow_occlusion: args.allow_occlusion,
+        working_range,
+    })
 }

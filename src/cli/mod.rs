@@ -3,12 +3,14 @@
 
 mod common;
 mod export;
+mod export_set;
 mod progress;
 mod render;
 mod reproduce;
 mod search;
 mod solve;
 mod track;
+mod track_set;
 mod validate;
 mod validate_images;
 mod validate_set;

@@ -17,11 +17,17 @@ use std::path::PathBuf;
 /// Flags of `track`.
 #[derive(Debug, Args)]
 pub struct TrackArgs {
-    /// The marker's layout file (JSON).
-    layout: PathBuf,
+    /// The marker's layout file (JSON); with --set, the first frame.
+    #[arg(required_unless_present = "set", value_name = "LAYOUT")]
+    layout: Option<PathBuf>,
     /// Frames: 8- or 16-bit greyscale PNG files, or directories of them.
-    #[arg(required = true, value_name = "IMAGES")]
+    #[arg(required_unless_present = "set", value_name = "IMAGES")]
     images: Vec<PathBuf>,
+    /// A set file (layout-opt-set): find every marker of the set in each
+    /// frame and name it by its number and layout; all arguments are
+    /// frames. JSON lines only (no --csv, --overlay).
+    #[arg(long, value_name = "SET.json", conflicts_with_all = ["csv", "overlay"])]
+    set: Option<PathBuf>,
     #[command(flatten)]
     camera: CameraArgs,
     /// Sphere diameter, mm. Default: the layout's.
@@ -94,31 +100,19 @@ fn flag_of(field: &str) -> &str {
 }
 
 pub fn run(args: TrackArgs, global: &GlobalOptions) -> anyhow::Result<()> {
-    let layout = naming_file(Layout::load(&args.layout), "layout", &args.layout)?;
-    let camera = args.camera.camera()?;
-    let mut config = TrackConfig::new(&layout, camera);
-    if let Some(diameter) = args.sphere_diameter {
-        config.sphere_diameter_mm = diameter;
+    if let Some(set) = &args.set {
+        let frames: Vec<PathBuf> = args.layout.iter().chain(&args.images).cloned().collect();
+        anyhow::ensure!(!frames.is_empty(), "--set needs frames (IMAGES)");
+        return super::track_set::run(set, &frames, args.output.as_deref(), global, &|layout| {
+            configure(&args, layout)
+        });
     }
-    config.detector.threshold = args.threshold;
-    config.detector.min_area_px = args.min_area;
-    config.detector.max_area_px = args.max_area;
-    config.detector.min_contrast = args.min_contrast;
-    config.centre = args.centre;
-    config.solver = args.solver;
-    config.sigma_px = args.sigma_px;
-    config.gate_px = args.gate_px;
-    config.max_extra_blobs = args.max_extra_blobs;
-    if let Some(p) = args.max_wrong_labels {
-        config.max_wrong_labels = p;
-    }
-    if let Err(error) = config.validate() {
-        anyhow::bail!("{}: {}", flag_of(error.field), error.reason);
-    }
-    anyhow::ensure!(
-        config.max_extra_blobs <= MAX_EXTRA_BLOBS,
-        "--max-extra-blobs must be at most {MAX_EXTRA_BLOBS}"
-    );
+    let layout_path = args
+        .layout
+        .clone()
+        .expect("clap requires LAYOUT without --set");
+    let layout = naming_file(Layout::load(&layout_path), "layout", &layout_path)?;
+    let config = configure(&args, &layout)?;
     let outputs = TrackOutputs {
         json_lines: args.output.clone(),
         csv: args.csv.clone(),
@@ -159,4 +153,33 @@ pub fn run(args: TrackArgs, global: &GlobalOptions) -> anyhow::Result<()> {
         }
     }
     Ok(())
+}
+
+/// The tracking configuration of `layout` from the flags, checked.
+fn configure(args: &TrackArgs, layout: &Layout) -> anyhow::Result<TrackConfig> {
+    let camera = args.camera.camera()?;
+    let mut config = TrackConfig::new(layout, camera);
+    if let Some(diameter) = args.sphere_diameter {
+        config.sphere_diameter_mm = diameter;
+    }
+    config.detector.threshold = args.threshold;
+    config.detector.min_area_px = args.min_area;
+    config.detector.max_area_px = args.max_area;
+    config.detector.min_contrast = args.min_contrast;
+    config.centre = args.centre;
+    config.solver = args.solver;
+    config.sigma_px = args.sigma_px;
+    config.gate_px = args.gate_px;
+    config.max_extra_blobs = args.max_extra_blobs;
+    if let Some(p) = args.max_wrong_labels {
+        config.max_wrong_labels = p;
+    }
+    if let Err(error) = config.validate() {
+        anyhow::bail!("{}: {}", flag_of(error.field), error.reason);
+    }
+    anyhow::ensure!(
+        config.max_extra_blobs <= MAX_EXTRA_BLOBS,
+        "--max-extra-blobs must be at most {MAX_EXTRA_BLOBS}"
+    );
+    Ok(config)
 }

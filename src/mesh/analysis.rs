@@ -7,7 +7,7 @@
 
 use super::geometry::{self, Axis, Marker, MountHoles};
 use super::tolerance::{self, DatumPosition, Tolerances};
-use super::{build, quality, ExportError, ExportOptions, Format, MeshReport, Solid};
+use super::{build_numbered, quality, ExportError, ExportOptions, Format, MeshReport, Solid};
 use crate::layout::Layout;
 use crate::visibility::{LostView, Supports};
 use nalgebra::Vector3;
@@ -78,6 +78,9 @@ pub struct ExportReport {
     /// Sphere-centre tolerance from the error model and the workshop
     /// tolerances of the sheet.
     pub tolerances: Tolerances,
+    /// The number engraved into the base plate, if any.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub engraving: Option<geometry::Engraving>,
 }
 
 /// What the analysis found: the built part, how much the marker hides each
@@ -95,10 +98,20 @@ pub struct Analysis {
 /// `allow_occlusion`, a strut covering a sphere from the view cone is
 /// [`ExportError::Occluded`].
 pub fn analyse(layout: &Layout, options: &ExportOptions) -> Result<Analysis, ExportError> {
+    analyse_numbered(layout, options, None)
+}
+
+/// [`analyse`], with `number` engraved into the base plate when given
+/// ([`super::build_numbered`]).
+pub fn analyse_numbered(
+    layout: &Layout,
+    options: &ExportOptions,
+    number: Option<&str>,
+) -> Result<Analysis, ExportError> {
     if options.formats.is_empty() {
         return Err(ExportError::NoFormat);
     }
-    let solid = build(layout, options)?;
+    let solid = build_numbered(layout, options, number)?;
     let coverage = quality::view_coverage(&solid.marker, options.marker.view_cone_deg);
     let lost_views = match &options.working_range {
         Some(range) => range.lost_views(
@@ -151,6 +164,7 @@ pub fn analyse(layout: &Layout, options: &ExportOptions) -> Result<Analysis, Exp
         mount_holes: options.marker.mount_holes.clone(),
         datum: tolerance::datum_positions(&solid.marker),
         tolerances: Tolerances::for_marker(&solid.marker),
+        engraving: solid.marker.engraving.clone(),
     };
     Ok(Analysis { solid, report })
 }

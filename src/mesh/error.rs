@@ -59,6 +59,16 @@ pub enum ExportError {
         /// Whether it happens in the main view itself.
         main_view: bool,
     },
+    /// A part of a marker set cannot be exported.
+    #[error("part {number} of the set ({file}): {source}")]
+    SetPart {
+        /// The part's number (1…N, set order).
+        number: usize,
+        /// Its layout file as the set file lists it.
+        file: String,
+        /// Why.
+        source: Box<ExportError>,
+    },
     /// glTF serialisation failed.
     #[error("cannot encode glTF: {0}")]
     Gltf(String),

@@ -57,6 +57,7 @@ pub(crate) mod obj;
 pub mod quality;
 pub(crate) mod repair;
 pub(crate) mod sdf;
+pub mod set_workflow;
 pub mod sheet;
 pub(crate) mod stl;
 pub mod summary;
@@ -218,11 +219,24 @@ pub fn resolution_for(marker: &Marker, asked_mm: Option<f64>) -> Result<f64, Exp
 
 /// Designs and meshes the marker for `layout`, and checks the mesh.
 pub fn build(layout: &Layout, options: &ExportOptions) -> Result<Solid, ExportError> {
+    build_numbered(layout, options, None)
+}
+
+/// [`build`], with `number` (digits) engraved into the base plate when
+/// given ([`Marker::engrave`]).
+pub fn build_numbered(
+    layout: &Layout,
+    options: &ExportOptions,
+    number: Option<&str>,
+) -> Result<Solid, ExportError> {
     let start = Instant::now();
-    let marker = match &options.working_range {
+    let mut marker = match &options.working_range {
         Some(range) => marker_for_range(layout, &options.marker, range)?,
         None => Marker::design(layout, &options.marker)?,
     };
+    if let Some(number) = number {
+        marker.engrave(number, &options.marker.bed)?;
+    }
     let resolution_mm = resolution_for(&marker, options.resolution_mm)?;
     let mesh = extract::extract(&marker, resolution_mm);
     let topology = mesh.topology();

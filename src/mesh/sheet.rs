@@ -118,6 +118,25 @@ fn markdown(
         "Made by `layout-opt export` (version {}). All lengths in millimetres, in the marker frame (the layout's coordinates) unless stated.\n",
         env!("CARGO_PKG_VERSION")
     );
+    if let Some(e) = &marker.engraving {
+        let _ = writeln!(
+            md,
+            "**Part number {}**, engraved into the base plate's face opposite the bed ({} mm deep, strokes {} mm wide, a {:.1} × {:.1} mm box from ({:.1}, {:.1}, {:.1})){}. Check it before mounting: the parts of a set look alike.\n",
+            e.text,
+            e.depth_mm,
+            e.stroke_mm,
+            e.size_mm[0],
+            e.size_mm[1],
+            e.origin.x,
+            e.origin.y,
+            e.origin.z,
+            if e.plate_grown {
+                "; the plate was lengthened to make room for it"
+            } else {
+                ""
+            }
+        );
+    }
     let _ = writeln!(
         md,
         "## Spheres\n\n| sphere | x | y | z | diameter |\n|---|---:|---:|---:|---:|"

@@ -78,10 +78,22 @@ fn export_observed(
     out_dir: &Path,
     interrupted: &dyn Fn() -> bool,
 ) -> Result<ExportReport, ExportError> {
-    let Analysis { solid, mut report } = analyse(layout, options)?;
+    let analysis = analyse(layout, options)?;
     if interrupted() {
         return Err(ExportError::Interrupted);
     }
+    write_analysis(analysis, options, out_dir, interrupted)
+}
+
+/// Writes an analysed part's files into `out_dir` as one staged file set,
+/// as [`export`] does; `interrupted` is asked between the files.
+pub fn write_analysis(
+    analysis: Analysis,
+    options: &ExportOptions,
+    out_dir: &Path,
+    interrupted: &dyn Fn() -> bool,
+) -> Result<ExportReport, ExportError> {
+    let Analysis { solid, mut report } = analysis;
     std::fs::create_dir_all(out_dir).map_err(|source| ExportError::Io {
         path: out_dir.to_path_buf(),
         source,

@@ -192,7 +192,7 @@ pub fn analyse(config: &TrackConfig, frame: &GreyFrame) -> FrameAnalysis {
 }
 
 /// The measured centre of a blob, normalised, by the configured method.
-fn measured_normalised(blob: &Blob, method: CentreMethod) -> Vector2<f64> {
+pub(super) fn measured_normalised(blob: &Blob, method: CentreMethod) -> Vector2<f64> {
     match method {
         CentreMethod::Ellipse => blob.ellipse_centre_normalised,
         CentreMethod::Centroid => blob.centroid_normalised,
@@ -226,7 +226,7 @@ fn subsets(n: usize, size: usize) -> Vec<Vec<usize>> {
     }
 }
 
-fn locate(
+pub(super) fn locate(
     config: &TrackConfig,
     blobs: &mut [Blob],
     rejected: &Rejected,

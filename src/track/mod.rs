@@ -21,6 +21,7 @@ pub mod conic;
 pub mod detect;
 pub mod frame;
 pub mod report;
+pub mod set;
 pub mod uncertainty;
 pub mod workflow;
 

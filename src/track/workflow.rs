@@ -6,6 +6,7 @@ use super::analysis::{analyse_png, FrameAnalysis, TrackError};
 use super::config::TrackConfig;
 use super::frame::GreyFrame;
 use super::report;
+use super::set::{analyse_set, set_json_lines, SetFrameAnalysis, SetTrackConfig};
 use crate::config::ConfigError;
 use crate::observer::{watch, Observer};
 use rayon::prelude::*;
@@ -153,6 +154,87 @@ pub fn run(
         write(path, report::csv(&frames).as_bytes())?;
     }
     Ok(TrackRun { frames, json_lines })
+}
+
+/// What a `track --set` run produced.
+#[derive(Debug)]
+pub struct SetTrackRun {
+    /// Each frame's name and analysis, in input order.
+    pub frames: Vec<(String, SetFrameAnalysis)>,
+    /// The JSON-lines text (also written when asked): one line per marker
+    /// found, or one per frame without any.
+    pub json_lines: String,
+}
+
+/// Tracks every frame of `inputs` against the markers of a set
+/// ([`super::set`]) and writes the JSON lines when asked (the CSV table
+/// and overlays are not made for sets: the outputs' other fields must be
+/// empty).
+pub fn run_set(
+    config: &SetTrackConfig,
+    inputs: &[PathBuf],
+    outputs: &TrackOutputs,
+    observer: &mut impl Observer,
+) -> Result<SetTrackRun, WorkflowError> {
+    config.validate()?;
+    if outputs.csv.is_some() || outputs.overlay_dir.is_some() {
+        return Err(WorkflowError::Config(ConfigError::new(
+            "outputs",
+            "a set's frames give JSON lines only (no CSV table or overlays)",
+        )));
+    }
+    let paths = expand_inputs(inputs)?;
+    let done = AtomicU64::new(0);
+    let stop = AtomicBool::new(false);
+    let frames: Vec<Option<(String, SetFrameAnalysis)>> = watch(
+        observer,
+        PHASE_TRACK,
+        paths.len() as u64,
+        || done.load(Ordering::Relaxed),
+        Some(&stop),
+        || {
+            paths
+                .par_iter()
+                .map(|path| {
+                    if stop.load(Ordering::Relaxed) {
+                        return None;
+                    }
+                    let name = path.display().to_string();
+                    let analysis = match std::fs::read(path)
+                        .map_err(|e| format!("cannot read the file: {e}"))
+                        .and_then(|bytes| {
+                            let frame = GreyFrame::from_png(&bytes).map_err(|e| e.to_string())?;
+                            let camera = &config.markers[0].1.camera;
+                            frame
+                                .check_size(camera.width(), camera.height())
+                                .map_err(|e| e.to_string())?;
+                            Ok(frame)
+                        }) {
+                        Ok(frame) => analyse_set(config, &frame),
+                        Err(error) => SetFrameAnalysis {
+                            markers: Vec::new(),
+                            error: Some(error),
+                            blobs: Vec::new(),
+                        },
+                    };
+                    done.fetch_add(1, Ordering::Relaxed);
+                    Some((name, analysis))
+                })
+                .collect()
+        },
+    );
+    if stop.load(Ordering::SeqCst) {
+        return Err(WorkflowError::Interrupted);
+    }
+    let frames: Vec<(String, SetFrameAnalysis)> = frames
+        .into_iter()
+        .collect::<Option<_>>()
+        .ok_or(WorkflowError::Interrupted)?;
+    let json_lines = set_json_lines(&frames);
+    if let Some(path) = &outputs.json_lines {
+        write(path, json_lines.as_bytes())?;
+    }
+    Ok(SetTrackRun { frames, json_lines })
 }
 
 fn write(path: &Path, bytes: &[u8]) -> Result<(), WorkflowError> {

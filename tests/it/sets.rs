@@ -654,3 +654,237 @@ fn validate_set_reports_each_marker_and_refuses_two_copies() {
     );
     assert!(!twin_out.exists());
 }
+
+/// A set file of markers 1 and 2 of [`four_markers`] in `dir`.
+fn two_marker_set(dir: &std::path::Path) -> (std::path::PathBuf, Vec<Layout>) {
+    let markers = four_markers();
+    let layouts = vec![layout("pair-a", &markers[0]), layout("pair-b", &markers[1])];
+    // The set file names its layouts <set>-k.
+    let path = write_set(dir, "pair", &layouts).unwrap();
+    let layouts = MarkerSet::load(&path)
+        .unwrap()
+        .members
+        .into_iter()
+        .map(|m| m.layout)
+        .collect();
+    (path, layouts)
+}
+
+/// Vertices of `mesh` deeper than `depth_mm` below the engraved face and
+/// inside the text's box.
+fn vertices_in_groove(
+    mesh: &[nalgebra::Vector3<f64>],
+    engraving: &serde_json::Value,
+    depth_mm: f64,
+) -> usize {
+    let v = |key: &str| {
+        let a: Vec<f64> = serde_json::from_value(engraving[key].clone()).unwrap();
+        Vector3::new(a[0], a[1], a[2])
+    };
+    let (normal, right, up, origin) = (v("normal"), v("right"), v("up"), v("origin"));
+    let level = engraving["face_level_mm"].as_f64().unwrap();
+    let size: Vec<f64> = serde_json::from_value(engraving["size_mm"].clone()).unwrap();
+    mesh.iter()
+        .filter(|p| {
+            let (x, y) = ((*p - origin).dot(&right), (*p - origin).dot(&up));
+            // Between the face and the plate's back (4 mm behind it).
+            (level - 2.0..level - depth_mm).contains(&p.dot(&normal))
+                && (0.0..=size[0]).contains(&x)
+                && (0.0..=size[1]).contains(&y)
+        })
+        .count()
+}
+
+/// `export SET.json`: one directory per part, each part's number engraved
+/// into its plate (vertices below the plate's face inside the digit's box,
+/// which the same layout exported without the number lacks, and a volume
+/// lower by about the grooves' volume), every mesh a watertight solid,
+/// and one sheet naming every part with its layout file.
+#[test]
+fn a_set_exports_numbered_watertight_parts_and_one_sheet() {
+    use layout_opt::mesh::{build, ExportOptions};
+    let dir = tempfile::tempdir().unwrap();
+    let (set_path, layouts) = two_marker_set(dir.path());
+    let out = dir.path().join("parts");
+    assert_cmd::Command::cargo_bin("layout-opt")
+        .unwrap()
+        .args(["export", "--quiet", "--format", "obj", "--out"])
+        .arg(&out)
+        .arg(&set_path)
+        .assert()
+        .success();
+    let sheet = std::fs::read_to_string(out.join("pair-set.md")).unwrap();
+    for (k, layout) in layouts.iter().enumerate() {
+        let number = k + 1;
+        let part = out.join(format!("{number}-{}", layout.name));
+        let row = format!(
+            "| {number} | {} | pair-{number}.json | {number}-{}/ |",
+            layout.name, layout.name
+        );
+        assert!(sheet.contains(&row), "{row} missing:\n{sheet}");
+        let report: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(part.join(format!("{}-export.json", layout.name))).unwrap(),
+        )
+        .unwrap();
+        let engraving = &report["engraving"];
+        assert_eq!(engraving["text"], number.to_string());
+        let (models, _) = tobj::load_obj(
+            part.join(format!("{}.obj", layout.name)),
+            &tobj::LoadOptions::default(),
+        )
+        .unwrap();
+        let mesh = &models[0].mesh;
+        let numbered = layout_opt::mesh::TriangleMesh {
+            positions: mesh
+                .positions
+                .chunks(3)
+                .map(|p| Vector3::new(p[0] as f64, p[1] as f64, p[2] as f64))
+                .collect(),
+            triangles: mesh.indices.chunks(3).map(|t| [t[0], t[1], t[2]]).collect(),
+        };
+        let topology = numbered.topology();
+        assert!(topology.is_watertight_solid(), "{topology:?}");
+        assert_eq!(topology.components, 1);
+        // The same layout without the number, on the same grid.
+        let resolution = report["mesh"]["resolution_mm"].as_f64().unwrap();
+        let plain = build(
+            layout,
+            &ExportOptions {
+                resolution_mm: Some(resolution),
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        let depth = engraving["depth_mm"].as_f64().unwrap();
+        assert!(vertices_in_groove(&numbered.positions, engraving, 0.5 * depth) > 20);
+        assert_eq!(
+            vertices_in_groove(&plain.mesh.positions, engraving, 0.1 * depth),
+            0
+        );
+        let removed = plain.mesh.signed_volume() - numbered.signed_volume();
+        let stroke = engraving["stroke_mm"].as_f64().unwrap();
+        // Each digit's strokes: between 2 and 7 segments of 2 to 3 stroke
+        // widths, each a half-round groove of the stroke's width.
+        let section = 0.5 * std::f64::consts::PI * (0.5 * stroke).powi(2);
+        let (least, most) = (2.0 * 2.0 * stroke * section, 7.0 * 4.0 * stroke * section);
+        assert!(
+            removed > 0.5 * least && removed < 2.0 * most,
+            "part {number}: {removed} mm³ removed, expected {least}..{most}"
+        );
+        assert!(sheet.contains(&format!(
+            "{number}-{}/{}-fabrication.md",
+            layout.name, layout.name
+        )));
+    }
+}
+
+/// A set file naming a missing layout is refused naming that file, and no
+/// part is written.
+#[test]
+fn exporting_a_set_with_a_missing_layout_names_it_and_writes_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let (set_path, _) = two_marker_set(dir.path());
+    std::fs::remove_file(dir.path().join("pair-2.json")).unwrap();
+    let out = dir.path().join("parts");
+    assert_cmd::Command::cargo_bin("layout-opt")
+        .unwrap()
+        .args(["export", "--quiet", "--format", "obj", "--out"])
+        .arg(&out)
+        .arg(&set_path)
+        .assert()
+        .failure()
+        .stderr(predicates::str::contains("pair-2.json"));
+    assert!(!out.exists());
+}
+
+/// `track --set`: each marker of a set rendered alone (the renderer draws
+/// one part per frame), with its supports, is found and named by its
+/// number and layout, with a pose near the truth and a covariance.
+#[test]
+fn track_set_names_the_marker_each_frame_shows() {
+    use layout_opt::render::workflow::{run, FramePose, RenderJob};
+    use layout_opt::render::RenderConfig;
+    let dir = tempfile::tempdir().unwrap();
+    let (set_path, layouts) = two_marker_set(dir.path());
+    // Two views per marker: its supports may hide spheres in one.
+    let truths = [
+        Pose::new(
+            Rotation3::from_euler_angles(0.15, -0.1, 0.3),
+            Vector3::new(10.0, -5.0, 600.0),
+        ),
+        Pose::new(
+            Rotation3::from_euler_angles(-0.1, 0.05, -0.2),
+            Vector3::new(-5.0, 5.0, 650.0),
+        ),
+    ];
+    let mut frames = Vec::new();
+    for layout in &layouts {
+        let mut config = RenderConfig::new(Camera::paper());
+        config.realisations = 1;
+        let job = RenderJob {
+            layout: layout.clone(),
+            marker: layout_opt::mesh::MarkerOptions::default(),
+            poses: truths
+                .iter()
+                .map(|&pose| FramePose {
+                    pose,
+                    scenario: None,
+                })
+                .collect(),
+            config,
+            out_dir: dir.path().join(format!("frames-{}", layout.name)),
+        };
+        let report = run(&job, &mut layout_opt::observer::Silent).unwrap();
+        frames.push(
+            report
+                .frames
+                .iter()
+                .map(|f| f.images[0].clone())
+                .collect::<Vec<_>>(),
+        );
+    }
+    let output = assert_cmd::Command::cargo_bin("layout-opt")
+        .unwrap()
+        .args(["track", "--quiet", "--set"])
+        .arg(&set_path)
+        .args(frames.iter().flatten())
+        .assert()
+        .success()
+        .get_output()
+        .stdout
+        .clone();
+    let stdout = String::from_utf8(output).unwrap();
+    let records: Vec<serde_json::Value> = stdout
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    for (k, (shown, layout)) in frames.iter().zip(&layouts).enumerate() {
+        let mut found = 0;
+        for (frame, truth) in shown.iter().zip(&truths) {
+            let name = frame.display().to_string();
+            let records: Vec<&serde_json::Value> = records
+                .iter()
+                .filter(|r| r["frame"] == name && !r["marker"].is_null())
+                .collect();
+            // A frame of one marker never names another.
+            assert!(records.len() <= 1, "{stdout}");
+            let Some(record) = records.first() else {
+                continue;
+            };
+            found += 1;
+            assert_eq!(record["marker"], k + 1, "{record}");
+            assert_eq!(record["layout"], layout.name.as_str());
+            let t: Vec<f64> = serde_json::from_value(record["t"].clone()).unwrap();
+            assert!(
+                (Vector3::new(t[0], t[1], t[2]) - truth.translation).norm() < 10.0,
+                "{record}"
+            );
+            assert!(record["covariance"].is_array());
+        }
+        assert!(
+            found >= 1,
+            "marker {} found in none of its frames:\n{stdout}",
+            k + 1
+        );
+    }
+}

@@ -210,18 +210,23 @@ pub enum GeometryError {
         /// Build volume, mm.
         bed_mm: [f64; 3],
     },
+    /// The number to engrave is not digits, or finds no room.
+    #[error("cannot engrave \"{0}\" into the base plate: the engraving takes digits 0-9 and needs room on the plate")]
+    BadEngraving(String),
     /// The bed size is not three positive numbers.
     #[error("--bed must be three positive sizes X,Y,Z in mm (e.g. 250,210,210), got \"{0}\"")]
     BadBed(String),
 }
 
 mod checks;
+mod engraving;
 mod frames;
 mod options;
 mod parts;
 mod router;
 mod solid;
 
+pub use engraving::{stroke_width_mm, Engraving, ENGRAVING_DEPTH_MM, PLACEMENT_STEP_MM};
 pub use frames::{gltf_rotation, print_rotation};
 pub use options::{Axis, Bed, MarkerOptions, MountHoles, Structure};
 pub use parts::{Foot, Hole, Node, Plate, SphereFeature, Strut, StrutKind};

@@ -49,6 +49,9 @@ pub struct Marker {
     pub bed_level: Option<f64>,
     /// Half-angle of the view cone the supports were chosen for, degrees.
     pub view_cone_deg: f64,
+    /// The part's number engraved into the plate ([`Marker::engrave`]), if
+    /// any.
+    pub engraving: Option<Engraving>,
     /// The junctions, each a smooth union of the parts that meet there.
     junctions: Vec<Junction>,
 }
@@ -205,6 +208,7 @@ impl Marker {
             teardrops,
             bed_level,
             view_cone_deg: options.view_cone_deg,
+            engraving: None,
             junctions: Vec::new(),
         };
         marker.junctions = marker.build_junctions();
@@ -329,6 +333,11 @@ impl Marker {
             }
         }
         reach
+    }
+
+    /// Builds the junctions again (after the plate changed).
+    pub(super) fn rebuild_junctions(&mut self) {
+        self.junctions = self.build_junctions();
     }
 
     /// The junctions: nodes joined by a strut whose exposed length (between
@@ -514,8 +523,12 @@ impl Marker {
             best = Some(best.map_or(s, |b| sdf::min(b, s)));
         }
         let best = best.expect("a marker has a strut or a junction");
-        match self.bed_level {
+        let best = match self.bed_level {
             Some(level) => sdf::max(best, sdf::half_space(p, &self.down.vector(), level)),
+            None => best,
+        };
+        match &self.engraving {
+            Some(engraving) => engraving.cut(best, p),
             None => best,
         }
     }
@@ -655,6 +668,11 @@ impl Marker {
             .min(self.plate.rounding);
         for hole in &self.plate.holes {
             finest = finest.min(hole.radius).min(self.rim_blend_mm);
+        }
+        if let Some(engraving) = &self.engraving {
+            finest = finest
+                .min(engraving.depth_mm)
+                .min(0.5 * engraving.stroke_mm);
         }
         finest
     }

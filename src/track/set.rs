@@ -1,0 +1,224 @@
+//! `track --set`: frames that may show several markers of one set. The
+//! blobs of a frame are grouped into markers by the best joint fit
+//! ([`crate::set::group_blobs`], as `solve --unlabelled --set` does); each
+//! group is then tracked as a frame of that marker alone (identification,
+//! pose, covariance and label trust, [`super::analysis`]), and named by its
+//! number in the set (1…N) and its layout's name.
+
+use super::analysis::{locate, measured_normalised, FrameAnalysis, TrackedFrame};
+use super::config::TrackConfig;
+use super::detect::{detect, Blob, Detection, Rejected};
+use super::frame::GreyFrame;
+use crate::config::ConfigError;
+use crate::pnp::unlabelled::UnlabelledOptions;
+use crate::set::group_blobs;
+use nalgebra::Vector2;
+use serde::Serialize;
+
+/// The markers of a set, each with its tracking configuration (one camera,
+/// one detector: the first marker's).
+#[derive(Debug, Clone)]
+pub struct SetTrackConfig {
+    /// (layout name, configuration) per marker, in set order.
+    pub markers: Vec<(String, TrackConfig)>,
+}
+
+impl SetTrackConfig {
+    /// Checks every marker's configuration, and that they share the
+    /// camera and the sphere diameter.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        let Some((_, first)) = self.markers.first() else {
+            return Err(ConfigError::new("markers", "a set has markers"));
+        };
+        for (_, config) in &self.markers {
+            config.validate()?;
+            if config.sphere_diameter_mm != first.sphere_diameter_mm {
+                return Err(ConfigError::new(
+                    "sphere_diameter_mm",
+                    "the markers of a set share one sphere diameter",
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// One marker found in a frame.
+#[derive(Debug)]
+pub struct MarkerTrack {
+    /// Its number in the set (1…N).
+    pub number: usize,
+    /// Its layout's name.
+    pub layout: String,
+    /// Its blobs, labels and pose, as a frame of that marker alone.
+    pub analysis: FrameAnalysis,
+}
+
+/// A frame of a set: the markers found, or why none was.
+#[derive(Debug)]
+pub struct SetFrameAnalysis {
+    /// Every marker found, in set order.
+    pub markers: Vec<MarkerTrack>,
+    /// Why no marker was found (detection failed, or no group fits).
+    pub error: Option<String>,
+    /// Every blob the detector accepted.
+    pub blobs: Vec<Blob>,
+}
+
+/// Tracks every marker of the set in one frame (module docs). `config`
+/// must have been validated.
+pub fn analyse_set(config: &SetTrackConfig, frame: &GreyFrame) -> SetFrameAnalysis {
+    let first = &config.markers[0].1;
+    let spheres: usize = config.markers.iter().map(|(_, c)| c.object.len()).sum();
+    let max_blobs = (spheres + first.max_extra_blobs) * 4 + 16;
+    let failed = |error: String, blobs: Vec<Blob>| SetFrameAnalysis {
+        markers: Vec::new(),
+        error: Some(error),
+        blobs,
+    };
+    let detection = match detect(
+        frame,
+        &first.camera,
+        &first.detector,
+        first.radius_mm(),
+        max_blobs,
+    ) {
+        Ok(detection) => detection,
+        Err(error) => return failed(error.to_string(), Vec::new()),
+    };
+    let usable: Vec<usize> = (0..detection.blobs.len())
+        .filter(|&i| !detection.blobs[i].hidden())
+        .collect();
+    let image: Vec<Vector2<f64>> = usable
+        .iter()
+        .map(|&i| {
+            let blob = &detection.blobs[i];
+            measured_normalised(blob, first.centre) / blob.centre_shrink
+        })
+        .collect();
+    let focal = first.camera.fx().min(first.camera.fy());
+    let options = UnlabelledOptions::with_gate_px(first.gate_px, focal, 1);
+    let objects: Vec<_> = config
+        .markers
+        .iter()
+        .map(|(_, c)| c.object.clone())
+        .collect();
+    let placements = group_blobs(&objects, &image, &options);
+    let mut markers = Vec::new();
+    let mut errors = Vec::new();
+    for placement in placements {
+        let (layout, marker_config) = &config.markers[placement.marker];
+        let mut blobs: Vec<Blob> = placement
+            .blobs
+            .iter()
+            .map(|&k| detection.blobs[usable[k]].clone())
+            .collect();
+        let rejected = detection.rejected;
+        let analysis = match locate(marker_config, &mut blobs, &rejected) {
+            Ok((tracked, pose)) => FrameAnalysis {
+                outcome: Ok(tracked),
+                detection: Some(Detection {
+                    blobs,
+                    rejected,
+                    threshold_level: detection.threshold_level,
+                }),
+                pose: Some(pose),
+            },
+            Err(error) => {
+                errors.push(format!("marker {}: {error}", placement.marker + 1));
+                continue;
+            }
+        };
+        markers.push(MarkerTrack {
+            number: placement.marker + 1,
+            layout: layout.clone(),
+            analysis,
+        });
+    }
+    let error = markers.is_empty().then(|| {
+        if errors.is_empty() {
+            format!(
+                "no marker of the set fits the {} usable blobs",
+                usable.len()
+            )
+        } else {
+            errors.join("; ")
+        }
+    });
+    SetFrameAnalysis {
+        markers,
+        error,
+        blobs: detection.blobs,
+    }
+}
+
+/// One JSON line of `track --set`: a marker found in a frame, or a frame
+/// with none.
+#[derive(Debug, Serialize)]
+#[serde(untagged)]
+pub enum SetRecord<'a> {
+    /// A marker with a pose.
+    Tracked {
+        /// The frame's name.
+        frame: &'a str,
+        /// The marker's number in the set (1…N).
+        marker: usize,
+        /// Its layout's name.
+        layout: &'a str,
+        /// The pose fields, as `track` writes them for one marker.
+        #[serde(flatten)]
+        tracked: &'a TrackedFrame,
+        /// The blobs of this marker.
+        blobs: &'a [Blob],
+        /// Components rejected in the frame, by reason.
+        rejected: &'a Rejected,
+    },
+    /// A frame in which no marker was found.
+    Failed {
+        /// The frame's name.
+        frame: &'a str,
+        /// Why.
+        error: &'a str,
+        /// Every blob the detector accepted.
+        blobs: &'a [Blob],
+    },
+}
+
+/// The records of one frame: one per marker found, or one failure.
+pub fn set_records<'a>(name: &'a str, analysis: &'a SetFrameAnalysis) -> Vec<SetRecord<'a>> {
+    let mut records = Vec::new();
+    for marker in &analysis.markers {
+        if let (Ok(tracked), Some(detection)) =
+            (&marker.analysis.outcome, &marker.analysis.detection)
+        {
+            records.push(SetRecord::Tracked {
+                frame: name,
+                marker: marker.number,
+                layout: &marker.layout,
+                tracked,
+                blobs: &detection.blobs,
+                rejected: &detection.rejected,
+            });
+        }
+    }
+    if records.is_empty() {
+        records.push(SetRecord::Failed {
+            frame: name,
+            error: analysis.error.as_deref().unwrap_or("no marker found"),
+            blobs: &analysis.blobs,
+        });
+    }
+    records
+}
+
+/// The JSON-lines document of every frame, in input order.
+pub fn set_json_lines(frames: &[(String, SetFrameAnalysis)]) -> String {
+    let mut out = String::new();
+    for (name, analysis) in frames {
+        for record in set_records(name, analysis) {
+            out.push_str(&serde_json::to_string(&record).expect("records serialise"));
+            out.push('\n');
+        }
+    }
+    out
+}
