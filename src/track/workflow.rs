@@ -120,32 +120,11 @@ pub fn run(
             source,
         })?;
     }
-    let done = AtomicU64::new(0);
-    let stop = AtomicBool::new(false);
-    let frames: Vec<Result<(String, FrameAnalysis), WorkflowError>> = watch(
-        observer,
-        PHASE_TRACK,
-        paths.len() as u64,
-        || done.load(Ordering::Relaxed),
-        Some(&stop),
-        || {
-            paths
-                .par_iter()
-                .map(|path| {
-                    if stop.load(Ordering::Relaxed) {
-                        return Err(WorkflowError::Interrupted);
-                    }
-                    let result = track_file(config, path, outputs.overlay_dir.as_deref());
-                    done.fetch_add(1, Ordering::Relaxed);
-                    result
-                })
-                .collect()
-        },
-    );
-    if stop.load(Ordering::SeqCst) {
-        return Err(WorkflowError::Interrupted);
-    }
-    let frames: Vec<(String, FrameAnalysis)> = frames.into_iter().collect::<Result<_, _>>()?;
+    let frames = each_frame(observer, &paths, |path| {
+        track_file(config, path, outputs.overlay_dir.as_deref())
+    })?
+    .into_iter()
+    .collect::<Result<Vec<(String, FrameAnalysis)>, _>>()?;
     let json_lines = report::json_lines(&frames);
     if let Some(path) = &outputs.json_lines {
         write(path, json_lines.as_bytes())?;
@@ -184,9 +163,44 @@ pub fn run_set(
         )));
     }
     let paths = expand_inputs(inputs)?;
+    let frames = each_frame(observer, &paths, |path| {
+        let name = path.display().to_string();
+        let analysis = match std::fs::read(path)
+            .map_err(|e| format!("cannot read the file: {e}"))
+            .and_then(|bytes| {
+                let frame = GreyFrame::from_png(&bytes).map_err(|e| e.to_string())?;
+                let camera = &config.markers[0].1.camera;
+                frame
+                    .check_size(camera.width(), camera.height())
+                    .map_err(|e| e.to_string())?;
+                Ok(frame)
+            }) {
+            Ok(frame) => analyse_set(config, &frame),
+            Err(error) => SetFrameAnalysis {
+                markers: Vec::new(),
+                error: Some(error),
+                blobs: Vec::new(),
+            },
+        };
+        (name, analysis)
+    })?;
+    let json_lines = set_json_lines(&frames);
+    if let Some(path) = &outputs.json_lines {
+        write(path, json_lines.as_bytes())?;
+    }
+    Ok(SetTrackRun { frames, json_lines })
+}
+
+/// `track` applied to every path in parallel, in input order, with
+/// progress as [`PHASE_TRACK`] through `observer`, which may ask to stop.
+fn each_frame<T: Send>(
+    observer: &mut impl Observer,
+    paths: &[PathBuf],
+    track: impl Fn(&Path) -> T + Sync,
+) -> Result<Vec<T>, WorkflowError> {
     let done = AtomicU64::new(0);
     let stop = AtomicBool::new(false);
-    let frames: Vec<Option<(String, SetFrameAnalysis)>> = watch(
+    let frames: Option<Vec<T>> = watch(
         observer,
         PHASE_TRACK,
         paths.len() as u64,
@@ -199,42 +213,17 @@ pub fn run_set(
                     if stop.load(Ordering::Relaxed) {
                         return None;
                     }
-                    let name = path.display().to_string();
-                    let analysis = match std::fs::read(path)
-                        .map_err(|e| format!("cannot read the file: {e}"))
-                        .and_then(|bytes| {
-                            let frame = GreyFrame::from_png(&bytes).map_err(|e| e.to_string())?;
-                            let camera = &config.markers[0].1.camera;
-                            frame
-                                .check_size(camera.width(), camera.height())
-                                .map_err(|e| e.to_string())?;
-                            Ok(frame)
-                        }) {
-                        Ok(frame) => analyse_set(config, &frame),
-                        Err(error) => SetFrameAnalysis {
-                            markers: Vec::new(),
-                            error: Some(error),
-                            blobs: Vec::new(),
-                        },
-                    };
+                    let result = track(path);
                     done.fetch_add(1, Ordering::Relaxed);
-                    Some((name, analysis))
+                    Some(result)
                 })
                 .collect()
         },
     );
-    if stop.load(Ordering::SeqCst) {
-        return Err(WorkflowError::Interrupted);
+    match frames {
+        Some(frames) if !stop.load(Ordering::SeqCst) => Ok(frames),
+        _ => Err(WorkflowError::Interrupted),
     }
-    let frames: Vec<(String, SetFrameAnalysis)> = frames
-        .into_iter()
-        .collect::<Option<_>>()
-        .ok_or(WorkflowError::Interrupted)?;
-    let json_lines = set_json_lines(&frames);
-    if let Some(path) = &outputs.json_lines {
-        write(path, json_lines.as_bytes())?;
-    }
-    Ok(SetTrackRun { frames, json_lines })
 }
 
 fn write(path: &Path, bytes: &[u8]) -> Result<(), WorkflowError> {
