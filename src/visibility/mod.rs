@@ -22,6 +22,7 @@
 //! ([`crate::scenario::Visibility::hidden_by_support`]).
 
 pub mod occluders;
+pub mod outline;
 
 use crate::camera::Camera;
 use crate::config::ConfigError;
