@@ -38,7 +38,10 @@
 #[allow(dead_code)]
 mod frames;
 
-use frames::{blob_of_sphere, clean_view, ellipse_centre, hidden_fraction, support_reach_px, Part};
+use frames::{
+    area_hidden, blob_of_sphere, clean_view, ellipse_centre, hidden_fraction, support_reach_px,
+    Part,
+};
 use layout_opt::camera::Camera;
 use layout_opt::identifiability::predict;
 use layout_opt::pose::{rotation_error_deg, Pose};
@@ -260,6 +263,12 @@ struct HiddenCounts {
     /// Ellipse-centre errors of unflagged ≥ 10 % hidden blobs, px, by the
     /// two reach classes.
     missed: [Vec<f64>; 2],
+    /// `[flagged, not]` by hidden share of the AREA ([`frames::area_hidden`]):
+    /// ≥ 10 %, 1–10 %, under 1 % (outline partly hidden).
+    by_area: [[u64; 2]; 3],
+    /// Share of the outline cut away as a notch, unflagged blobs with
+    /// ≥ 10 % of the outline hidden.
+    cut: Vec<f64>,
 }
 
 /// The notch depth that separates the two ≥ 10 % classes, px: the edge
@@ -303,6 +312,20 @@ fn hidden(part: &Part, camera: Camera, poses: u64) {
                     4
                 };
                 c.spheres[class][usize::from(!blob.hidden())] += 1;
+                if h > 0.0 {
+                    let area = area_hidden(&part.scene, &truth, &camera, sphere, index);
+                    let area_class = if area >= 0.1 {
+                        0
+                    } else if area >= 0.01 {
+                        1
+                    } else {
+                        2
+                    };
+                    c.by_area[area_class][usize::from(!blob.hidden())] += 1;
+                }
+                if h >= 0.1 && !blob.hidden() {
+                    c.cut.push(blob.outline_dropped);
+                }
                 if h >= 0.1 && !blob.hidden() {
                     c.missed[class].push(
                         (Vector2::from(blob.ellipse_centre_px) - ellipse_centre(sphere)).norm(),
@@ -330,6 +353,11 @@ fn hidden(part: &Part, camera: Camera, poses: u64) {
             a[0] += b[0];
             a[1] += b[1];
         }
+        for (a, b) in t.by_area.iter_mut().zip(&c.by_area) {
+            a[0] += b[0];
+            a[1] += b[1];
+        }
+        t.cut.extend(&c.cut);
         for i in 0..2 {
             t.frames[i] += c.frames[i];
             t.labelled[i] += c.labelled[i];
@@ -364,6 +392,19 @@ fn hidden(part: &Part, camera: Camera, poses: u64) {
                 missed[missed.len() * 9 / 10],
             );
         }
+    }
+    for (name, [flagged, not]) in ["≥ 10 %", "1–10 %", "< 1 %"].iter().zip(&t.by_area) {
+        println!(
+            "  AREA {name} hidden: {flagged} flagged, {not} not ({:.3} flagged)",
+            *flagged as f64 / (flagged + not).max(1) as f64
+        );
+    }
+    t.cut.sort_by(f64::total_cmp);
+    if let Some(worst) = t.cut.last() {
+        println!(
+            "  outline cut away, unflagged blobs ≥ 10 % of the outline hidden: median {:.3}, worst {worst:.3}",
+            t.cut[t.cut.len() / 2]
+        );
     }
     let s = &t.spheres;
     let flagged_hidden: u64 = s[..4].iter().map(|c| c[0]).sum();
@@ -498,7 +539,7 @@ fn lost(part: &Part, camera: Camera, trials: u64) {
                     let reach = support_reach_px(&scene, &pose, &camera, k, 256);
                     let hits = occluding_parts(&scene, &pose, k);
                     lines.push(format!(
-                        "    t{trial} {} r {:.1} px: truth support {:.4} sphere {:.4} outside {:.4}, model {:.4}; {:?} dip {:.3} fill {:.3} out {:.3} ratio {:.3}/{:.3}; centre off {:.3} px, notch {:.3} px; hidden by {hits}",
+                        "    t{trial} {} r {:.1} px: truth support {:.4} sphere {:.4} outside {:.4}, model {:.4}; {:?} cut {:.3} dip {:.3} fill {:.3} out {:.3} ratio {:.3}/{:.3}; centre off {:.3} px, notch {:.3} px; hidden by {hits}",
                         sphere.name,
                         sphere.semi_axes_px[0],
                         h.by_support,
@@ -506,6 +547,7 @@ fn lost(part: &Part, camera: Camera, trials: u64) {
                         h.outside_image,
                         model[k],
                         b.hidden_because,
+                        b.outline_dropped,
                         b.edge_dip_px,
                         b.filled_fraction,
                         b.outlier_fraction,

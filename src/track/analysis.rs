@@ -5,7 +5,9 @@
 //! first-order covariance ([`super::uncertainty`]). No files, no printing.
 //!
 //! **Which blobs.** Blobs flagged as partly hidden are left out of the
-//! identification and the pose; after the pose each is given the label of
+//! identification and the pose (a blob whose notch the detector cut away,
+//! measured from the rest of its outline, is not flagged and is used;
+//! [`super::detect`]); after the pose each is given the label of
 //! the nearest unclaimed model ellipse within its semi-major axis, so the
 //! output says which sphere it was. With more usable blobs than spheres
 //! (clutter, at most `max_extra_blobs`), every subset of as many blobs as

@@ -137,6 +137,11 @@ pub struct DetectorConfig {
     /// along some arc, beyond the noise of its edge points, is flagged as
     /// partly hidden ([`super::detect::edge_dip`]), px.
     pub max_edge_dip_px: f64,
+    /// A blob with more than this share of its edge points cut away as a
+    /// notch ([`super::detect::notch_arcs`]) is flagged as partly hidden:
+    /// below it, the rest of the outline fixes the ellipse and the blob is
+    /// measured from it.
+    pub max_outline_dropped: f64,
 }
 
 /// Default smallest blob, px: below this an ellipse fit has too few edge
@@ -160,6 +165,12 @@ pub const DEFAULT_MAX_OUTLIER_FRACTION: f64 = 0.08;
 /// bends its edge by up to a tenth; a support's notch a third of a pixel
 /// deep goes well beyond this (`track_accuracy -- hidden`).
 pub const DEFAULT_MAX_EDGE_DIP_PX: f64 = 0.1;
+/// Default largest share of a used blob's outline cut away as a notch: a
+/// sphere's own support cone, seen 50–60° off its axis, hides a fifth to
+/// a quarter of the outline and a fraction of a percent of the area
+/// (`track_accuracy -- lost`); the rest, two thirds of the outline or
+/// more, still fixes the ellipse.
+pub const DEFAULT_MAX_OUTLINE_DROPPED: f64 = 0.35;
 
 impl Default for DetectorConfig {
     fn default() -> Self {
@@ -171,6 +182,7 @@ impl Default for DetectorConfig {
             min_filled_fraction: DEFAULT_MIN_FILLED_FRACTION,
             max_outlier_fraction: DEFAULT_MAX_OUTLIER_FRACTION,
             max_edge_dip_px: DEFAULT_MAX_EDGE_DIP_PX,
+            max_outline_dropped: DEFAULT_MAX_OUTLINE_DROPPED,
         }
     }
 }
@@ -220,6 +232,7 @@ impl DetectorConfig {
         ConfigError::within("min_filled_fraction", self.min_filled_fraction, 0.0, 1.0)?;
         ConfigError::within("max_outlier_fraction", self.max_outlier_fraction, 0.0, 1.0)?;
         ConfigError::within("max_edge_dip_px", self.max_edge_dip_px, 0.0, 1e3)?;
+        ConfigError::within("max_outline_dropped", self.max_outline_dropped, 0.0, 1.0)?;
         Ok(())
     }
 }

@@ -432,25 +432,29 @@ fn identifiable_views_are_labelled_correctly() {
 
 /// Renders of random views, head on to ±60°, where the part's supports and
 /// the spheres hide one another: a blob flagged as partly hidden is hidden
-/// per the render's truth (precision ≥ 95%), and of the blobs with ≥ 10%
-/// of their outline hidden whose support cuts a notch at least the edge
-/// tolerance deep ([`frames::support_reach_px`]), ≥ 90% are flagged. A
-/// shallower notch is not always seen (a round cone just past the angle
-/// where it covers the limb hides a tenth of the outline and bends the
-/// edge by a hundredth of a pixel), but what it leaves moves the ellipse
-/// centre by less than a quarter pixel. The example `track_accuracy --
-/// hidden` gives the large counts.
+/// per the render's truth (precision ≥ 95%), and ≥ 90% of the blobs with
+/// ≥ 10% of their AREA hidden ([`frames::area_hidden`]) are flagged. A
+/// support that hides much of the outline but little of the area (a
+/// sphere's own cone seen far off its axis cuts a notch into the limb) is
+/// cut away by the detector, which measures the blob from the rest of its
+/// outline: the unflagged blobs with ≥ 10% of their outline hidden have
+/// ellipse centres within 0.03 px of the truth at the median and 0.1 px at
+/// worst (before the cut: 0.07 px median for notches ≥ 0.3 px deep, which
+/// were flagged and left out). The
+/// example `track_accuracy -- hidden` gives the large counts.
 #[test]
 fn blobs_flagged_behind_supports_are_hidden() {
     let camera = Camera::paper();
     let part = winner();
     let config = TrackConfig::new(&part.layout, camera);
     let render = frames::noisy(camera, 4);
+    // Per frame: [flagged & hidden, flagged & whole, ≥ 10% of the area
+    // hidden & flagged, the same & not], and the centre errors of
+    // unflagged blobs with ≥ 10% of the outline hidden.
     let reach_px = layout_opt::track::detect::MIN_EDGE_TOLERANCE_PX;
-    // Per frame: [flagged & hidden, flagged & whole, deep notch & flagged,
-    // deep notch & not], and the centre errors of unflagged ≥ 10% hidden
-    // blobs.
-    let counts: Vec<([usize; 4], Vec<f64>)> = (0..30u64)
+    // (error px, notch ≥ reach_px deep) per unflagged notched blob.
+    type Missed = Vec<(f64, bool)>;
+    let counts: Vec<([usize; 4], Missed)> = (0..30u64)
         .into_par_iter()
         .filter_map(|k| {
             let mut rng = ChaCha8Rng::seed_from_u64(0x41D + k);
@@ -474,15 +478,17 @@ fn blobs_flagged_behind_supports_are_hidden() {
                 if b.hidden() {
                     c[usize::from(hidden == 0.0)] += 1;
                 }
-                if hidden < 0.1 {
+                if hidden == 0.0 {
                     continue;
                 }
-                if !b.hidden() {
-                    missed
-                        .push((Vector2::from(b.ellipse_centre_px) - ellipse_centre(sphere)).norm());
-                }
-                if frames::support_reach_px(&part.scene, &truth, &camera, index, 128) >= reach_px {
+                if frames::area_hidden(&part.scene, &truth, &camera, sphere, index) >= 0.1 {
                     c[2 + usize::from(!b.hidden())] += 1;
+                }
+                if hidden >= 0.1 && !b.hidden() {
+                    let error =
+                        (Vector2::from(b.ellipse_centre_px) - ellipse_centre(sphere)).norm();
+                    let reach = frames::support_reach_px(&part.scene, &truth, &camera, index, 128);
+                    missed.push((error, reach >= reach_px));
                 }
             }
             Some((c, missed))
@@ -491,17 +497,27 @@ fn blobs_flagged_behind_supports_are_hidden() {
     let total = counts
         .iter()
         .fold([0; 4], |a, (c, _)| std::array::from_fn(|i| a[i] + c[i]));
-    let worst_missed = counts
+    let deep = counts.iter().flat_map(|c| &c.1).filter(|m| m.1).count();
+    let mut missed: Vec<f64> = counts
         .iter()
-        .flat_map(|c| c.1.iter().copied())
-        .fold(0.0, f64::max);
+        .flat_map(|c| c.1.iter().map(|m| m.0))
+        .collect();
+    missed.sort_by(f64::total_cmp);
+    let median = missed.get(missed.len() / 2).copied().unwrap_or(f64::NAN);
+    let worst = missed.last().copied().unwrap_or(f64::NAN);
     let precision = total[0] as f64 / (total[0] + total[1]) as f64;
     let recall = total[2] as f64 / (total[2] + total[3]) as f64;
-    eprintln!("supports: {} frames: {} flagged hidden, {} flagged whole, notch ≥ {reach_px} px: {} flagged, {} not: precision {precision:.3}, recall {recall:.3}; unflagged ≥ 10% hidden blobs' centres off by at most {worst_missed:.3} px", counts.len(), total[0], total[1], total[2], total[3]);
-    assert!(total[0] >= 20 && total[2] + total[3] >= 40, "{total:?}");
+    eprintln!("supports: {} frames: {} flagged hidden, {} flagged whole, ≥ 10% of the area hidden: {} flagged, {} not: precision {precision:.3}, recall {recall:.3}; {} unflagged blobs ≥ 10% of the outline hidden, {deep} of them with a notch ≥ {reach_px} px deep; centres off by {median:.3} px median, {worst:.3} px at worst", counts.len(), total[0], total[1], total[2], total[3], missed.len());
+    assert!(total[0] >= 20 && total[2] + total[3] >= 5, "{total:?}");
+    assert!(
+        missed.len() >= 40,
+        "{} unflagged notched blobs",
+        missed.len()
+    );
     assert!(precision >= 0.95, "{total:?}");
     assert!(recall >= 0.90, "{total:?}");
-    assert!(worst_missed < 0.25, "{worst_missed} px");
+    assert!(median < 0.03, "{median} px");
+    assert!(worst < 0.1, "{worst} px");
 }
 
 /// `[flagged & hidden, flagged & whole, ≥ 10% hidden & unflagged]` over

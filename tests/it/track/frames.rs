@@ -398,3 +398,59 @@ pub fn support_reach_px(
     }
     reach
 }
+
+/// Share of sphere `index`'s silhouette area that something in front
+/// hides, or that lies outside the image: rays through `SAMPLES` points
+/// spread evenly over its exact ellipse (sunflower pattern), each checked
+/// for meeting the sphere first.
+pub fn area_hidden(
+    scene: &Scene,
+    pose: &Pose,
+    camera: &Camera,
+    sphere: &SphereTruth,
+    index: usize,
+) -> f64 {
+    use layout_opt::render::scene::Ray;
+    use layout_opt::track::conic::Ellipse;
+    const SAMPLES: usize = 400;
+    let conic = nalgebra::Matrix3::from_fn(|i, j| sphere.conic_px[i][j]);
+    let Some(ellipse) = Ellipse::from_conic(&conic) else {
+        return f64::NAN;
+    };
+    let eigen = nalgebra::SymmetricEigen::new(ellipse.shape);
+    let inverse = pose.rotation.inverse();
+    let origin = -(inverse * pose.translation);
+    let all = scene.all_shapes();
+    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+    let hidden = (0..SAMPLES)
+        .filter(|&k| {
+            let rho = 0.995 * ((k as f64 + 0.5) / SAMPLES as f64).sqrt();
+            let angle = golden * k as f64;
+            let local = Vector2::new(
+                rho * angle.cos() / eigen.eigenvalues[0].sqrt(),
+                rho * angle.sin() / eigen.eigenvalues[1].sqrt(),
+            );
+            let p = ellipse.centre + eigen.eigenvectors * local;
+            if p.x < -0.5
+                || p.y < -0.5
+                || p.x > camera.width() as f64 - 0.5
+                || p.y > camera.height() as f64 - 0.5
+            {
+                return true;
+            }
+            let m = nalgebra::Vector3::new(
+                (p.x - camera.cx()) / camera.fx(),
+                (p.y - camera.cy()) / camera.fy(),
+                1.0,
+            );
+            let ray = Ray {
+                origin,
+                direction: inverse * m.normalize(),
+            };
+            scene
+                .first_hit(&ray, &all)
+                .is_some_and(|hit| hit.sphere != Some(index))
+        })
+        .count();
+    hidden as f64 / SAMPLES as f64
+}
