@@ -29,8 +29,8 @@ pub struct SearchArgs {
     pub(super) family: FamilyName,
     /// Count every candidate's own supports (the pillars export tries first)
     /// in the optimiser's loop: a sphere they hide more than this fraction
-    /// (0–1) of counts as not seen. Off by default: it costs about 3 times
-    /// an evaluation.
+    /// (0–1) of counts as not seen. Off by default: an evaluation costs
+    /// about twice as much (`cargo bench --bench supports`).
     #[arg(long, value_name = "FRACTION")]
     pub(super) count_supports: Option<layout_opt::visibility::MaxHidden>,
     /// Leave out the centre point (biprism: O0; tetrahedron: the centroid point).
