@@ -143,13 +143,7 @@ fn support_hidden(
             let distance = c.norm();
             let axis = c / distance;
             let half = (radius / distance).asin();
-            let helper = if axis.x.abs() < 0.9 {
-                Vector3::x()
-            } else {
-                Vector3::y()
-            };
-            let e1 = axis.cross(&helper).normalize();
-            let e2 = axis.cross(&e1);
+            let (e1, e2) = layout_opt::linalg::perpendicular_pair(&axis);
             let tan_half = half.tan();
             // The disc's bounds on the normalised image plane, from its
             // rim, with a margin.

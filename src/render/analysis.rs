@@ -171,13 +171,7 @@ fn outline_box(
     let axis = centre / distance;
     let circle_centre = centre * (1.0 - radius * radius / (distance * distance));
     let circle_radius = radius * (distance * distance - radius * radius).sqrt() / distance;
-    let helper = if axis.x.abs() < 0.9 {
-        Vector3::x()
-    } else {
-        Vector3::y()
-    };
-    let e1 = axis.cross(&helper).normalize();
-    let e2 = axis.cross(&e1);
+    let (e1, e2) = crate::linalg::perpendicular_pair(&axis);
     let mut lo = Vector2::repeat(f64::INFINITY);
     let mut hi = Vector2::repeat(f64::NEG_INFINITY);
     for k in 0..OUTLINE_VERTICES {

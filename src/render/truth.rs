@@ -138,13 +138,7 @@ pub fn limb_points(centre: &Vector3<f64>, radius: f64, rays: usize) -> Vec<Vecto
     let axis = centre / distance;
     let circle_centre = centre * (1.0 - radius * radius / (distance * distance));
     let circle_radius = radius * (distance * distance - radius * radius).max(0.0).sqrt() / distance;
-    let helper = if axis.x.abs() < 0.9 {
-        Vector3::x()
-    } else {
-        Vector3::y()
-    };
-    let e1 = axis.cross(&helper).normalize();
-    let e2 = axis.cross(&e1);
+    let (e1, e2) = crate::linalg::perpendicular_pair(&axis);
     (0..rays)
         .map(|k| {
             let phi = std::f64::consts::TAU * (k as f64 + 0.5) / rays as f64;

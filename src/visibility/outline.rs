@@ -91,13 +91,7 @@ fn outline_lines(
     let tan_half = (radius_mm / distance).clamp(-1.0, 1.0).asin().tan();
     let inset = (inset_px / (fx_px * tan_half)).clamp(0.0, 1.0);
     let reach = tan_half * (1.0 - inset);
-    let helper = if axis.x.abs() < 0.9 {
-        Vector3::x()
-    } else {
-        Vector3::y()
-    };
-    let e1 = axis.cross(&helper).normalize();
-    let e2 = axis.cross(&e1);
+    let (e1, e2) = crate::linalg::perpendicular_pair(&axis);
     (0..OUTLINE_LINES).map(move |k| {
         let turn = std::f64::consts::TAU * k as f64 / OUTLINE_LINES as f64;
         (axis + (e1 * turn.cos() + e2 * turn.sin()) * reach).normalize()
