@@ -375,6 +375,18 @@ fn axis_on_plane(
     b: &Vector3<f64>,
     radius: f64,
 ) -> Option<f64> {
+    nearest_on_plane(eye, axis, a, b, radius).map(|q| q.norm())
+}
+
+/// The point of `axis_on_plane`'s segment nearest the cone's axis, as an
+/// offset across the axis on the plane one unit along it.
+fn nearest_on_plane(
+    eye: &Vector3<f64>,
+    axis: &Vector3<f64>,
+    a: &Vector3<f64>,
+    b: &Vector3<f64>,
+    radius: f64,
+) -> Option<Vector3<f64>> {
     let (pa, pb) = (a - eye, b - eye);
     let (za, zb) = (pa.dot(axis), pb.dot(axis));
     if za <= radius || zb <= radius {
@@ -388,7 +400,7 @@ fn axis_on_plane(
     } else {
         0.0
     };
-    Some((qa + ab * t).norm())
+    Some(qa + ab * t)
 }
 
 /// Whether a sphere's own cone (the round cone that starts with its ball
@@ -614,20 +626,44 @@ impl Trace<'_> {
         // part can meet only the lines at least as far from the cone's axis
         // as its nearest point: the sunflower runs outwards, so the lines
         // inside the least such angle over the parts are not followed.
-        let skip = if visible {
-            let nearest = parts
+        let tangents: smallvec::SmallVec<[f64; 8]> = if visible {
+            parts
                 .iter()
                 .zip(&planes)
                 .map(|(&p, plane)| {
                     least_tangent(&cone, &centre, radius_mm, &supports.occluders[p], plane)
                 })
-                .fold(f64::INFINITY, f64::min);
-            inner_lines(nearest / cone.tan_half())
+                .collect()
+        } else {
+            smallvec::SmallVec::new()
+        };
+        let skip = if visible {
+            inner_lines(tangents.iter().copied().fold(f64::INFINITY, f64::min) / cone.tan_half())
         } else {
             0
         };
+        let basis = LineBasis::new(eye, &centre, radius_mm);
+        // When only the decision is asked (`stop_above`), the lines next to
+        // the part nearest the cone's axis are followed first: where that
+        // part hides the sphere, the hidden lines are found at once. The
+        // count of hidden lines does not depend on the order, and every
+        // line is still followed unless the count is already over the
+        // limit.
+        let probe = if visible && stop_above < SILHOUETTE_RAYS {
+            parts
+                .iter()
+                .zip(&planes)
+                .zip(&tangents)
+                .filter(|((_, plane), _)| plane.is_none())
+                .min_by(|(_, x), (_, y)| x.total_cmp(y))
+                .and_then(|((&p, _), _)| basis.azimuth_of(eye, &supports.occluders[p]))
+        } else {
+            None
+        };
         let (mut by_support, mut by_sphere, mut outside) = (0usize, 0usize, 0usize);
-        for direction in lines_from(eye, &centre, radius_mm, skip) {
+        // Follows line `i`; true once the decision is known.
+        let mut follow = |i: usize| {
+            let direction = basis.line(i);
             let t_sphere = occluders::ray_ball(eye, &direction, &centre, radius_mm)
                 .unwrap_or_else(|| (centre - eye).dot(&direction));
             let on_sphere = eye + direction * t_sphere;
@@ -670,7 +706,24 @@ impl Trace<'_> {
                 })
             {
                 by_support += 1;
-                if by_support > stop_above {
+            }
+            by_support > stop_above
+        };
+        let mut followed = [0u64; SILHOUETTE_RAYS.div_ceil(64)];
+        let mut known = false;
+        if let Some(azimuth) = probe {
+            let budget = (4 * (stop_above + 1) + 8).min(SILHOUETTE_RAYS);
+            for i in by_azimuth_from(azimuth).filter(|&i| i >= skip).take(budget) {
+                followed[i / 64] |= 1 << (i % 64);
+                if follow(i) {
+                    known = true;
+                    break;
+                }
+            }
+        }
+        if !known {
+            for i in skip..SILHOUETTE_RAYS {
+                if followed[i / 64] & (1 << (i % 64)) == 0 && follow(i) {
                     break;
                 }
             }
@@ -777,20 +830,96 @@ fn lines_from(
     radius_mm: f64,
     first: usize,
 ) -> impl ExactSizeIterator<Item = Vector3<f64>> {
-    let to_centre = centre - eye;
-    let distance = to_centre.norm();
-    let axis = to_centre / distance;
-    let tan_half = (radius_mm / distance).clamp(-1.0, 1.0).asin().tan();
-    let helper = if axis.x.abs() < 0.9 {
-        Vector3::x()
-    } else {
-        Vector3::y()
-    };
-    let e1 = axis.cross(&helper).normalize();
-    let e2 = axis.cross(&e1);
-    sunflower()[first.min(SILHOUETTE_RAYS)..]
-        .iter()
-        .map(move |&(x, y)| (axis + (e1 * x + e2 * y) * tan_half).normalize())
+    let basis = LineBasis::new(eye, centre, radius_mm);
+    (first.min(SILHOUETTE_RAYS)..SILHOUETTE_RAYS).map(move |i| basis.line(i))
+}
+
+/// The frame in which the sunflower lines to one sphere are laid out:
+/// the unit `axis` from the eye to the sphere's centre, two unit
+/// directions across it, and the tangent of the silhouette's half-angle.
+#[derive(Debug, Clone, Copy)]
+struct LineBasis {
+    axis: Vector3<f64>,
+    e1: Vector3<f64>,
+    e2: Vector3<f64>,
+    tan_half: f64,
+}
+
+impl LineBasis {
+    fn new(eye: &Vector3<f64>, centre: &Vector3<f64>, radius_mm: f64) -> LineBasis {
+        let to_centre = centre - eye;
+        let distance = to_centre.norm();
+        let axis = to_centre / distance;
+        let tan_half = (radius_mm / distance).clamp(-1.0, 1.0).asin().tan();
+        let helper = if axis.x.abs() < 0.9 {
+            Vector3::x()
+        } else {
+            Vector3::y()
+        };
+        let e1 = axis.cross(&helper).normalize();
+        let e2 = axis.cross(&e1);
+        LineBasis {
+            axis,
+            e1,
+            e2,
+            tan_half,
+        }
+    }
+
+    /// The unit direction of sunflower line `i`.
+    fn line(&self, i: usize) -> Vector3<f64> {
+        let (x, y) = sunflower()[i];
+        (self.axis + (self.e1 * x + self.e2 * y) * self.tan_half).normalize()
+    }
+
+    /// The azimuth, on the disc of the lines, of the point of `part`'s
+    /// axis nearest the cone's axis as seen from `eye`; `None` for a part
+    /// without one axis (a box, a fillet) or one not wholly in front.
+    fn azimuth_of(&self, eye: &Vector3<f64>, part: &Occluder) -> Option<f64> {
+        let (a, b, radius) = match part {
+            Occluder::Capsule { a, b, radius } => (a, b, *radius),
+            Occluder::RoundCone {
+                a,
+                radius_a,
+                b,
+                radius_b,
+            } => (a, b, radius_a.max(*radius_b)),
+            _ => return None,
+        };
+        let q = nearest_on_plane(eye, &self.axis, a, b, radius)?;
+        Some(q.dot(&self.e2).atan2(q.dot(&self.e1)))
+    }
+}
+
+/// The sunflower's line numbers ordered by their azimuth on the disc
+/// (from −π), with those azimuths, computed once.
+fn by_azimuth() -> &'static [(f64, usize)] {
+    static ORDER: std::sync::OnceLock<Vec<(f64, usize)>> = std::sync::OnceLock::new();
+    ORDER.get_or_init(|| {
+        let mut order: Vec<(f64, usize)> = sunflower()
+            .iter()
+            .enumerate()
+            .map(|(i, &(x, y))| (y.atan2(x), i))
+            .collect();
+        order.sort_by(|p, q| p.0.total_cmp(&q.0));
+        order
+    })
+}
+
+/// Every sunflower line number once, nearest in azimuth to `azimuth`
+/// first: the lines from it onwards and back, taken in turn.
+fn by_azimuth_from(azimuth: f64) -> impl Iterator<Item = usize> {
+    let order = by_azimuth();
+    let n = order.len();
+    let start = order.partition_point(|&(a, _)| a < azimuth) % n;
+    (0..n).map(move |m| {
+        let j = if m % 2 == 0 {
+            (start + m / 2) % n
+        } else {
+            (start + n - 1 - m / 2) % n
+        };
+        order[j].1
+    })
 }
 
 /// The [`SILHOUETTE_RAYS`] points of the sunflower pattern on the unit
