@@ -851,13 +851,7 @@ impl LineBasis {
         let distance = to_centre.norm();
         let axis = to_centre / distance;
         let tan_half = (radius_mm / distance).clamp(-1.0, 1.0).asin().tan();
-        let helper = if axis.x.abs() < 0.9 {
-            Vector3::x()
-        } else {
-            Vector3::y()
-        };
-        let e1 = axis.cross(&helper).normalize();
-        let e2 = axis.cross(&e1);
+        let (e1, e2) = crate::linalg::perpendicular_pair(&axis);
         LineBasis {
             axis,
             e1,

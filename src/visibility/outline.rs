@@ -18,7 +18,7 @@
 //! hair inside the limb, the lines count what `render`'s ground truth
 //! counts ([`crate::render::Hidden`]), and a test holds the two together.
 
-use super::{occluders, Supports};
+use super::{occluders, LineBasis, Supports};
 use crate::camera::Camera;
 use crate::pose::Pose;
 use nalgebra::Vector3;
@@ -85,16 +85,12 @@ fn outline_lines(
     fx_px: f64,
     inset_px: f64,
 ) -> impl Iterator<Item = Vector3<f64>> {
-    let to_centre = centre - eye;
-    let distance = to_centre.norm();
-    let axis = to_centre / distance;
-    let tan_half = (radius_mm / distance).clamp(-1.0, 1.0).asin().tan();
-    let inset = (inset_px / (fx_px * tan_half)).clamp(0.0, 1.0);
-    let reach = tan_half * (1.0 - inset);
-    let (e1, e2) = crate::linalg::perpendicular_pair(&axis);
+    let basis = LineBasis::new(eye, centre, radius_mm);
+    let inset = (inset_px / (fx_px * basis.tan_half)).clamp(0.0, 1.0);
+    let reach = basis.tan_half * (1.0 - inset);
     (0..OUTLINE_LINES).map(move |k| {
         let turn = std::f64::consts::TAU * k as f64 / OUTLINE_LINES as f64;
-        (axis + (e1 * turn.cos() + e2 * turn.sin()) * reach).normalize()
+        (basis.axis + (basis.e1 * turn.cos() + basis.e2 * turn.sin()) * reach).normalize()
     })
 }
 
