@@ -7,6 +7,7 @@
 //! cargo run --release --example track_accuracy -- hidden [POSES]
 //! cargo run --release --example track_accuracy -- speed [RUNS]
 //! cargo run --release --example track_accuracy -- lost [TRIALS]
+//! cargo run --release --example track_accuracy -- bias
 //! ```
 //!
 //! * `centres`: noise-free renders (16 bit, σ 0.5 px blur, 8×8
@@ -634,6 +635,65 @@ fn occluding_parts(scene: &layout_opt::render::Scene, pose: &Pose, k: usize) -> 
         .join(", ")
 }
 
+/// Noise-free renders (16×16 supersampling) of the winner near head on at
+/// 800 and 1000 mm, with its part and with the spheres alone: each whole
+/// sphere's ellipse-centre error both ways, and the rotation error.
+fn bias(part: &Part, camera: Camera) {
+    let config = TrackConfig::new(&part.layout, camera);
+    let render = frames::noise_free(camera, layout_opt::render::config::MAX_SUPERSAMPLING);
+    let bare = Part {
+        layout: part.layout.clone(),
+        scene: layout_opt::render::Scene::spheres_only(part.scene.spheres()),
+        names: part.names.clone(),
+    };
+    let views: Vec<(f64, f64, f64)> = [800.0, 1000.0]
+        .into_iter()
+        .flat_map(|d| [-10.0, 0.0, 10.0].map(move |t| (d, t, 0.0)))
+        .chain([(1000.0, 0.0, 10.0), (1000.0, 0.0, -10.0)])
+        .collect();
+    let rows: Vec<String> = views
+        .par_iter()
+        .map(|&(depth, tilt, pan)| {
+            let truth = centred(&camera, depth, tilt, pan, 10.0);
+            let mut line = format!("{depth:.0} mm tilt {tilt:+.0} pan {pan:+.0}:");
+            for (name, which) in [("part", part), ("bare", &bare)] {
+                let rendered = which.render(&render, &truth);
+                let analysis = analyse(&config, &rendered.frame());
+                let Some(detection) = analysis.detection.as_ref() else {
+                    line += &format!(" {name}: no detection");
+                    continue;
+                };
+                let mut errors = Vec::new();
+                for sphere in &rendered.truth.spheres {
+                    let e = blob_of_sphere(&detection.blobs, sphere)
+                        .filter(|&b| hidden_fraction(sphere) == 0.0 && !detection.blobs[b].hidden())
+                        .map(|b| {
+                            (Vector2::from(detection.blobs[b].ellipse_centre_px)
+                                - ellipse_centre(sphere))
+                            .norm()
+                        });
+                    errors.push(e.map_or("  -  ".to_string(), |e| format!("{e:.3}")));
+                }
+                let rotation = match &analysis.outcome {
+                    Ok(tracked) => format!(
+                        "{:.4}°",
+                        rotation_error_deg(&truth.rotation, &pose_of(tracked).rotation)
+                    ),
+                    Err(e) => format!("lost ({e})"),
+                };
+                line += &format!(
+                    "\n   {name}: centre errors px [{}], rotation {rotation}",
+                    errors.join(" ")
+                );
+            }
+            line
+        })
+        .collect();
+    for row in rows {
+        println!("{row}");
+    }
+}
+
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let part = Part::winner();
@@ -646,8 +706,9 @@ fn main() {
         Some("hidden") => hidden(&part, camera, number(1, 600)),
         Some("speed") => speed(&part, camera, number(1, 300)),
         Some("lost") => lost(&part, camera, number(1, 20)),
+        Some("bias") => bias(&part, camera),
         _ => eprintln!(
-            "usage: track_accuracy centres | labels [POSES] [REALISATIONS] | hidden [POSES] | speed [RUNS] | lost [TRIALS]"
+            "usage: track_accuracy centres | labels [POSES] [REALISATIONS] | hidden [POSES] | speed [RUNS] | lost [TRIALS] | bias"
         ),
     }
 }

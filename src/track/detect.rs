@@ -35,7 +35,10 @@
 //!      subpixel phase; linear interpolation of the half level would be off
 //!      by up to a tenth of a pixel, periodically in the phase, which a
 //!      small disc does not average away. The local levels also take out a
-//!      dimmer support beside the sphere and the limb's darkening;
+//!      dimmer support beside the sphere and the limb's darkening. The
+//!      outside level is the one under the edge ([`TAIL_SHARE`]): where a
+//!      support or the base plate's edge changes the background within
+//!      the three samples outside, the level next to the limb is taken;
 //!    * with lens distortion, the edge points are undistorted first, so the
 //!      silhouette is an exact conic again ([`crate::sphere_image`]);
 //!    * the **ellipse** by the direct least-squares fit ([`super::conic`]),
@@ -1004,6 +1007,36 @@ fn shift_across(
     (inside(x, y) && !foreign(x, y)).then_some((x, y))
 }
 
+/// The share of the step beyond the edge that a blurred edge's tail may
+/// leave in the sample just outside, over the one before it (about a tenth
+/// at the render's σ 0.5 px blur; a wider blur leaves more).
+pub const TAIL_SHARE: f64 = 0.3;
+
+/// The background level under an edge point's crossing, from the samples
+/// one (`dark`), two (`outer`) and three (`outer2`) steps beyond the
+/// bright pixel. On an even background the sample two out holds what is
+/// left of the blurred edge's tail, so the level is `outer2`. Where the
+/// background itself changes within those pixels (a support or the base
+/// plate's edge just behind the limb), the level farthest out is not the
+/// one under the edge:
+/// * the profile dips right outside the limb (`outer` below `outer2`
+///   beyond the noise): the background darkens towards the limb, and the
+///   level is carried on from `outer2` through `outer` by one more step;
+/// * the profile falls from `outer` to `outer2` by more than an edge's
+///   tail can (`TAIL_SHARE` of what `dark` stands above `outer2`): the
+///   background steps down between them, and `outer`, next to the edge,
+///   is the level.
+fn local_outside_level(dark: f64, outer: f64, outer2: f64, noise: f64) -> f64 {
+    let margin = 3.0 * noise;
+    if outer < outer2 - margin {
+        (2.0 * outer - outer2).min(outer)
+    } else if outer - outer2 > TAIL_SHARE * (dark - outer2).max(0.0) + margin {
+        outer
+    } else {
+        outer2
+    }
+}
+
 /// Measures component `id` of the window's labels (module docs, step 3).
 fn measure(
     context: &Context,
@@ -1190,7 +1223,8 @@ fn measure(
         }
         // Six samples along the scan, at −2…3 steps from `bright`.
         let samples = [inner2, inner, bright, dark, outer, outer2].map(|q| value(q.0, q.1));
-        let (inside_level, outside_level) = (samples[0], samples[5]);
+        let inside_level = samples[0];
+        let outside_level = local_outside_level(samples[3], samples[4], samples[5], noise);
         let local_step = inside_level - outside_level;
         if local_step < MIN_LOCAL_STEP * step {
             return;
@@ -1608,5 +1642,48 @@ mod tests {
         let mut flat = [0u64; 256];
         flat[7] = 5;
         assert_eq!(otsu_bin(&flat), None);
+    }
+    /// A 6.5 px disc on a grey plate whose edge, a straight line, runs
+    /// 1.5 px beyond the disc's limb (the dark beyond it): the samples
+    /// three pixels out read the dark, not the plate behind the limb. The
+    /// ellipse centre stays within 0.02 px (0.014 px; before, when those samples
+    /// set the outside level, the plate's grey counted as disc: 0.084 px).
+    #[test]
+    fn a_background_step_just_outside_the_limb_does_not_pull_the_centre() {
+        let (width, height) = (100u32, 80u32);
+        let camera = Camera::new(1000.0, 1000.0, 50.0, 40.0, width, height, [0.0; 5]).unwrap();
+        let (cx, cy, r) = (50.3, 40.6, 6.5);
+        let (nx, ny) = (0.3f64.cos(), 0.3f64.sin());
+        let reach = r + 1.5;
+        let level = |x: f64, y: f64| {
+            if (x - cx).powi(2) + (y - cy).powi(2) < r * r {
+                900.0
+            } else if (x - cx) * nx + (y - cy) * ny < reach {
+                150.0
+            } else {
+                20.0
+            }
+        };
+        let n = 16;
+        let mut pixels = vec![0u16; (width * height) as usize];
+        for y in 0..height {
+            for x in 0..width {
+                let mut sum = 0.0;
+                for sy in 0..n {
+                    for sx in 0..n {
+                        let px = x as f64 - 0.5 + (sx as f64 + 0.5) / n as f64;
+                        let py = y as f64 - 0.5 + (sy as f64 + 0.5) / n as f64;
+                        sum += level(px, py);
+                    }
+                }
+                pixels[(y * width + x) as usize] = (64.0 * sum / (n * n) as f64).round() as u16;
+            }
+        }
+        let frame = GreyFrame::new(width, height, 16, pixels).unwrap();
+        let detection = detect(&frame, &camera, &DetectorConfig::default(), 5.0, 4).unwrap();
+        assert_eq!(detection.blobs.len(), 1, "{detection:?}");
+        let [x, y] = detection.blobs[0].ellipse_centre_px;
+        let error = (x - cx).hypot(y - cy);
+        assert!(error < 0.02, "{error} px: {:?}", detection.blobs[0]);
     }
 }
