@@ -173,9 +173,9 @@ impl ImagePreset {
     /// The preset in words, for the report.
     pub fn describe(self) -> String {
         let what = match self {
-            ImagePreset::Paper => "retroreflective spheres under a ring light, render's default sensor and optics",
+            ImagePreset::Paper => "retroreflective spheres under a ring light, render's default sensor and blur",
             ImagePreset::MachineVision => "1440×1080 machine-vision camera (f 1739 px), ring light and retroreflective spheres, full well 10,500 e⁻, read noise 2.2 e⁻",
-            ImagePreset::Diffuse => "diffuse white print under room light (render's diffuse lighting), render's default sensor and optics, tracker threshold fixed at 0.55",
+            ImagePreset::Diffuse => "diffuse white print under room light (render's diffuse lighting), render's default sensor and blur, tracker threshold fixed at 0.55",
         };
         format!("preset {}: {what}", self.name())
     }
@@ -228,6 +228,8 @@ impl ImageCheck {
     /// part and blur where they depart from it.
     pub fn describe(&self) -> String {
         let mut text = self.preset.describe();
+        let n = crate::render::config::MAX_SUPERSAMPLING;
+        text.push_str(&format!("; frames sub-sampled {n} × {n} per edge pixel"));
         if self.spheres_only {
             text.push_str("; the spheres alone, without supports or plate");
         }
