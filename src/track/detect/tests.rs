@@ -1,0 +1,301 @@
+//! Tests of the parent module.
+
+use super::*;
+
+/// A frame with two area-sampled discs (8×8 subsamples) on a dark
+/// background, one cut by the right image border.
+fn two_discs() -> GreyFrame {
+    let (width, height) = (120u32, 80u32);
+    let discs = [(40.3, 37.7, 9.0), (116.0, 20.0, 7.0)];
+    let mut pixels = vec![20u16; (width * height) as usize];
+    for y in 0..height {
+        for x in 0..width {
+            let mut covered = 0;
+            for sy in 0..8 {
+                for sx in 0..8 {
+                    let px = x as f64 - 0.5 + (sx as f64 + 0.5) / 8.0;
+                    let py = y as f64 - 0.5 + (sy as f64 + 0.5) / 8.0;
+                    if discs
+                        .iter()
+                        .any(|(cx, cy, r)| (px - cx).powi(2) + (py - cy).powi(2) < r * r)
+                    {
+                        covered += 1;
+                    }
+                }
+            }
+            pixels[(y * width + x) as usize] =
+                (20.0 + 200.0 * covered as f64 / 64.0).round() as u16;
+        }
+    }
+    GreyFrame::new(width, height, 8, pixels).unwrap()
+}
+
+#[test]
+fn finds_a_disc_to_a_fraction_of_a_pixel_and_flags_the_clipped_one() {
+    let frame = two_discs();
+    let camera = Camera::new(1000.0, 1000.0, 60.0, 40.0, 120, 80, [0.0; 5]).unwrap();
+    let detection = detect(&frame, &camera, &DetectorConfig::default(), 5.0, 10).unwrap();
+    assert_eq!(detection.blobs.len(), 2, "{detection:?}");
+    let clipped = &detection.blobs[0];
+    assert!(
+        clipped.hidden_because.contains(&"touches the image border"),
+        "{:?}",
+        clipped.hidden_because
+    );
+    let whole = &detection.blobs[1];
+    assert!(!whole.hidden(), "{whole:?}");
+    for centre in [whole.ellipse_centre_px, whole.centroid_px] {
+        let error = ((centre[0] - 40.3).powi(2) + (centre[1] - 37.7).powi(2)).sqrt();
+        assert!(error < 0.05, "{centre:?}");
+    }
+    assert!(
+        (whole.semi_axes_px[0] - 9.0).abs() < 0.1,
+        "{:?}",
+        whole.semi_axes_px
+    );
+    assert!(
+        (whole.filled_fraction - 1.0).abs() < 0.02,
+        "{}",
+        whole.filled_fraction
+    );
+    assert!(matches!(
+        detect(&frame, &camera, &DetectorConfig::default(), 5.0, 1),
+        Err(DetectError::TooManyBlobs { max: 1, found: 2 })
+    ));
+}
+
+/// Two area-sampled discs (radius 9 px) whose edges pass 0.8 px apart,
+/// blurred by a [1 2 1]/4 kernel each way: the pixels between them
+/// rise above the threshold, so they form one component that no
+/// ellipse fits; split at their cores, each is found with its centre
+/// to a tenth of a pixel.
+#[test]
+fn two_discs_the_threshold_joins_are_split() {
+    let (width, height) = (120u32, 80u32);
+    let discs = [(40.3, 40.2, 9.0), (59.1, 40.2, 9.0)];
+    let mut pixels = vec![20u16; (width * height) as usize];
+    for y in 0..height {
+        for x in 0..width {
+            let mut covered = 0;
+            for sy in 0..8 {
+                for sx in 0..8 {
+                    let px = x as f64 - 0.5 + (sx as f64 + 0.5) / 8.0;
+                    let py = y as f64 - 0.5 + (sy as f64 + 0.5) / 8.0;
+                    if discs
+                        .iter()
+                        .any(|(cx, cy, r)| (px - cx).powi(2) + (py - cy).powi(2) < r * r)
+                    {
+                        covered += 1;
+                    }
+                }
+            }
+            pixels[(y * width + x) as usize] =
+                (20.0 + 200.0 * covered as f64 / 64.0).round() as u16;
+        }
+    }
+    let (w, h) = (width as usize, height as usize);
+    let blur = |p: &[u16], step: usize, limit: usize, along: fn(usize, usize) -> usize| {
+        (0..p.len())
+            .map(|i| {
+                let k = along(i, w);
+                let a = if k > 0 { p[i - step] } else { p[i] };
+                let b = if k + 1 < limit { p[i + step] } else { p[i] };
+                ((u32::from(a) + 2 * u32::from(p[i]) + u32::from(b) + 2) / 4) as u16
+            })
+            .collect::<Vec<u16>>()
+    };
+    let pixels = blur(&pixels, 1, w, |i, w| i % w);
+    let pixels = blur(&pixels, w, h, |i, w| i / w);
+    let frame = GreyFrame::new(width, height, 8, pixels.clone()).unwrap();
+    let camera = Camera::new(1000.0, 1000.0, 60.0, 40.0, 120, 80, [0.0; 5]).unwrap();
+    let whole = DetectorConfig::default();
+    let detection = detect(&frame, &camera, &whole, 5.0, 10).unwrap();
+    assert_eq!(detection.rejected.shape, 0, "{detection:?}");
+    // One component at the threshold: the row through the neck stays
+    // above it from one disc's middle to the other's.
+    let level = detection.threshold_level * 255.0;
+    assert!(
+        (40..=59).all(|x| f64::from(pixels[40 * w + x]) > level),
+        "{:?}",
+        &pixels[40 * w + 40..=40 * w + 59]
+    );
+    assert_eq!(detection.blobs.len(), 2, "{detection:?}");
+    for (blob, (cx, cy, _)) in detection.blobs.iter().zip(discs) {
+        let [x, y] = blob.ellipse_centre_px;
+        assert!((x - cx).hypot(y - cy) < 0.1, "{blob:?}");
+    }
+}
+
+/// A frame with an area-sampled bright disc (8×8 subsamples) on a dark
+/// background, less whatever the dark `occluders` (discs in front of
+/// it) cover.
+fn occluded_disc(disc: (f64, f64, f64), occluders: &[(f64, f64, f64)]) -> GreyFrame {
+    let (width, height) = (100u32, 80u32);
+    let within =
+        |(cx, cy, r): (f64, f64, f64), x: f64, y: f64| (x - cx).powi(2) + (y - cy).powi(2) < r * r;
+    let mut pixels = vec![20u16; (width * height) as usize];
+    for y in 0..height {
+        for x in 0..width {
+            let mut covered = 0;
+            for sy in 0..8 {
+                for sx in 0..8 {
+                    let px = x as f64 - 0.5 + (sx as f64 + 0.5) / 8.0;
+                    let py = y as f64 - 0.5 + (sy as f64 + 0.5) / 8.0;
+                    if within(disc, px, py) && !occluders.iter().any(|o| within(*o, px, py)) {
+                        covered += 1;
+                    }
+                }
+            }
+            pixels[(y * width + x) as usize] =
+                (20.0 + 200.0 * covered as f64 / 64.0).round() as u16;
+        }
+    }
+    GreyFrame::new(width, height, 8, pixels).unwrap()
+}
+
+/// A dark disc in front of a 10 px disc's rim cuts a notch 1 px deep
+/// into a fifth of its outline (and 1 % of its area): the notch is cut
+/// away, the blob is used, and its centre comes from the rest of the
+/// outline to within 0.03 px. A notch 4 px deep flags the blob.
+#[test]
+fn a_notched_disc_is_measured_from_its_clean_outline() {
+    let camera = Camera::new(1000.0, 1000.0, 50.0, 40.0, 100, 80, [0.0; 5]).unwrap();
+    let disc = (50.3, 40.6, 10.0);
+    let toward = 0.6f64;
+    let occluder = |depth: f64| {
+        let r = 6.0;
+        let d = disc.2 + r - depth;
+        (disc.0 + d * toward.cos(), disc.1 + d * toward.sin(), r)
+    };
+    let config = DetectorConfig::default();
+    let shallow = detect(
+        &occluded_disc(disc, &[occluder(1.0)]),
+        &camera,
+        &config,
+        5.0,
+        4,
+    )
+    .unwrap();
+    assert_eq!(shallow.blobs.len(), 1, "{shallow:?}");
+    let blob = &shallow.blobs[0];
+    assert!(!blob.hidden(), "{blob:?}");
+    assert!(
+        (0.1..=0.3).contains(&blob.outline_dropped),
+        "{}",
+        blob.outline_dropped
+    );
+    let [x, y] = blob.ellipse_centre_px;
+    let error = (x - disc.0).hypot(y - disc.1);
+    assert!(error < 0.03, "{error} px: {blob:?}");
+    // The same edge without the cut: the fit leans into the notch.
+    let deep = detect(
+        &occluded_disc(disc, &[occluder(4.0)]),
+        &camera,
+        &config,
+        5.0,
+        4,
+    )
+    .unwrap();
+    assert_eq!(deep.blobs.len(), 1, "{deep:?}");
+    assert!(deep.blobs[0].hidden(), "{:?}", deep.blobs[0]);
+}
+
+/// Seeded points round a circle with a tapered notch pulled 0.8 px
+/// into 80° of it: the plain direct fit leans into the notch by more
+/// than a tenth of a pixel, [`fit_outline`] cuts the notch away and
+/// finds the centre to within 0.02 px, the same on every run; a whole
+/// circle loses no arc.
+#[test]
+fn fit_outline_cuts_a_notch_away_and_the_plain_fit_does_not() {
+    use rand::{Rng, SeedableRng};
+    let centre = Vector2::new(50.3, 40.7);
+    let (radius, sigma, count) = (10.0, 0.02, 120);
+    let notch_at = 1.0f64;
+    let half_width = 40f64.to_radians();
+    let points = |notched: bool| -> Vec<Vector2<f64>> {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(0x0C7);
+        (0..count)
+            .map(|i| {
+                let angle = TAU * i as f64 / count as f64;
+                let off = (angle - notch_at + 0.5 * TAU).rem_euclid(TAU) - 0.5 * TAU;
+                let depth = if notched && off.abs() < half_width {
+                    0.8 * (1.0 - (off / half_width).powi(2))
+                } else {
+                    0.0
+                };
+                let noise = sigma * (rng.random::<f64>() - 0.5) * 12f64.sqrt();
+                centre + (radius - depth + noise) * Vector2::new(angle.cos(), angle.sin())
+            })
+            .collect()
+    };
+    let sigmas = vec![sigma; count];
+    let tolerances = vec![MIN_EDGE_TOLERANCE_PX.max(EDGE_OUTLIER_SIGMAS * sigma); count];
+    let notched = points(true);
+    let plain = fit_ellipse(&notched).unwrap();
+    assert!((plain.centre - centre).norm() > 0.1, "{plain:?}");
+    let robust = fit_outline(&notched, &sigmas, &tolerances).unwrap();
+    assert!((robust.ellipse.centre - centre).norm() < 0.02, "{robust:?}");
+    let cut = robust.notch.iter().filter(|c| **c).count() as f64 / count as f64;
+    assert!((0.1..=0.3).contains(&cut), "{cut}");
+    assert_eq!(fit_outline(&notched, &sigmas, &tolerances), Some(robust));
+    let whole = fit_outline(&points(false), &sigmas, &tolerances).unwrap();
+    assert!(whole.notch.iter().all(|c| !c), "{whole:?}");
+    assert!((whole.ellipse.centre - centre).norm() < 0.01, "{whole:?}");
+    // Mismatched inputs are refused, not a panic.
+    assert_eq!(fit_outline(&notched, &sigmas[1..], &tolerances), None);
+}
+
+#[test]
+fn otsu_splits_two_modes_and_refuses_one() {
+    let mut histogram = [0u64; 256];
+    histogram[10] = 1000;
+    histogram[200] = 10;
+    let bin = otsu_bin(&histogram).unwrap();
+    assert!((10..200).contains(&bin));
+    let mut flat = [0u64; 256];
+    flat[7] = 5;
+    assert_eq!(otsu_bin(&flat), None);
+}
+/// A 6.5 px disc on a grey plate whose edge, a straight line, runs
+/// 1.5 px beyond the disc's limb (the dark beyond it): the samples
+/// three pixels out read the dark, not the plate behind the limb. The
+/// ellipse centre stays within 0.02 px (0.014 px; before, when those samples
+/// set the outside level, the plate's grey counted as disc: 0.084 px).
+#[test]
+fn a_background_step_just_outside_the_limb_does_not_pull_the_centre() {
+    let (width, height) = (100u32, 80u32);
+    let camera = Camera::new(1000.0, 1000.0, 50.0, 40.0, width, height, [0.0; 5]).unwrap();
+    let (cx, cy, r) = (50.3, 40.6, 6.5);
+    let (nx, ny) = (0.3f64.cos(), 0.3f64.sin());
+    let reach = r + 1.5;
+    let level = |x: f64, y: f64| {
+        if (x - cx).powi(2) + (y - cy).powi(2) < r * r {
+            900.0
+        } else if (x - cx) * nx + (y - cy) * ny < reach {
+            150.0
+        } else {
+            20.0
+        }
+    };
+    let n = 16;
+    let mut pixels = vec![0u16; (width * height) as usize];
+    for y in 0..height {
+        for x in 0..width {
+            let mut sum = 0.0;
+            for sy in 0..n {
+                for sx in 0..n {
+                    let px = x as f64 - 0.5 + (sx as f64 + 0.5) / n as f64;
+                    let py = y as f64 - 0.5 + (sy as f64 + 0.5) / n as f64;
+                    sum += level(px, py);
+                }
+            }
+            pixels[(y * width + x) as usize] = (64.0 * sum / (n * n) as f64).round() as u16;
+        }
+    }
+    let frame = GreyFrame::new(width, height, 16, pixels).unwrap();
+    let detection = detect(&frame, &camera, &DetectorConfig::default(), 5.0, 4).unwrap();
+    assert_eq!(detection.blobs.len(), 1, "{detection:?}");
+    let [x, y] = detection.blobs[0].ellipse_centre_px;
+    let error = (x - cx).hypot(y - cy);
+    assert!(error < 0.02, "{error} px: {:?}", detection.blobs[0]);
+}
