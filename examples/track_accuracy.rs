@@ -6,7 +6,7 @@
 //! cargo run --release --example track_accuracy -- labels [POSES] [REALISATIONS]
 //! cargo run --release --example track_accuracy -- hidden [POSES]
 //! cargo run --release --example track_accuracy -- speed [RUNS]
-//! cargo run --release --example track_accuracy -- lost [TRIALS]
+//! cargo run --release --example track_accuracy -- lost [TRIALS] [TILT_STEP]
 //! cargo run --release --example track_accuracy -- bias
 //! ```
 //!
@@ -28,7 +28,8 @@
 //!   of the outline and by how deep the support's notch reaches into the
 //!   disc ([`frames::support_reach_px`]).
 //! * `lost`: `validate --images`' part (supports routed for the paper's
-//!   protocol) and grid (10° tilt step) for the winner, each visible
+//!   protocol) and grid (`TILT_STEP`, 10° by default; `validate`'s own
+//!   default is 2°) for the winner, each visible
 //!   scenario read `TRIALS` times with seed 7: the share of frames lost by
 //!   reason, and per view the first lost frame's blobs flagged as partly
 //!   hidden (or missing) beside the render's hidden fractions, the
@@ -445,19 +446,19 @@ fn speed(part: &Part, camera: Camera, runs: u64) {
 }
 
 /// `validate --images`'s part and grid for the winner (the supports routed
-/// for the paper's protocol at a 10° tilt step, every visible scenario read
+/// for the paper's protocol at a tilt step of `tilt_step_deg`, every visible scenario read
 /// `trials` times with seed 7): the share of frames lost, by reason, and
 /// every blob flagged as partly hidden in a frame lost for too few blobs,
 /// beside the render's hidden fractions of its sphere and the visibility
 /// model's support-hidden fraction.
-fn lost(part: &Part, camera: Camera, trials: u64) {
+fn lost(part: &Part, camera: Camera, trials: u64, tilt_step_deg: f64) {
     use layout_opt::mesh::{marker_for_range, MarkerOptions};
     use layout_opt::render::{expose, frame_truth, render_radiance, RenderConfig, Scene};
     use layout_opt::scenario::{sphere_images, visibility, ScenarioGrid};
     use layout_opt::track::GreyFrame;
     use layout_opt::visibility::{support_fractions, MaxHidden, Supports, WorkingRange};
     let layout = &part.layout;
-    let scenarios = ScenarioGrid::paper_protocol(10.0).scenarios();
+    let scenarios = ScenarioGrid::paper_protocol(tilt_step_deg).scenarios();
     let max_hidden = MaxHidden::default();
     let range = WorkingRange {
         camera,
@@ -705,7 +706,7 @@ fn main() {
         Some("labels") => labels(&part, camera, number(1, 1000), number(2, 10)),
         Some("hidden") => hidden(&part, camera, number(1, 600)),
         Some("speed") => speed(&part, camera, number(1, 300)),
-        Some("lost") => lost(&part, camera, number(1, 20)),
+        Some("lost") => lost(&part, camera, number(1, 20), number(2, 10) as f64),
         Some("bias") => bias(&part, camera),
         _ => eprintln!(
             "usage: track_accuracy centres | labels [POSES] [REALISATIONS] | hidden [POSES] | speed [RUNS] | lost [TRIALS] | bias"

@@ -92,6 +92,10 @@ const NOISE_KEPT: f64 = 0.9;
 /// RMS of a standard normal variable over its values within the central
 /// 90 % (`NOISE_KEPT`): `√(1 − 2·1.645·φ(1.645)/0.9)`.
 const KEPT_RMS: f64 = 0.789;
+/// A component whose bright cores ([`split_cores`]) cover less than this
+/// share of its pixels is a dimmer region holding brighter discs, not a
+/// disc: a sphere's plateau is most of its blob.
+pub const DIM_REGION_CORE_SHARE: f64 = 0.25;
 /// Side of the coarse cells, px.
 pub const CELL_PX: usize = 4;
 /// Pixels added around a component's bounding box for its measurement (a
@@ -470,11 +474,20 @@ pub fn detect(
                 stats.first,
                 measure(&context, &levels, &labels, &window, id as u32 + 1, stats),
             )];
-            // Two discs that the blur joins: each bright core on its own.
-            if matches!(measured[0].1, Err(Reason::Shape)) {
-                if let Some((split, ids)) =
-                    split_cores(frame, &levels, &labels, &window, id as u32 + 1, config)
-                {
+            // Two discs that the blur joins, or discs in front of a dimmer
+            // region above the threshold: each bright core on its own.
+            let failed = matches!(measured[0].1, Err(Reason::Shape | Reason::Large));
+            let flagged = matches!(&measured[0].1, Ok(blob) if blob.hidden());
+            if failed || flagged {
+                if let Some((split, ids)) = split_cores(
+                    frame,
+                    &levels,
+                    &labels,
+                    &window,
+                    id as u32 + 1,
+                    config,
+                    failed,
+                ) {
                     let parts = component_stats(&split, &window);
                     let pieces: Vec<_> = ids
                         .iter()
@@ -517,15 +530,23 @@ pub fn detect(
     Ok(detection)
 }
 
-/// Component `id` of the window's `labels` split at its bright cores, for
-/// a component that no ellipse fits: the pixels above the level half-way
-/// from the threshold to the component's peak, 8-connected, are its cores
-/// (those of at least a quarter of `min_area_px`); with two or more, every
-/// pixel of the component goes to the core it reaches first, breadth first
-/// within the component (8-connected), so that two discs the blur joins
-/// across a gap of a pixel come apart along the dim neck between them.
+/// Component `id` of the window's `labels` split at its bright cores: the
+/// pixels above the level half-way from the threshold to the component's
+/// peak, 8-connected (those of at least a quarter of `min_area_px`).
+/// * When the cores cover less than [`DIM_REGION_CORE_SHARE`] of the
+///   component, it is a dimmer region holding brighter discs (a grey base
+///   plate above a global threshold, with spheres in front of it): each
+///   core grows, breadth first (8-connected), into the component's pixels
+///   at least [`CENTROID_FLOOR`] of the way from the threshold to the peak,
+///   and the rest of the region is left out. One core is enough.
+/// * Otherwise, only for a component that failed as one disc (`failed`:
+///   no ellipse fits it, or it is too large), with two or more cores: every
+///   pixel of the component goes to the core it reaches first, so that two
+///   discs the blur joins across a gap of a pixel come apart along the dim
+///   neck between them.
+///
 /// Returns the window's labels with the component's pixels relabelled and
-/// the new labels, or `None` for fewer than two cores.
+/// the new labels, or `None` when neither case applies.
 fn split_cores(
     frame: &GreyFrame,
     levels: &Levels,
@@ -533,6 +554,7 @@ fn split_cores(
     window: &Window,
     id: u32,
     config: &DetectorConfig,
+    failed: bool,
 ) -> Option<(Vec<u32>, Vec<u32>)> {
     let w = window.width();
     let h = window.y1 - window.y0;
@@ -569,9 +591,20 @@ fn split_cores(
             ids.push(next + ids.len() as u32);
         }
     }
-    if ids.len() < 2 {
+    let count = labels.iter().filter(|&&l| l == id).count();
+    let core_pixels: usize = sizes.iter().filter(|&&n| n >= min_core).sum();
+    let dim_region = (core_pixels as f64) < DIM_REGION_CORE_SHARE * count as f64;
+    if !(dim_region && !ids.is_empty() || failed && ids.len() >= 2) {
         return None;
     }
+    // In a dim region a core keeps to its own ramp; joined discs share all.
+    let floor = |i: usize| {
+        if dim_region {
+            level(i) + CENTROID_FLOOR * (peak - level(i))
+        } else {
+            f64::MIN
+        }
+    };
     let mut split = labels.to_vec();
     let mut queue = std::collections::VecDeque::new();
     for i in 0..split.len() {
@@ -602,7 +635,7 @@ fn split_cores(
                 continue;
             }
             let j = ny as usize * w + nx as usize;
-            if labels[j] == id && split[j] == 0 {
+            if labels[j] == id && split[j] == 0 && value(j) > floor(j) {
                 split[j] = split[i];
                 queue.push_back(j);
             }

@@ -299,3 +299,63 @@ fn a_background_step_just_outside_the_limb_does_not_pull_the_centre() {
     let error = (x - cx).hypot(y - cy);
     assert!(error < 0.02, "{error} px: {:?}", detection.blobs[0]);
 }
+
+/// Bright discs in front of a large grey plate that Otsu's level puts in
+/// the foreground with them (the plate is half the frame): the plate and
+/// the discs on it make one component, which is re-segmented at its bright
+/// cores. Every disc is found whole, its centre to a few hundredths of a
+/// pixel, and the plate itself is no blob.
+#[test]
+fn discs_in_front_of_a_plate_above_the_threshold_are_found() {
+    let (width, height) = (160u32, 120u32);
+    let camera = Camera::new(1000.0, 1000.0, 80.0, 60.0, width, height, [0.0; 5]).unwrap();
+    let discs = [
+        (50.3, 50.6, 5.0),
+        (101.7, 48.2, 5.5),
+        (75.4, 85.9, 4.5),
+        (125.2, 8.1, 5.0),
+    ];
+    let plate = |x: f64, y: f64| (20.0..140.0).contains(&x) && (20.0..100.0).contains(&y);
+    let level = |x: f64, y: f64| {
+        if discs
+            .iter()
+            .any(|(cx, cy, r)| (x - cx).powi(2) + (y - cy).powi(2) < r * r)
+        {
+            230.0
+        } else if plate(x, y) {
+            70.0
+        } else {
+            20.0
+        }
+    };
+    let n = 8;
+    let mut pixels = vec![0u16; (width * height) as usize];
+    for y in 0..height {
+        for x in 0..width {
+            let mut sum = 0.0;
+            for sy in 0..n {
+                for sx in 0..n {
+                    let px = x as f64 - 0.5 + (sx as f64 + 0.5) / n as f64;
+                    let py = y as f64 - 0.5 + (sy as f64 + 0.5) / n as f64;
+                    sum += level(px, py);
+                }
+            }
+            pixels[(y * width + x) as usize] = (sum / (n * n) as f64).round() as u16;
+        }
+    }
+    let frame = GreyFrame::new(width, height, 8, pixels).unwrap();
+    let detection = detect(&frame, &camera, &DetectorConfig::default(), 5.0, 10).unwrap();
+    // The plate is above Otsu's level: one class is the background alone.
+    assert!(detection.threshold_level < 70.0 / 255.0, "{detection:?}");
+    assert_eq!(detection.blobs.len(), discs.len(), "{detection:?}");
+    for (cx, cy, r) in discs {
+        let blob = detection
+            .blobs
+            .iter()
+            .find(|b| (b.ellipse_centre_px[0] - cx).hypot(b.ellipse_centre_px[1] - cy) < r)
+            .unwrap_or_else(|| panic!("no blob at ({cx}, {cy}): {detection:?}"));
+        assert!(!blob.hidden(), "{blob:?}");
+        let [x, y] = blob.ellipse_centre_px;
+        assert!((x - cx).hypot(y - cy) < 0.03, "({cx}, {cy}): {blob:?}");
+    }
+}
