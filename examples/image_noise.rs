@@ -30,8 +30,8 @@
 use layout_opt::camera::Camera;
 use layout_opt::layout::Layout;
 use layout_opt::mesh::{Marker, MarkerOptions};
-use layout_opt::noise::calibrated::fit;
 use layout_opt::noise::calibrated::CalibrationFile;
+use layout_opt::noise::calibrated::{fit, CentreErrorMeasure};
 use layout_opt::render::{frame_truth, render_radiance};
 use layout_opt::render::{RenderConfig, Scene};
 use layout_opt::track::GreyFrame;
@@ -77,7 +77,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut all = Vec::new();
     let mut cross = Vec::new();
     for (depth, images, centroids) in results.iter().flatten() {
-        let samples = sigma_samples(std::slice::from_ref(images));
+        let samples = sigma_samples(std::slice::from_ref(images), CentreErrorMeasure::Scatter);
         let radii: Vec<String> = samples
             .iter()
             .map(|s| format!("{:.1}", s.radius_px))

@@ -292,6 +292,7 @@ mod tests {
                 worst_relative_residual: 0.04,
                 size_law_rms_relative_residual: 0.3,
             },
+            centre_error: calibrated::CentreErrorMeasure::AboutTruth,
             source: String::new(),
         };
         std::fs::write(&path, file.to_json()).unwrap();

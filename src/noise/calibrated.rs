@@ -98,9 +98,37 @@ pub struct CalibrationFile {
     pub radius_px: [f64; 2],
     /// How well the law fits the data.
     pub fit: FitQuality,
+    /// What the law measures of a centre: its error about the truth (noise
+    /// and bias together) or its noise alone. Files that do not say are
+    /// noise alone (the first files written).
+    #[serde(default)]
+    pub centre_error: CentreErrorMeasure,
     /// How the data were made: the command, preset, seed, trials.
     #[serde(default)]
     pub source: String,
+}
+
+/// What a calibrated σ measures of a detected centre, per axis.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum CentreErrorMeasure {
+    /// The RMS about the exact centre: the scatter under sensor noise and
+    /// the view's own bias (what the tracker's errors are, over a working
+    /// range whose views each bias their centres differently).
+    AboutTruth,
+    /// The RMS about the view's mean centre: sensor noise alone.
+    #[default]
+    Scatter,
+}
+
+impl CentreErrorMeasure {
+    /// In words, for reports.
+    pub fn describe(self) -> &'static str {
+        match self {
+            Self::AboutTruth => "error about the exact centre (noise and bias)",
+            Self::Scatter => "scatter about the mean centre (noise alone)",
+        }
+    }
 }
 
 /// The law written in every file.
@@ -429,11 +457,24 @@ mod tests {
             c: law.c,
             radius_px: [3.0, 45.0],
             fit,
+            centre_error: CentreErrorMeasure::AboutTruth,
             source: "a test".to_string(),
         };
         let path = dir.path().join("noise.json");
         std::fs::write(&path, file.to_json()).unwrap();
         assert_eq!(CalibrationFile::load(&path).unwrap(), file);
+
+        // The first files did not say what they measure: noise alone.
+        let older = file
+            .to_json()
+            .replace("  \"centre_error\": \"about_truth\",\n", "");
+        std::fs::write(&path, older).unwrap();
+        let read = CalibrationFile::load(&path).unwrap();
+        assert_eq!(read.centre_error, CentreErrorMeasure::Scatter);
+        let odd = file.to_json().replace("about_truth", "about_lunch");
+        std::fs::write(&path, odd).unwrap();
+        let error = CalibrationFile::load(&path).unwrap_err().to_string();
+        assert!(error.contains("about_lunch"), "{error}");
 
         let text = file.to_json().replace("\"b\":", "\"bee\":");
         std::fs::write(&path, text).unwrap();

@@ -44,7 +44,7 @@ use crate::camera::Camera;
 use crate::config::ConfigError;
 use crate::mesh::marker_for_range;
 use crate::montecarlo::ScenarioOutcome;
-use crate::noise::calibrated::{fit, CalibratedSigma, FitQuality, SigmaSample};
+use crate::noise::calibrated::{fit, CalibratedSigma, CentreErrorMeasure, FitQuality, SigmaSample};
 use crate::observer::{watch, Observer};
 use crate::pose::{rotation_error_deg, translation_error_mm};
 use crate::render::{Appearance, Blur, Lighting, Noise, RenderConfig, RenderError, Scene};
@@ -73,6 +73,13 @@ pub const DEPTH_BIN_MM: f64 = 200.0;
 
 /// Most biased sphere views the summary lists (the count covers all).
 pub const MAX_BIASED_LISTED: usize = 20;
+
+/// Width of the disc-radius bins whose RMS centre error about the truth the
+/// law is fitted to, px. Each view's bias is its own, so single views
+/// scatter about the law by half their value; the law has to give the RMS
+/// at a radius (what the first-order model turns into a pose's RMS), and
+/// a fit to relative residuals of single views would fall below it.
+pub const LAW_BIN_PX: f64 = 1.0;
 
 /// Fewest distinct whole-sphere radii a noise law is fitted to.
 pub const MIN_LAW_RADII: usize = 3;
@@ -457,8 +464,12 @@ pub struct ImageSummary {
     pub biased_count: usize,
     /// The largest of them (at most [`MAX_BIASED_LISTED`]).
     pub biased: Vec<BiasedCentre>,
-    /// The noise law fitted to the whole spheres.
+    /// The noise law fitted to the whole spheres' centre errors about the
+    /// exact centres (noise and bias): the law `--write-noise-model`
+    /// writes.
     pub noise_law: NoiseLaw,
+    /// The same law fitted to their scatter alone (sensor noise).
+    pub scatter_law: NoiseLaw,
     /// Per scenario, in grid order (`images.csv`; not in `summary.json`).
     #[serde(skip)]
     pub per_scenario: Vec<ScenarioImages>,
@@ -876,12 +887,14 @@ fn summarise(
         biased_count: 0,
         biased: Vec::new(),
         noise_law: NoiseLaw::Unfitted(String::new()),
+        scatter_law: NoiseLaw::Unfitted(String::new()),
         per_scenario: Vec::new(),
         samples: Vec::new(),
     };
     // (radius, depth, view) of every whole sphere view.
     let mut whole: Vec<(f64, f64, SphereView)> = Vec::new();
     let mut samples: Vec<SigmaSample> = Vec::new();
+    let mut scatter_samples: Vec<SigmaSample> = Vec::new();
     let mut pose_rows: Vec<PoseRow> = Vec::new();
     for item in rendered {
         let outcome = &outcomes[item.outcome_index];
@@ -980,7 +993,12 @@ fn summarise(
                 });
             }
         }
-        samples.extend(sigma_samples(std::slice::from_ref(images)));
+        for (measure, samples) in [
+            (CentreErrorMeasure::AboutTruth, &mut samples),
+            (CentreErrorMeasure::Scatter, &mut scatter_samples),
+        ] {
+            samples.extend(sigma_samples(std::slice::from_ref(images), measure));
+        }
         summary.per_scenario.push(row);
         whole.extend(
             views
@@ -999,7 +1017,8 @@ fn summarise(
     summary.by_radius = bins(&whole, RADIUS_BIN_PX, |(radius, _, _)| *radius);
     summary.by_depth = bins(&whole, DEPTH_BIN_MM, |(_, depth, _)| *depth);
     summary.pose = pose_comparison(&pose_rows, &whole);
-    summary.noise_law = noise_law(&samples);
+    summary.noise_law = noise_law(&rms_by_radius(&samples, LAW_BIN_PX));
+    summary.scatter_law = noise_law(&scatter_samples);
     summary
 }
 
@@ -1109,6 +1128,28 @@ fn pose_comparison(rows: &[PoseRow], whole: &[(f64, f64, SphereView)]) -> Option
     })
 }
 
+/// `samples` pooled in disc-radius bins `width` wide: per bin, the
+/// weighted RMS of their σ at their weighted mean radius, weighted by the
+/// bin's total weight; smallest radius first.
+fn rms_by_radius(samples: &[SigmaSample], width: f64) -> Vec<SigmaSample> {
+    let mut bins: BTreeMap<i64, [f64; 3]> = BTreeMap::new();
+    for s in samples {
+        let bin = bins
+            .entry((s.radius_px / width).floor() as i64)
+            .or_default();
+        bin[0] += s.weight;
+        bin[1] += s.weight * s.radius_px;
+        bin[2] += s.weight * s.sigma_px * s.sigma_px;
+    }
+    bins.into_values()
+        .map(|[weight, radius, square]| SigmaSample {
+            radius_px: radius / weight,
+            sigma_px: (square / weight).sqrt(),
+            weight,
+        })
+        .collect()
+}
+
 /// The law fitted to `samples`, refused below [`MIN_LAW_RADII`] distinct
 /// radii.
 fn noise_law(samples: &[SigmaSample]) -> NoiseLaw {
@@ -1117,7 +1158,7 @@ fn noise_law(samples: &[SigmaSample]) -> NoiseLaw {
     radii.dedup_by(|a, b| (*a - *b).abs() <= 1e-9 * b.abs());
     if radii.len() < MIN_LAW_RADII {
         return NoiseLaw::Unfitted(format!(
-            "{} distinct whole-sphere radii measured, at least {MIN_LAW_RADII} needed",
+            "{} distinct sphere radii measured, at least {MIN_LAW_RADII} needed",
             radii.len()
         ));
     }
@@ -1168,6 +1209,28 @@ mod tests {
         // Spread 4 over 2 × 3 degrees of freedom.
         assert!((v.sigma_px() - (4.0f64 / 6.0).sqrt()).abs() < 1e-12);
         assert!((pooled_sigma([&v, &v].into_iter()) - v.sigma_px()).abs() < 1e-12);
+    }
+
+    #[test]
+    fn radius_bins_pool_the_rms_at_the_mean_radius() {
+        let sample = |radius_px, sigma_px, weight| SigmaSample {
+            radius_px,
+            sigma_px,
+            weight,
+        };
+        let pooled = rms_by_radius(
+            &[
+                sample(6.2, 0.03, 1.0),
+                sample(9.5, 0.02, 2.0),
+                sample(6.8, 0.01, 3.0),
+            ],
+            1.0,
+        );
+        assert_eq!(pooled.len(), 2);
+        assert!((pooled[0].radius_px - 6.65).abs() < 1e-12);
+        assert!((pooled[0].sigma_px - (0.0012f64 / 4.0).sqrt()).abs() < 1e-12);
+        assert_eq!(pooled[0].weight, 4.0);
+        assert_eq!(pooled[1], sample(9.5, 0.02, 2.0));
     }
 
     #[test]

@@ -3,7 +3,8 @@
 //! its per-scenario rows) and the terminal paragraph ([`console`]).
 //! Computes nothing new.
 
-use super::image_check::{CentreBin, ImageSummary, NoiseLaw, BIAS_SIGMAS};
+use super::image_check::{CentreBin, ImageSummary, NoiseLaw, BIAS_SIGMAS, LAW_BIN_PX};
+use crate::noise::calibrated::CentreErrorMeasure;
 use crate::report::{significant, Table};
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
@@ -56,14 +57,14 @@ fn bin_table(label: &str, bins: &[CentreBin]) -> Table {
 pub const SIZE_LAW_HOLDS_FACTOR: f64 = 1.5;
 
 /// The noise law in one sentence.
-pub fn law_line(law: &NoiseLaw) -> String {
+pub fn law_line(law: &NoiseLaw, points: &str) -> String {
     match law {
         NoiseLaw::Fitted {
             law,
             quality,
             radius_px,
         } => format!(
-            "σ = {} / r^{} + {} px over disc radii {}–{} px ({} sphere views): RMS relative residual {} (worst {}); today's `size` law (σ ∝ 1/√r) fits with {}, so it {}",
+            "σ = {} / r^{} + {} px over disc radii {}–{} px ({} {points}): RMS relative residual {} (worst {}); today's `size` law (σ ∝ 1/√r) fits with {}, so it {}",
             number(law.a),
             number(law.b),
             number(law.c),
@@ -196,7 +197,14 @@ pub fn markdown(images: &ImageSummary) -> String {
         out.push_str(&table.markdown());
         out.push('\n');
     }
-    let _ = writeln!(out, "### Noise law\n\n{}\n", law_line(&images.noise_law));
+    let _ = writeln!(
+        out,
+        "### Noise law\n\nOf the centre {}, per axis, over every sphere view the tracker labelled (a sphere whose notch it cut away included), as the RMS in radius bins {LAW_BIN_PX} px wide (what `--write-noise-model` writes, and what `--noise-model calibrated:FILE` then assumes): {}\n\nOf the whole spheres' {}: {}\n",
+        CentreErrorMeasure::AboutTruth.describe(),
+        law_line(&images.noise_law, "radius bins"),
+        CentreErrorMeasure::Scatter.describe(),
+        law_line(&images.scatter_law, "sphere views")
+    );
     if !images.samples.is_empty() {
         let _ = writeln!(
             out,
@@ -399,7 +407,7 @@ pub fn console(images: &ImageSummary) -> String {
         },
     );
     format!(
-        "images: {} visible scenarios × {} frames ({} refused by the renderer); centre σ {} (smallest discs) to {} (largest); {pose}; {} of frames lost, {} mislabelled; {} partly hidden spheres biased beyond {BIAS_SIGMAS} σ; {}\n",
+        "images: {} visible scenarios × {} frames ({} refused by the renderer); centre σ {} (smallest discs) to {} (largest); {pose}; {} of frames lost, {} mislabelled; {} partly hidden spheres biased beyond {BIAS_SIGMAS} σ; centre error about the truth (noise and bias): {}; noise alone: {}\n",
         images.scenarios,
         images.check.trials,
         images.refused.values().sum::<usize>(),
@@ -408,6 +416,7 @@ pub fn console(images: &ImageSummary) -> String {
         percent(lost, images.frames),
         percent(images.mislabelled_frames, images.frames),
         images.biased_count,
-        law_line(&images.noise_law)
+        law_line(&images.noise_law, "radius bins"),
+        law_line(&images.scatter_law, "sphere views")
     )
 }

@@ -13,14 +13,17 @@
 //! wrong when the blob lies nearer another sphere's exact centre than its
 //! own. A frame with no pose counts as lost, with the tracker's reason.
 //!
-//! **Noise law.** [`sigma_samples`] turns whole spheres (hidden by less than
-//! [`WHOLE_SPHERE_HIDDEN`] of their silhouette) into one σ measurement each:
-//! the per-axis RMS of their centre errors about their mean, at their disc
-//! radius (the mean of the exact ellipse's semi-axes), weighted by the
-//! number of centres. [`crate::noise::calibrated::fit`] fits the law to
+//! **Noise law.** [`sigma_samples`] turns sphere views into one σ
+//! measurement each, at their disc radius (the mean of the exact ellipse's
+//! semi-axes), weighted by the number of centres: either the per-axis RMS
+//! of their centre errors about the exact centre (noise and the view's
+//! bias), over every view the tracker labelled (what the pose is solved
+//! from, a sphere whose notch the tracker cut away included), or about
+//! their mean (noise alone), over whole spheres (hidden by less than
+//! [`WHOLE_SPHERE_HIDDEN`] of their silhouette). [`crate::noise::calibrated::fit`] fits the law to
 //! them.
 
-use crate::noise::calibrated::SigmaSample;
+use crate::noise::calibrated::{CentreErrorMeasure, SigmaSample};
 use crate::pose::{rotation_error_deg, translation_error_mm, Pose};
 use crate::render::{
     expose, frame_truth, render_radiance, FrameTruth, Radiance, RenderConfig, RenderError, Scene,
@@ -290,6 +293,19 @@ impl SphereView {
     pub fn sigma_px(&self) -> f64 {
         (self.spread / (2.0 * (self.centres as f64 - 1.0))).sqrt()
     }
+
+    /// RMS error per axis about the exact centre (noise and bias), px.
+    pub fn rms_about_truth_px(&self) -> f64 {
+        (0.5 * (self.spread / self.centres as f64 + self.bias_px().powi(2))).sqrt()
+    }
+
+    /// The per-axis σ that `measure` names, px.
+    pub fn error_px(&self, measure: CentreErrorMeasure) -> f64 {
+        match measure {
+            CentreErrorMeasure::AboutTruth => self.rms_about_truth_px(),
+            CentreErrorMeasure::Scatter => self.sigma_px(),
+        }
+    }
 }
 
 /// The sphere views of one pose, in sphere order; spheres with fewer than
@@ -326,16 +342,19 @@ pub fn sphere_views(images: &PoseImages) -> Vec<SphereView> {
         .collect()
 }
 
-/// One σ measurement per whole sphere view of each pose (module docs),
-/// weighted by its number of centres.
-pub fn sigma_samples(poses: &[PoseImages]) -> Vec<SigmaSample> {
+/// One σ measurement per sphere view of each pose that `measure` counts
+/// (module docs), weighted by its number of centres.
+pub fn sigma_samples(poses: &[PoseImages], measure: CentreErrorMeasure) -> Vec<SigmaSample> {
     poses
         .iter()
         .flat_map(sphere_views)
-        .filter(|view| view.hidden < WHOLE_SPHERE_HIDDEN && view.sigma_px() > 0.0)
+        .filter(|view| {
+            view.sigma_px() > 0.0
+                && (measure == CentreErrorMeasure::AboutTruth || view.hidden < WHOLE_SPHERE_HIDDEN)
+        })
         .map(|view| SigmaSample {
             radius_px: view.radius_px,
-            sigma_px: view.sigma_px(),
+            sigma_px: view.error_px(measure),
             weight: view.centres as f64,
         })
         .collect()
@@ -425,7 +444,16 @@ mod tests {
             assert_eq!(pose.rotation_error_deg.len(), 6, "{:?}", pose.lost);
             assert!(pose.rotation_error_deg.iter().all(|e| *e < 0.5), "{pose:?}");
         }
-        let samples = sigma_samples(&poses);
+        let samples = sigma_samples(&poses, CentreErrorMeasure::Scatter);
+        let about_truth = sigma_samples(&poses, CentreErrorMeasure::AboutTruth);
+        // Noise and bias together are never below the noise alone.
+        assert!(
+            samples
+                .iter()
+                .zip(&about_truth)
+                .all(|(s, t)| t.sigma_px >= s.sigma_px * (5.0f64 / 6.0).sqrt() - 1e-12),
+            "{samples:?} {about_truth:?}"
+        );
         assert!(samples.len() >= 8, "{samples:?}");
         let mean_sigma = |near: bool| {
             let chosen: Vec<f64> = samples

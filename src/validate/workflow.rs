@@ -19,7 +19,7 @@ use crate::config::ConfigError;
 use crate::files::LockError;
 use crate::files::OutputLock;
 use crate::montecarlo::{self, MonteCarloConfig, Target};
-use crate::noise::calibrated::{CalibrationFile, LAW};
+use crate::noise::calibrated::{CalibrationFile, CentreErrorMeasure, LAW};
 use crate::observer::Observer;
 use crate::report::{duration_text, write_text, ReportError, SLOW_RUN_SECONDS};
 use crate::scenario::Scenario;
@@ -273,6 +273,7 @@ fn write_noise_model<O: Observer>(run: &mut Run<'_, O>) -> Result<(), WorkflowEr
         c: law.c,
         radius_px: *radius_px,
         fit: *quality,
+        centre_error: CentreErrorMeasure::AboutTruth,
         source: format!(
             "{} (seed {}, {} noisy frames per scenario, {})",
             run.validate.command, images.seed, images.check.trials, images.preset
