@@ -31,8 +31,9 @@ pub struct ImageArgs {
     /// Lens blur σ of --images, px (0: none); default the preset's.
     #[arg(long, value_name = "PX")]
     image_blur: Option<f64>,
-    /// Fit σ = a / r^b + c to the whole spheres' centre σ from --images and
-    /// write it as a noise calibration file (docs/formats.md), for
+    /// Fit σ = a / r^b + c to the tracked centres' RMS error about the
+    /// exact centres (noise and each view's bias) from --images and write
+    /// it as a noise calibration file (docs/formats.md), for
     /// `--noise-model calibrated:FILE`.
     #[arg(long, value_name = "FILE")]
     write_noise_model: Option<PathBuf>,

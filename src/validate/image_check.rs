@@ -81,7 +81,7 @@ pub const MAX_BIASED_LISTED: usize = 20;
 /// a fit to relative residuals of single views would fall below it.
 pub const LAW_BIN_PX: f64 = 1.0;
 
-/// Fewest distinct whole-sphere radii a noise law is fitted to.
+/// Fewest distinct radii (or radius bins) a noise law is fitted to.
 pub const MIN_LAW_RADII: usize = 3;
 
 /// Progress phase of the image check: one step per visible scenario.
@@ -402,7 +402,7 @@ pub enum NoiseLaw {
         /// Smallest and largest radius measured, px.
         radius_px: [f64; 2],
     },
-    /// Too few whole-sphere radii, or a failed fit.
+    /// Too few radii, or a failed fit.
     Unfitted(String),
 }
 
@@ -464,11 +464,11 @@ pub struct ImageSummary {
     pub biased_count: usize,
     /// The largest of them (at most [`MAX_BIASED_LISTED`]).
     pub biased: Vec<BiasedCentre>,
-    /// The noise law fitted to the whole spheres' centre errors about the
-    /// exact centres (noise and bias): the law `--write-noise-model`
-    /// writes.
+    /// The noise law fitted to the centre errors about the exact centres
+    /// (noise and bias) of every labelled sphere view, in radius bins of
+    /// [`LAW_BIN_PX`]: the law `--write-noise-model` writes.
     pub noise_law: NoiseLaw,
-    /// The same law fitted to their scatter alone (sensor noise).
+    /// The law of the whole spheres' scatter alone (sensor noise).
     pub scatter_law: NoiseLaw,
     /// Per scenario, in grid order (`images.csv`; not in `summary.json`).
     #[serde(skip)]

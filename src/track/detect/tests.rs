@@ -277,7 +277,24 @@ fn a_background_step_just_outside_the_limb_does_not_pull_the_centre() {
             20.0
         }
     };
-    let n = 16;
+    let pixels = area_sampled(width, height, 16, 64.0, level);
+    let frame = GreyFrame::new(width, height, 16, pixels).unwrap();
+    let detection = detect(&frame, &camera, &DetectorConfig::default(), 5.0, 4).unwrap();
+    assert_eq!(detection.blobs.len(), 1, "{detection:?}");
+    let [x, y] = detection.blobs[0].ellipse_centre_px;
+    let error = (x - cx).hypot(y - cy);
+    assert!(error < 0.02, "{error} px: {:?}", detection.blobs[0]);
+}
+
+/// A frame of `level(x, y)` (pixel centres at integers) averaged over
+/// `n` × `n` sub-samples per pixel, times `scale`, rounded.
+fn area_sampled(
+    width: u32,
+    height: u32,
+    n: usize,
+    scale: f64,
+    level: impl Fn(f64, f64) -> f64,
+) -> Vec<u16> {
     let mut pixels = vec![0u16; (width * height) as usize];
     for y in 0..height {
         for x in 0..width {
@@ -289,15 +306,10 @@ fn a_background_step_just_outside_the_limb_does_not_pull_the_centre() {
                     sum += level(px, py);
                 }
             }
-            pixels[(y * width + x) as usize] = (64.0 * sum / (n * n) as f64).round() as u16;
+            pixels[(y * width + x) as usize] = (scale * sum / (n * n) as f64).round() as u16;
         }
     }
-    let frame = GreyFrame::new(width, height, 16, pixels).unwrap();
-    let detection = detect(&frame, &camera, &DetectorConfig::default(), 5.0, 4).unwrap();
-    assert_eq!(detection.blobs.len(), 1, "{detection:?}");
-    let [x, y] = detection.blobs[0].ellipse_centre_px;
-    let error = (x - cx).hypot(y - cy);
-    assert!(error < 0.02, "{error} px: {:?}", detection.blobs[0]);
+    pixels
 }
 
 /// Bright discs in front of a large grey plate that Otsu's level puts in
@@ -328,21 +340,7 @@ fn discs_in_front_of_a_plate_above_the_threshold_are_found() {
             20.0
         }
     };
-    let n = 8;
-    let mut pixels = vec![0u16; (width * height) as usize];
-    for y in 0..height {
-        for x in 0..width {
-            let mut sum = 0.0;
-            for sy in 0..n {
-                for sx in 0..n {
-                    let px = x as f64 - 0.5 + (sx as f64 + 0.5) / n as f64;
-                    let py = y as f64 - 0.5 + (sy as f64 + 0.5) / n as f64;
-                    sum += level(px, py);
-                }
-            }
-            pixels[(y * width + x) as usize] = (sum / (n * n) as f64).round() as u16;
-        }
-    }
+    let pixels = area_sampled(width, height, 8, 1.0, level);
     let frame = GreyFrame::new(width, height, 8, pixels).unwrap();
     let detection = detect(&frame, &camera, &DetectorConfig::default(), 5.0, 10).unwrap();
     // The plate is above Otsu's level: one class is the background alone.
