@@ -594,7 +594,8 @@ fn split_cores(
     let count = labels.iter().filter(|&&l| l == id).count();
     let core_pixels: usize = sizes.iter().filter(|&&n| n >= min_core).sum();
     let dim_region = (core_pixels as f64) < DIM_REGION_CORE_SHARE * count as f64;
-    if !(dim_region && !ids.is_empty() || failed && ids.len() >= 2) {
+    let applies = (dim_region && !ids.is_empty()) || (failed && ids.len() >= 2);
+    if !applies {
         return None;
     }
     // In a dim region a core keeps to its own ramp; joined discs share all.
@@ -684,12 +685,7 @@ pub fn fit_outline(
         if next == inliers {
             break;
         }
-        let kept: Vec<Vector2<f64>> = points
-            .iter()
-            .zip(&next)
-            .filter(|(_, keep)| **keep)
-            .map(|(p, _)| *p)
-            .collect();
+        let kept = masked(points, &next);
         if kept.len() < MIN_EDGE_POINTS.max(points.len() / 2) {
             break;
         }
@@ -717,12 +713,7 @@ pub fn fit_outline(
         if next == inliers && next_notch == notch {
             break;
         }
-        let kept: Vec<Vector2<f64>> = points
-            .iter()
-            .zip(&next)
-            .filter(|(_, keep)| **keep)
-            .map(|(p, _)| *p)
-            .collect();
+        let kept = masked(points, &next);
         if kept.len() < fewest {
             // Too much to cut: the blob is flagged on the share alone.
             notch = next_notch;
@@ -742,6 +733,16 @@ pub fn fit_outline(
         kept: inliers,
         notch,
     })
+}
+
+/// The `points` whose `keep` is set.
+fn masked(points: &[Vector2<f64>], keep: &[bool]) -> Vec<Vector2<f64>> {
+    points
+        .iter()
+        .zip(keep)
+        .filter(|(_, keep)| **keep)
+        .map(|(p, _)| *p)
+        .collect()
 }
 
 /// The edge points on a notch: every point whose window of
@@ -785,13 +786,8 @@ pub fn notch_arcs(
     }
     around.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.3.cmp(&b.3)));
     // The points three times round, for windows across ±180°.
-    let angle = |k: usize| around[k % n].0 + TAU * (k / n) as f64;
-    let mut sum_distance = vec![0.0; 3 * n + 1];
-    let mut sum_sigma = vec![0.0; 3 * n + 1];
-    for k in 0..3 * n {
-        sum_distance[k + 1] = sum_distance[k] + around[k % n].1;
-        sum_sigma[k + 1] = sum_sigma[k] + around[k % n].2;
-    }
+    let sums = ArcSums::new(around.iter().map(|a| (a.0, a.1, a.2)), 3);
+    let angle = |k: usize| sums.angle(k);
     let half = 0.5 * NOTCH_WINDOW_DEG.to_radians();
     let mut marked = vec![false; n];
     let (mut low, mut high) = (0, 0);
@@ -808,14 +804,10 @@ pub fn notch_arcs(
         {
             high += 1;
         }
-        let count = high + 1 - low;
-        if count < DIP_MIN_POINTS {
+        let Some((mean, mean_sigma, count)) = sums.mean(low, high) else {
             continue;
-        }
-        let count_f = count as f64;
-        let mean = (sum_distance[high + 1] - sum_distance[low]) / count_f;
-        let mean_sigma = (sum_sigma[high + 1] - sum_sigma[low]) / count_f;
-        if -mean > NOTCH_SIGMAS * mean_sigma / count_f.sqrt() + NOTCH_FLOOR_PX {
+        };
+        if -mean > NOTCH_SIGMAS * mean_sigma / count.sqrt() + NOTCH_FLOOR_PX {
             marked[centre - n] = true;
         }
     }
@@ -862,36 +854,71 @@ pub fn edge_dip(ellipse: &Ellipse, points: &[Vector2<f64>], sigmas: &[f64]) -> f
         })
         .collect();
     around.sort_by(|a, b| a.0.total_cmp(&b.0));
-    // Prefix sums over the points twice round, for arcs across ±180°.
-    let at = |k: usize| {
-        let (angle, distance, sigma) = around[k % n];
-        (angle + TAU * (k / n) as f64, distance, sigma)
-    };
-    let mut sum_distance = vec![0.0; 2 * n + 1];
-    let mut sum_sigma = vec![0.0; 2 * n + 1];
-    for k in 0..2 * n {
-        let (_, distance, sigma) = at(k);
-        sum_distance[k + 1] = sum_distance[k] + distance;
-        sum_sigma[k + 1] = sum_sigma[k] + sigma;
-    }
+    // The points twice round, for arcs across ±180°.
+    let sums = ArcSums::new(around.iter().copied(), 2);
     let arc = DIP_ARC_DEG.to_radians();
     let mut deepest: f64 = 0.0;
     let mut end = 0;
     for start in 0..n {
         end = end.max(start);
-        while end + 1 < start + n && at(end + 1).0 - at(start).0 <= arc {
+        while end + 1 < start + n && sums.angle(end + 1) - sums.angle(start) <= arc {
             end += 1;
         }
-        let count = end + 1 - start;
-        if count < DIP_MIN_POINTS {
-            continue;
+        if let Some((mean, mean_sigma, count)) = sums.mean(start, end) {
+            deepest = deepest.max(-mean - DIP_SIGMAS * mean_sigma / count.sqrt());
         }
-        let count_f = count as f64;
-        let mean = (sum_distance[end + 1] - sum_distance[start]) / count_f;
-        let mean_sigma = (sum_sigma[end + 1] - sum_sigma[start]) / count_f;
-        deepest = deepest.max(-mean - DIP_SIGMAS * mean_sigma / count_f.sqrt());
     }
     deepest
+}
+
+/// Edge points sorted by their angle about an ellipse, laid `laps` times
+/// round (angles growing by 2π each lap) with prefix sums of their
+/// distances from the ellipse and of their σ, for the means over arcs
+/// that cross ±180° ([`notch_arcs`], [`edge_dip`]).
+struct ArcSums {
+    angles: Vec<f64>,
+    sum_distance: Vec<f64>,
+    sum_sigma: Vec<f64>,
+}
+
+impl ArcSums {
+    /// From `(angle, distance, σ)` of each point, sorted by angle.
+    fn new(points: impl Iterator<Item = (f64, f64, f64)>, laps: usize) -> Self {
+        let (angles, rest): (Vec<f64>, Vec<(f64, f64)>) = points
+            .map(|(angle, distance, sigma)| (angle, (distance, sigma)))
+            .unzip();
+        let n = angles.len();
+        let mut sum_distance = vec![0.0; laps * n + 1];
+        let mut sum_sigma = vec![0.0; laps * n + 1];
+        for k in 0..laps * n {
+            sum_distance[k + 1] = sum_distance[k] + rest[k % n].0;
+            sum_sigma[k + 1] = sum_sigma[k] + rest[k % n].1;
+        }
+        Self {
+            angles,
+            sum_distance,
+            sum_sigma,
+        }
+    }
+
+    /// The angle of point `k` of the laps.
+    fn angle(&self, k: usize) -> f64 {
+        let n = self.angles.len();
+        self.angles[k % n] + TAU * (k / n) as f64
+    }
+
+    /// Over points `low..=high` of the laps: the mean distance, the mean
+    /// σ and the count; `None` below [`DIP_MIN_POINTS`] points.
+    fn mean(&self, low: usize, high: usize) -> Option<(f64, f64, f64)> {
+        let count = high + 1 - low;
+        if count < DIP_MIN_POINTS {
+            return None;
+        }
+        let count_f = count as f64;
+        let mean = (self.sum_distance[high + 1] - self.sum_distance[low]) / count_f;
+        let mean_sigma = (self.sum_sigma[high + 1] - self.sum_sigma[low]) / count_f;
+        Some((mean, mean_sigma, count_f))
+    }
 }
 
 /// Per-cell local means over a square of `radius_cells` cells, raw units.

@@ -993,12 +993,9 @@ fn summarise(
                 });
             }
         }
-        for (measure, samples) in [
-            (CentreErrorMeasure::AboutTruth, &mut samples),
-            (CentreErrorMeasure::Scatter, &mut scatter_samples),
-        ] {
-            samples.extend(sigma_samples(std::slice::from_ref(images), measure));
-        }
+        let poses = std::slice::from_ref(images);
+        samples.extend(sigma_samples(poses, CentreErrorMeasure::AboutTruth));
+        scatter_samples.extend(sigma_samples(poses, CentreErrorMeasure::Scatter));
         summary.per_scenario.push(row);
         whole.extend(
             views

@@ -446,7 +446,9 @@ mod tests {
         }
         let samples = sigma_samples(&poses, CentreErrorMeasure::Scatter);
         let about_truth = sigma_samples(&poses, CentreErrorMeasure::AboutTruth);
-        // Noise and bias together are never below the noise alone.
+        // Noise and bias together are never below the noise alone (the
+        // first about n centres, the second about n − 1 degrees of
+        // freedom: hence √(5/6) for these 6 frames).
         assert!(
             samples
                 .iter()

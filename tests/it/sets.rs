@@ -695,6 +695,16 @@ fn vertices_in_groove(
         .count()
 }
 
+/// `layout-opt export --quiet --format obj --out OUT SET`.
+fn export_set(set_path: &std::path::Path, out: &std::path::Path) -> assert_cmd::assert::Assert {
+    assert_cmd::Command::cargo_bin("layout-opt")
+        .unwrap()
+        .args(["export", "--quiet", "--format", "obj", "--out"])
+        .arg(out)
+        .arg(set_path)
+        .assert()
+}
+
 /// `export SET.json`: one directory per part, each part's number engraved
 /// into its plate (vertices below the plate's face inside the digit's box,
 /// which the same layout exported without the number lacks, and a volume
@@ -706,13 +716,7 @@ fn a_set_exports_numbered_watertight_parts_and_one_sheet() {
     let dir = tempfile::tempdir().unwrap();
     let (set_path, layouts) = two_marker_set(dir.path());
     let out = dir.path().join("parts");
-    assert_cmd::Command::cargo_bin("layout-opt")
-        .unwrap()
-        .args(["export", "--quiet", "--format", "obj", "--out"])
-        .arg(&out)
-        .arg(&set_path)
-        .assert()
-        .success();
+    export_set(&set_path, &out).success();
     let sheet = std::fs::read_to_string(out.join("pair-set.md")).unwrap();
     for (k, layout) in layouts.iter().enumerate() {
         let number = k + 1;
@@ -791,12 +795,7 @@ fn exporting_a_set_with_a_missing_layout_names_it_and_writes_nothing() {
     let (set_path, _) = two_marker_set(dir.path());
     std::fs::remove_file(dir.path().join("pair-2.json")).unwrap();
     let out = dir.path().join("parts");
-    assert_cmd::Command::cargo_bin("layout-opt")
-        .unwrap()
-        .args(["export", "--quiet", "--format", "obj", "--out"])
-        .arg(&out)
-        .arg(&set_path)
-        .assert()
+    export_set(&set_path, &out)
         .failure()
         .stderr(predicates::str::contains("pair-2.json"));
     assert!(!out.exists());

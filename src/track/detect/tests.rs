@@ -2,31 +2,28 @@
 
 use super::*;
 
+/// Whether `(x, y)` lies inside the disc `(cx, cy, r)`.
+fn within((cx, cy, r): (f64, f64, f64), x: f64, y: f64) -> bool {
+    (x - cx).powi(2) + (y - cy).powi(2) < r * r
+}
+
+/// The 8-bit level of the synthetic discs' frames: 220 on a disc, 20 off.
+fn disc_level(on_disc: bool) -> f64 {
+    if on_disc {
+        220.0
+    } else {
+        20.0
+    }
+}
+
 /// A frame with two area-sampled discs (8×8 subsamples) on a dark
 /// background, one cut by the right image border.
 fn two_discs() -> GreyFrame {
     let (width, height) = (120u32, 80u32);
     let discs = [(40.3, 37.7, 9.0), (116.0, 20.0, 7.0)];
-    let mut pixels = vec![20u16; (width * height) as usize];
-    for y in 0..height {
-        for x in 0..width {
-            let mut covered = 0;
-            for sy in 0..8 {
-                for sx in 0..8 {
-                    let px = x as f64 - 0.5 + (sx as f64 + 0.5) / 8.0;
-                    let py = y as f64 - 0.5 + (sy as f64 + 0.5) / 8.0;
-                    if discs
-                        .iter()
-                        .any(|(cx, cy, r)| (px - cx).powi(2) + (py - cy).powi(2) < r * r)
-                    {
-                        covered += 1;
-                    }
-                }
-            }
-            pixels[(y * width + x) as usize] =
-                (20.0 + 200.0 * covered as f64 / 64.0).round() as u16;
-        }
-    }
+    let pixels = area_sampled(width, height, 8, 1.0, |x, y| {
+        disc_level(discs.iter().any(|&disc| within(disc, x, y)))
+    });
     GreyFrame::new(width, height, 8, pixels).unwrap()
 }
 
@@ -73,26 +70,9 @@ fn finds_a_disc_to_a_fraction_of_a_pixel_and_flags_the_clipped_one() {
 fn two_discs_the_threshold_joins_are_split() {
     let (width, height) = (120u32, 80u32);
     let discs = [(40.3, 40.2, 9.0), (59.1, 40.2, 9.0)];
-    let mut pixels = vec![20u16; (width * height) as usize];
-    for y in 0..height {
-        for x in 0..width {
-            let mut covered = 0;
-            for sy in 0..8 {
-                for sx in 0..8 {
-                    let px = x as f64 - 0.5 + (sx as f64 + 0.5) / 8.0;
-                    let py = y as f64 - 0.5 + (sy as f64 + 0.5) / 8.0;
-                    if discs
-                        .iter()
-                        .any(|(cx, cy, r)| (px - cx).powi(2) + (py - cy).powi(2) < r * r)
-                    {
-                        covered += 1;
-                    }
-                }
-            }
-            pixels[(y * width + x) as usize] =
-                (20.0 + 200.0 * covered as f64 / 64.0).round() as u16;
-        }
-    }
+    let pixels = area_sampled(width, height, 8, 1.0, |x, y| {
+        disc_level(discs.iter().any(|&disc| within(disc, x, y)))
+    });
     let (w, h) = (width as usize, height as usize);
     let blur = |p: &[u16], step: usize, limit: usize, along: fn(usize, usize) -> usize| {
         (0..p.len())
@@ -131,25 +111,9 @@ fn two_discs_the_threshold_joins_are_split() {
 /// it) cover.
 fn occluded_disc(disc: (f64, f64, f64), occluders: &[(f64, f64, f64)]) -> GreyFrame {
     let (width, height) = (100u32, 80u32);
-    let within =
-        |(cx, cy, r): (f64, f64, f64), x: f64, y: f64| (x - cx).powi(2) + (y - cy).powi(2) < r * r;
-    let mut pixels = vec![20u16; (width * height) as usize];
-    for y in 0..height {
-        for x in 0..width {
-            let mut covered = 0;
-            for sy in 0..8 {
-                for sx in 0..8 {
-                    let px = x as f64 - 0.5 + (sx as f64 + 0.5) / 8.0;
-                    let py = y as f64 - 0.5 + (sy as f64 + 0.5) / 8.0;
-                    if within(disc, px, py) && !occluders.iter().any(|o| within(*o, px, py)) {
-                        covered += 1;
-                    }
-                }
-            }
-            pixels[(y * width + x) as usize] =
-                (20.0 + 200.0 * covered as f64 / 64.0).round() as u16;
-        }
-    }
+    let pixels = area_sampled(width, height, 8, 1.0, |x, y| {
+        disc_level(within(disc, x, y) && !occluders.iter().any(|&o| within(o, x, y)))
+    });
     GreyFrame::new(width, height, 8, pixels).unwrap()
 }
 
@@ -269,7 +233,7 @@ fn a_background_step_just_outside_the_limb_does_not_pull_the_centre() {
     let (nx, ny) = (0.3f64.cos(), 0.3f64.sin());
     let reach = r + 1.5;
     let level = |x: f64, y: f64| {
-        if (x - cx).powi(2) + (y - cy).powi(2) < r * r {
+        if within((cx, cy, r), x, y) {
             900.0
         } else if (x - cx) * nx + (y - cy) * ny < reach {
             150.0
@@ -329,10 +293,7 @@ fn discs_in_front_of_a_plate_above_the_threshold_are_found() {
     ];
     let plate = |x: f64, y: f64| (20.0..140.0).contains(&x) && (20.0..100.0).contains(&y);
     let level = |x: f64, y: f64| {
-        if discs
-            .iter()
-            .any(|(cx, cy, r)| (x - cx).powi(2) + (y - cy).powi(2) < r * r)
-        {
+        if discs.iter().any(|&disc| within(disc, x, y)) {
             230.0
         } else if plate(x, y) {
             70.0
