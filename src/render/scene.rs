@@ -1,10 +1,10 @@
 //! The part as rays meet it: the primitives [`Marker::design`] builds
 //! (balls, capsules, the round cones under the spheres of a printable part,
 //! the base plate with its holes, the flat cut on the bed), intersected
-//! exactly where a closed form is short (balls, capsules, the plate's box)
-//! and by sphere tracing of the primitive's own signed distance
-//! ([`crate::mesh::sdf`]) where it is not (round-cone flanks, rounded
-//! edges, hole rims). Near a junction, where the mesher blends primitives
+//! exactly where a closed form is short (balls, capsules, round cones, the
+//! plate's box) and by sphere tracing of the primitive's own signed
+//! distance ([`crate::mesh::sdf`]) where it is not (the plate's rounded
+//! edges and hole rims). Near a junction, where the mesher blends primitives
 //! into fillets, a hit is refined on the marker's full signed-distance
 //! function ([`Marker::signed_distance`]), so the image shows the solid
 //! `export` meshes, fillets included.
@@ -326,20 +326,30 @@ impl Scene {
                 teardrop,
                 ..
             } => {
-                let ball = ball_interval(ray, centre, *radius);
                 match teardrop {
-                    None => self.clipped_hit(index, ray, ball?, low, high),
+                    None => self.clipped_hit(
+                        index,
+                        ray,
+                        ball_interval(ray, centre, *radius)?,
+                        low,
+                        high,
+                    ),
                     Some((tip, tip_radius)) => {
+                        // The round cone is convex: its chord runs from the
+                        // ray's entry to the reversed ray's entry from
+                        // beyond the capsule that holds it.
                         let bound = capsule_interval(ray, centre, tip, radius.max(*tip_radius))?;
-                        // The ball's entry is exact; trace the flank only
-                        // in front of it.
-                        let stop = ball.map_or(bound.1, |(t0, _)| t0.min(bound.1));
-                        let start = bound.0.max(low);
-                        if let Some(t) = self.trace(index, ray, start, stop.min(high)) {
-                            return Some(self.hit_at(index, ray, t));
-                        }
-                        let (t0, t1) = ball?;
-                        self.clipped_hit(index, ray, (t0, t1), low, high)
+                        let cone = |origin: &Vector3<f64>, direction: &Vector3<f64>| {
+                            sdf::ray_round_cone(
+                                origin,
+                                direction,
+                                (centre, *radius),
+                                (tip, *tip_radius),
+                            )
+                        };
+                        let entry = cone(&ray.origin, &ray.direction)?;
+                        let exit = bound.1 - cone(&ray.at(bound.1), &-ray.direction)?;
+                        self.clipped_hit(index, ray, (entry, exit), low, high)
                     }
                 }
             }

@@ -10,6 +10,8 @@
 //! (within a blend radius of a strut piece). The fillets at the base
 //! plate are left out: the plate lies behind every sphere.
 
+pub use crate::mesh::sdf::ray_ball;
+use crate::mesh::sdf::{ray_capsule, ray_round_cone};
 use nalgebra::Vector3;
 
 /// Largest number of sphere-tracing steps on a fillet.
@@ -71,32 +73,6 @@ pub enum Occluder {
         /// Half extents along x, y, z.
         half_extents: Vector3<f64>,
     },
-}
-
-/// The entry distance of the ray `origin + t·direction` (unit direction)
-/// into the ball, if it meets it ahead of the origin.
-pub fn ray_ball(
-    origin: &Vector3<f64>,
-    direction: &Vector3<f64>,
-    centre: &Vector3<f64>,
-    radius: f64,
-) -> Option<f64> {
-    let oc = origin - centre;
-    let b = oc.dot(direction);
-    let c = oc.norm_squared() - radius * radius;
-    let h = b * b - c;
-    if h < 0.0 {
-        return None;
-    }
-    let root = h.sqrt();
-    let t = -b - root;
-    if t >= 0.0 {
-        Some(t)
-    } else if -b + root >= 0.0 {
-        Some(0.0)
-    } else {
-        None
-    }
 }
 
 impl Occluder {
@@ -376,147 +352,6 @@ fn round_cone_distance(
     } else {
         along * sine + radial * cosine - radius_a
     }
-}
-
-/// Entry distance of the ray `origin + t·direction` (unit direction) into
-/// the convex hull of two balls, if it meets it ahead of the origin: the
-/// first of its entries into either ball and into the frustum between the
-/// circles where the flank touches them (a nappe of the cone through both
-/// balls, cut by two planes across its axis), each exact.
-fn ray_round_cone(
-    origin: &Vector3<f64>,
-    direction: &Vector3<f64>,
-    first: (&Vector3<f64>, f64),
-    second: (&Vector3<f64>, f64),
-) -> Option<f64> {
-    // The larger ball first.
-    let ((a, radius_a), (b, radius_b)) = if first.1 >= second.1 {
-        (first, second)
-    } else {
-        (second, first)
-    };
-    let along = b - a;
-    let length = along.norm();
-    if length <= radius_a - radius_b {
-        return ray_ball(origin, direction, a, radius_a);
-    }
-    let sine = (radius_a - radius_b) / length;
-    if sine < 1e-9 {
-        return ray_capsule(origin, direction, a, b, radius_a);
-    }
-    let balls = [
-        ray_ball(origin, direction, a, radius_a),
-        ray_ball(origin, direction, b, radius_b),
-    ];
-    let mut best = balls.into_iter().flatten().reduce(f64::min);
-    let axis = along / length;
-    // The cone's apex lies beyond the smaller ball; `s` measures distance
-    // from it back along the axis, towards the larger ball. The flank
-    // touches the balls at s = ra/sine − ra·sine and at s = ra/sine −
-    // length − rb·sine.
-    let apex_s = radius_a / sine;
-    let co = origin - (a + axis * apex_s);
-    let (dv, cv) = (-direction.dot(&axis), -co.dot(&axis));
-    let (s_low, s_high) = (apex_s - length - radius_b * sine, apex_s - radius_a * sine);
-    // Where the ray lies between the two planes.
-    let (low, high) = if dv.abs() < 1e-15 {
-        if cv < s_low || cv > s_high {
-            return best;
-        }
-        (0.0, f64::INFINITY)
-    } else {
-        let (t0, t1) = ((s_low - cv) / dv, (s_high - cv) / dv);
-        (t0.min(t1).max(0.0), t0.max(t1))
-    };
-    if low > high {
-        return best;
-    }
-    // Inside the cone: (x·w)² ≥ cos²·|x|² with x·w > 0, which the planes
-    // already hold; as a quadratic in t, q(t) = qa·t² + 2·qb·t + qc ≥ 0.
-    let cos2 = 1.0 - sine * sine;
-    let qa = dv * dv - cos2;
-    let qb = dv * cv - cos2 * direction.dot(&co);
-    let qc = cv * cv - cos2 * co.norm_squared();
-    let mut enter = |from: f64, to: f64| {
-        let (from, to) = (from.max(low), to.min(high));
-        if from <= to {
-            best = Some(best.map_or(from, |t| t.min(from)));
-        }
-    };
-    if qa.abs() < 1e-15 {
-        // One root: the ray runs parallel to a generator.
-        if qb.abs() < 1e-300 {
-            if qc >= 0.0 {
-                enter(low, high);
-            }
-        } else {
-            let root = -qc / (2.0 * qb);
-            if qb > 0.0 {
-                enter(root, f64::INFINITY);
-            } else {
-                enter(f64::NEG_INFINITY, root);
-            }
-        }
-        return best;
-    }
-    let discriminant = qb * qb - qa * qc;
-    if discriminant < 0.0 {
-        if qa > 0.0 {
-            enter(low, high);
-        }
-        return best;
-    }
-    let root = discriminant.sqrt();
-    let (r0, r1) = {
-        let (x, y) = ((-qb - root) / qa, (-qb + root) / qa);
-        (x.min(y), x.max(y))
-    };
-    if qa < 0.0 {
-        enter(r0, r1);
-    } else {
-        enter(f64::NEG_INFINITY, r0);
-        enter(r1, f64::INFINITY);
-    }
-    best
-}
-
-/// Entry distance of a ray into a capsule: its cylinder, else its end balls.
-fn ray_capsule(
-    origin: &Vector3<f64>,
-    direction: &Vector3<f64>,
-    a: &Vector3<f64>,
-    b: &Vector3<f64>,
-    radius: f64,
-) -> Option<f64> {
-    let ba = b - a;
-    let oa = origin - a;
-    let baba = ba.norm_squared();
-    let bard = ba.dot(direction);
-    let baoa = ba.dot(&oa);
-    let rdoa = direction.dot(&oa);
-    let oaoa = oa.norm_squared();
-    let qa = baba - bard * bard;
-    let mut best: Option<f64> = None;
-    let mut take = |t: Option<f64>| {
-        if let Some(t) = t {
-            best = Some(best.map_or(t, |b: f64| b.min(t)));
-        }
-    };
-    if qa > 1e-12 * baba {
-        let qb = baba * rdoa - baoa * bard;
-        let qc = baba * oaoa - baoa * baoa - radius * radius * baba;
-        let h = qb * qb - qa * qc;
-        if h >= 0.0 {
-            let t = (-qb - h.sqrt()) / qa;
-            let y = baoa + t * bard;
-            if t >= 0.0 && y > 0.0 && y < baba {
-                return Some(t);
-            }
-        }
-    }
-    take(ray_ball(origin, direction, a, radius));
-    take(ray_ball(origin, direction, b, radius));
-    best
 }
 
 /// Whether a ball of radius `ball_radius` at `q` covers any of the sphere
