@@ -48,6 +48,10 @@ pub struct RenderArgs {
     /// Background radiance (default: the preset's).
     #[arg(long, value_name = "L")]
     background_radiance: Option<f64>,
+    /// Diffuse preset: share of the light that reaches every surface
+    /// whatever its orientation, 0–1 (default: the preset's).
+    #[arg(long, value_name = "SHARE")]
+    ambient: Option<f64>,
     /// Exposure: multiplies every radiance.
     #[arg(long, value_name = "X", default_value_t = 1.0)]
     exposure: f64,
@@ -106,6 +110,7 @@ fn config(args: &RenderArgs, global: &GlobalOptions) -> anyhow::Result<RenderCon
             .background_radiance
             .unwrap_or(preset.background_radiance),
         exposure: args.exposure,
+        ambient: args.ambient.unwrap_or(preset.ambient),
         ..preset
     };
     let blur = match (args.aperture, args.focus) {

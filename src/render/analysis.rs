@@ -234,9 +234,7 @@ impl Shader<'_> {
         let a = self.appearance;
         let facing = (-hit.normal.dot(direction)).max(0.0);
         let lit = |radiance: f64| {
-            radiance
-                * (super::config::DIFFUSE_AMBIENT
-                    + (1.0 - super::config::DIFFUSE_AMBIENT) * hit.normal.dot(&self.light).max(0.0))
+            radiance * (a.ambient + (1.0 - a.ambient) * hit.normal.dot(&self.light).max(0.0))
         };
         let radiance = match (a.lighting, hit.sphere.is_some()) {
             (Lighting::Retroreflective, true) => {
@@ -414,5 +412,40 @@ mod tests {
         let after: f32 = image.values.iter().sum();
         assert!((before - after).abs() < 1e-3);
         assert!(image.values[15 * 40 + 20] < 0.5 && image.values[15 * 40 + 21] > 0.26);
+    }
+
+    #[test]
+    fn diffuse_light_is_the_ambient_share_plus_the_lamp_by_its_cosine() {
+        let scene = Scene::spheres_only(&[(Vector3::new(0.0, 0.0, 100.0), 5.0)]);
+        let camera = Camera::paper();
+        let appearance = Appearance {
+            ambient: 0.4,
+            ..Appearance::preset(Lighting::Diffuse)
+        };
+        let light = Vector3::new(0.0, 0.0, -1.0);
+        let shader = Shader {
+            scene: &scene,
+            camera: &camera,
+            appearance: &appearance,
+            inverse_rotation: nalgebra::Matrix3::identity(),
+            origin: Vector3::zeros(),
+            light,
+        };
+        let hit = |normal: Vector3<f64>, sphere: Option<usize>| Hit {
+            t: 95.0,
+            shape: 0,
+            sphere,
+            normal,
+        };
+        let (l, a) = (appearance.sphere_radiance, appearance.support_radiance);
+        let facing = shader.shade(&hit(light, Some(0)), &Vector3::z());
+        assert!((facing - l).abs() < 1e-12, "{facing}");
+        // Turned 60° from the lamp: the ambient share and half the lamp.
+        let turned = Vector3::new(60f64.to_radians().sin(), 0.0, -0.5);
+        let side = shader.shade(&hit(turned, Some(0)), &Vector3::z());
+        assert!((side - l * (0.4 + 0.6 * 0.5)).abs() < 1e-12, "{side}");
+        // Facing away: the ambient share alone, for a support as well.
+        let away = shader.shade(&hit(Vector3::x(), None), &Vector3::z());
+        assert!((away - a * 0.4).abs() < 1e-12, "{away}");
     }
 }

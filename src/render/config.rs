@@ -27,8 +27,12 @@ pub const MAX_REALISATIONS: u32 = 1000;
 /// from 1 at the centre of the disc to 1 − this at the edge.
 pub const RETROREFLECTIVE_LIMB_FALLOFF: f64 = 0.15;
 /// Share of the diffuse preset's light that reaches every surface
-/// regardless of its orientation.
-pub const DIFFUSE_AMBIENT: f64 = 0.15;
+/// regardless of its orientation (its default; `render --ambient`): room
+/// light, most of it from the ceiling and the walls. At 0.15 (a lamp with
+/// little fill) the shaded side of a white sphere falls below its lit grey
+/// supports and no disc is whole at any threshold; `track` then reads no
+/// frame of the search winner (docs/calibration.md, "diffuse").
+pub const DIFFUSE_AMBIENT: f64 = 0.85;
 /// Direction from the part to the diffuse preset's light, camera frame:
 /// beside the camera, up and to the left, 30° off the optical axis.
 pub const DIFFUSE_LIGHT_DIRECTION: [f64; 3] = [-0.3536, -0.3536, -0.8660];
@@ -44,8 +48,9 @@ pub enum Lighting {
     /// line of sight).
     Retroreflective,
     /// A light beside the camera ([`DIFFUSE_LIGHT_DIRECTION`]): white
-    /// Lambertian spheres and grey Lambertian supports, with
-    /// [`DIFFUSE_AMBIENT`] of ambient light; no shadows.
+    /// Lambertian spheres and grey Lambertian supports, with a share of
+    /// ambient light ([`Appearance::ambient`], [`DIFFUSE_AMBIENT`] by
+    /// default); no shadows.
     Diffuse,
 }
 
@@ -99,6 +104,9 @@ pub struct Appearance {
     pub exposure: f64,
     /// Darkening of a sphere at its limb (retroreflective lighting), 0..1.
     pub sphere_limb_falloff: f64,
+    /// Share of the light that reaches every surface whatever its
+    /// orientation (diffuse lighting), 0..1; the rest comes from the lamp.
+    pub ambient: f64,
 }
 
 impl Appearance {
@@ -112,6 +120,7 @@ impl Appearance {
                 background_radiance: 0.02,
                 exposure: 1.0,
                 sphere_limb_falloff: RETROREFLECTIVE_LIMB_FALLOFF,
+                ambient: 0.0,
             },
             Lighting::Diffuse => Appearance {
                 lighting,
@@ -120,6 +129,7 @@ impl Appearance {
                 background_radiance: 0.12,
                 exposure: 1.0,
                 sphere_limb_falloff: 0.0,
+                ambient: DIFFUSE_AMBIENT,
             },
         }
     }
@@ -282,6 +292,7 @@ impl RenderConfig {
         ConfigError::within("background_radiance", a.background_radiance, 0.0, 1e6)?;
         ConfigError::positive("exposure", a.exposure)?;
         ConfigError::within("sphere_limb_falloff", a.sphere_limb_falloff, 0.0, 1.0)?;
+        ConfigError::within("ambient", a.ambient, 0.0, 1.0)?;
         let s = self.optics.supersampling;
         if !(MIN_SUPERSAMPLING..=MAX_SUPERSAMPLING).contains(&s) {
             return Err(ConfigError::new(
@@ -341,6 +352,7 @@ mod tests {
             &|c| c.appearance.sphere_radiance = f64::NAN,
             "sphere_radiance",
         );
+        check(&|c| c.appearance.ambient = 1.5, "ambient");
         check(&|c| c.optics.supersampling = 3, "supersampling");
         check(
             &|c| c.optics.blur = Blur::Gaussian { sigma_px: -0.5 },

@@ -41,6 +41,7 @@ fn flat_config(camera: Camera) -> RenderConfig {
         background_radiance: 0.0,
         exposure: 1.0,
         sphere_limb_falloff: 0.0,
+        ambient: 0.0,
     };
     config.optics.supersampling = 8;
     config.optics.blur = Blur::None;
