@@ -914,6 +914,8 @@ impl Evaluator {
             let mut v = visibility(&images, &self.camera);
             if let Some((supports, max_hidden, screen)) = supports {
                 if v.is_visible() {
+                    // Whether the scenario is visible is all that counts
+                    // here: the first hidden sphere decides it.
                     v.hidden_by_support = match screen {
                         Some(screen) => spheres_hidden_by_supports(
                             &self.camera,
@@ -923,7 +925,9 @@ impl Evaluator {
                             supports,
                             screen,
                             max_hidden,
-                        ),
+                        )
+                        .take(1)
+                        .collect(),
                         None => {
                             let fractions =
                                 support_fractions(&self.camera, &pose, points, radius_mm, supports);

@@ -1133,39 +1133,39 @@ impl EyeCone {
 /// [`visibility_with_supports`], with each sphere's supports taken from
 /// `screen` ([`EyeCone::screen`] for a cone that holds this scenario's
 /// eye) and its sight lines followed only until the decision is known.
-pub fn spheres_hidden_by_supports(
-    camera: &Camera,
-    pose: &Pose,
-    centres: &[Vector3<f64>],
+/// Lazy, in layout order: a caller that asks only whether any sphere is
+/// hidden (`.next()`) traces no sphere after the first hidden one.
+pub fn spheres_hidden_by_supports<'a>(
+    camera: &'a Camera,
+    pose: &'a Pose,
+    centres: &'a [Vector3<f64>],
     radius_mm: f64,
-    supports: &Supports,
-    screen: &[Vec<usize>],
+    supports: &'a Supports,
+    screen: &'a [Vec<usize>],
     max_hidden: MaxHidden,
-) -> Vec<usize> {
+) -> impl Iterator<Item = usize> + 'a {
     let rotation = pose.rotation.matrix();
     let eye = -(rotation.transpose() * pose.translation);
     let stop_above = (max_hidden.fraction() * SILHOUETTE_RAYS as f64).floor() as usize;
-    (0..centres.len())
-        .filter(|&k| {
-            if screen[k].is_empty() {
-                return false;
-            }
-            let trace = Trace {
-                camera,
-                pose,
-                eye: &eye,
-                centres,
-                radius_mm,
-                supports,
-                visible: true,
-                among: Some(&screen[k]),
-                stop_above,
-            };
-            trace
-                .sphere(k)
-                .is_some_and(|f| f.support > max_hidden.fraction())
-        })
-        .collect()
+    (0..centres.len()).filter(move |&k| {
+        if screen[k].is_empty() {
+            return false;
+        }
+        let trace = Trace {
+            camera,
+            pose,
+            eye: &eye,
+            centres,
+            radius_mm,
+            supports,
+            visible: true,
+            among: Some(&screen[k]),
+            stop_above,
+        };
+        trace
+            .sphere(k)
+            .is_some_and(|f| f.support > max_hidden.fraction())
+    })
 }
 
 /// The views of a working range that the spheres alone leave usable: the

@@ -214,9 +214,10 @@ fn the_screened_decision_equals_a_full_trace_over_a_grid() {
                 .collect();
             for max_hidden in [0.0, 0.01, 0.05] {
                 let max_hidden = MaxHidden::new(max_hidden).expect("a fraction");
-                let decided = spheres_hidden_by_supports(
+                let decided: Vec<usize> = spheres_hidden_by_supports(
                     &camera, &pose, &centres, radius, supports, &screen, max_hidden,
-                );
+                )
+                .collect();
                 let expected: Vec<usize> = (0..centres.len())
                     .filter(|&k| full[k] as f64 / SILHOUETTE_RAYS as f64 > max_hidden.fraction())
                     .collect();

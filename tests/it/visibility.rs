@@ -449,9 +449,10 @@ fn the_culled_support_fractions_equal_the_full_model_in_visible_scenarios() {
             }
             for max_hidden in [0.0, 0.01, 0.1] {
                 let max_hidden = MaxHidden::new(max_hidden).unwrap();
-                let decided = spheres_hidden_by_supports(
+                let decided: Vec<usize> = spheres_hidden_by_supports(
                     &camera, &pose, &centres, radius, supports, screen, max_hidden,
-                );
+                )
+                .collect();
                 let expected: Vec<usize> = (0..centres.len())
                     .filter(|&k| fast[k] > max_hidden.fraction())
                     .collect();
