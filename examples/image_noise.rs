@@ -20,8 +20,11 @@
 //! sphere's intensity-weighted centroid over the pixels within 1.2 disc
 //! radii of its exact ellipse centre, less the median of the ring from 1.4
 //! to 1.8 radii. Its per-axis σ about its mean is printed beside `track`'s
-//! centre σ and, with `CALIBRATION` (a noise calibration file, e.g.
-//! `calibration/paper.json`), beside that law's σ at the same radius:
+//! centre σ, and its per-axis RMS error about the exact ellipse centre (the
+//! centroid of a uniform disc; noise and bias) beside `track`'s RMS error
+//! about the exact projected centre; with `CALIBRATION` (a noise
+//! calibration file, e.g. `calibration/paper.json`), each beside that
+//! law's σ at the same radius:
 //!
 //! ```text
 //! cargo run --release --example image_noise -- LAYOUT TRIALS SEED CALIBRATION
@@ -78,6 +81,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut cross = Vec::new();
     for (depth, images, centroids) in results.iter().flatten() {
         let samples = sigma_samples(std::slice::from_ref(images), CentreErrorMeasure::Scatter);
+        let about_truth =
+            sigma_samples(std::slice::from_ref(images), CentreErrorMeasure::AboutTruth);
         let radii: Vec<String> = samples
             .iter()
             .map(|s| format!("{:.1}", s.radius_px))
@@ -97,13 +102,19 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             images.mislabelled_frames
         );
         for sample in &samples {
-            // The centroid of the same sphere: matched by radius, which is
-            // the sphere's own exact disc radius in both.
-            if let Some(&(_, sigma)) = centroids
-                .iter()
-                .find(|(r, _)| (r - sample.radius_px).abs() < 1e-9)
-            {
-                cross.push((sample.radius_px, sample.sigma_px, sigma));
+            // The same sphere's error about the truth and its centroid:
+            // matched by radius, the sphere's own exact disc radius in all.
+            let same = |r: f64| (r - sample.radius_px).abs() < 1e-9;
+            let truth = about_truth.iter().find(|t| same(t.radius_px));
+            let centroid = centroids.iter().find(|(r, _, _)| same(*r));
+            if let (Some(truth), Some(&(_, sigma, rms))) = (truth, centroid) {
+                cross.push((
+                    sample.radius_px,
+                    sample.sigma_px,
+                    sigma,
+                    truth.sigma_px,
+                    rms,
+                ));
             }
         }
         all.extend(samples);
@@ -111,20 +122,24 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     cross.sort_by(|a, b| a.0.total_cmp(&b.0));
     println!("\ncross-check: whole spheres, track's centre σ beside an independent centroid's σ (same frames){}", if calibration.is_some() { " and the calibration's σ(r)" } else { "" });
     println!(
-        "radius px | track σ px | centroid σ px | centroid / track{}",
+        "radius px | track σ px | centroid σ px | centroid / track | track RMS about truth px | centroid RMS about truth px{}",
         if calibration.is_some() {
-            " | law σ px | law / centroid"
+            " | law σ px | law / centroid σ | law / centroid RMS about truth"
         } else {
             ""
         }
     );
-    for (radius, track_sigma, centroid_sigma) in &cross {
+    for (radius, track_sigma, centroid_sigma, track_rms, centroid_rms) in &cross {
         let law = calibration.as_ref().map_or(String::new(), |file| {
             let sigma = file.sigma().expect("checked on load").sigma(*radius);
-            format!(" | {sigma:.5} | {:.2}", sigma / centroid_sigma)
+            format!(
+                " | {sigma:.5} | {:.2} | {:.2}",
+                sigma / centroid_sigma,
+                sigma / centroid_rms
+            )
         });
         println!(
-            "{radius:.1} | {track_sigma:.5} | {centroid_sigma:.5} | {:.2}{law}",
+            "{radius:.1} | {track_sigma:.5} | {centroid_sigma:.5} | {:.2} | {track_rms:.5} | {centroid_rms:.5}{law}",
             centroid_sigma / track_sigma
         );
     }
@@ -143,7 +158,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
 }
 
 /// Per whole sphere: (disc radius px, per-axis σ px of its independent
-/// centroid over the `trials` noisy frames of `frame`; module docs).
+/// centroid about its mean over the `trials` noisy frames of `frame`, and
+/// its per-axis RMS error px about the exact ellipse centre; module docs).
 fn centroid_sigmas(
     scene: &Scene,
     names: &[String],
@@ -151,7 +167,7 @@ fn centroid_sigmas(
     pose: &layout_opt::pose::Pose,
     frame: u64,
     trials: usize,
-) -> Vec<(f64, f64)> {
+) -> Vec<(f64, f64, f64)> {
     let Ok(truth) = frame_truth(scene, names, pose, &render.camera) else {
         return Vec::new();
     };
@@ -180,11 +196,17 @@ fn centroid_sigmas(
             let mean = centres
                 .iter()
                 .fold([0.0; 2], |m, c| [m[0] + c[0] / n, m[1] + c[1] / n]);
-            let spread: f64 = centres
-                .iter()
-                .map(|c| (c[0] - mean[0]).powi(2) + (c[1] - mean[1]).powi(2))
-                .sum();
-            Some((radius, (spread / (2.0 * (n - 1.0))).sqrt()))
+            let squares = |about: [f64; 2]| -> f64 {
+                centres
+                    .iter()
+                    .map(|c| (c[0] - about[0]).powi(2) + (c[1] - about[1]).powi(2))
+                    .sum()
+            };
+            Some((
+                radius,
+                (squares(mean) / (2.0 * (n - 1.0))).sqrt(),
+                (squares(s.ellipse_centre_px) / (2.0 * n)).sqrt(),
+            ))
         })
         .collect()
 }
