@@ -55,8 +55,8 @@ use crate::identifiability::{
 use crate::layout::{Layout, LayoutError};
 use crate::montecarlo::Target;
 use crate::pnp::unlabelled::{
-    identify, Labelling, LabellingError, UnlabelledOptions, MIN_POINTS, SCREENING_FACTOR,
-    SETTLED_FRACTION,
+    identify, identify_without, Labelling, LabellingError, TriplePoses, UnlabelledOptions,
+    MIN_POINTS, SCREENING_FACTOR, SETTLED_FRACTION,
 };
 use crate::pnp::{ml, p3p};
 use crate::pose::{absolute_orientation, Pose};
@@ -80,6 +80,10 @@ pub const MAX_MARKERS: usize = 8;
 /// may be confused with it (per viewpoint, a predicted confusion
 /// probability of at most 1e-3).
 pub const DEFAULT_MIN_CROSS: f64 = 0.999;
+/// A viewpoint is near failing the cross floor when its confusion
+/// probability exceeds this share of the floor's criterion
+/// ([`CrossPair::near`]).
+pub const NEAR_SHARE: f64 = 0.01;
 /// Two markers are one marker when a rigid motion and a relabelling put
 /// every point of one within this distance of a point of the other, mm.
 pub const IDENTICAL_TOLERANCE_MM: f64 = 1e-3;
@@ -419,6 +423,9 @@ pub struct CrossPrediction {
     pub missing: Option<usize>,
     /// For each blob of the worst case, the rival's point it was given.
     pub labels: Option<Vec<usize>>,
+    /// The rival's refitted pose in the worst case.
+    #[serde(skip)]
+    pub pose: Option<Pose>,
 }
 
 /// Predicts how well `rival` explains the noise-free view `observed`
@@ -443,25 +450,29 @@ pub fn predict_cross(
         confusion_probability: normal_upper_tail(gate_px / (2.0 * sigma)),
         missing: None,
         labels: None,
+        pose: None,
     };
     let dropped = (n > MIN_POINTS).then_some(0..n).into_iter().flatten();
+    // The blob sets share most of their image triples: each is solved once.
+    let mut poses = TriplePoses::new();
     for missing in std::iter::once(None).chain(dropped.map(Some)) {
-        let keep: Vec<usize> = (0..n).filter(|&k| Some(k) != missing).collect();
-        let m = keep.len();
+        let m = n - usize::from(missing.is_some());
         if rival.len() < m || rival.len() - m > 1 {
             continue;
         }
-        let view: Vec<Vector2<f64>> = keep.iter().map(|&k| observed[k]).collect();
         let options = UnlabelledOptions::with_gate_px(gate_px, focal, rival.len() - m);
-        let Ok(found) = identify(rival, &view, &options) else {
+        let Ok(found) = identify_without(rival, observed, missing, &options, &mut poses) else {
             continue;
         };
-        let assigned: Vec<Vector3<f64>> = found.best.labels.iter().map(|&l| rival[l]).collect();
-        let own: Vec<Vector3<f64>> = keep.iter().map(|&k| object[k]).collect();
-        let sigmas: Vec<f64> = keep.iter().map(|&k| sigmas_px[k]).collect();
-        let pose = ml::refine(&found.best.pose, &assigned, &view);
-        let (margin, probability) =
-            wrong_probability(camera, truth, &pose, &own, &assigned, &view, &sigmas);
+        let (margin, probability, pose) = fit_labelling(
+            camera,
+            truth,
+            (object, observed, sigmas_px),
+            rival,
+            missing,
+            &found.best.labels,
+            &found.best.pose,
+        );
         // A fit within the gate replaces the gate's bound; among fits, the
         // most probable confusion (then the smaller margin) is kept.
         let worse = worst.margin_px.is_none_or(|w| {
@@ -475,21 +486,49 @@ pub fn predict_cross(
                 confusion_probability: probability,
                 missing,
                 labels: Some(found.best.labels.clone()),
+                pose: Some(pose),
             };
         }
     }
     worst
 }
 
-/// The cross prediction of one (marker, rival) pair in one scenario; None
-/// when the marker is not visible there (or a sphere's image cannot be
-/// made).
-pub fn cross_scenario(
-    target: &Target,
+/// One labelling of a view refitted: `rival`'s points `labels` given to
+/// the blobs of `object`'s view (`observed`, normalised, in object order,
+/// with per-point noise; blob `missing` left out), the pose refined from
+/// `start`. Returns the cross margin (px), the predicted probability that
+/// this fit beats the marker's own, and the refitted pose.
+fn fit_labelling(
+    camera: &Camera,
+    truth: &Pose,
+    (object, observed, sigmas_px): (&[Vector3<f64>], &[Vector2<f64>], &[f64]),
     rival: &[Vector3<f64>],
+    missing: Option<usize>,
+    labels: &[usize],
+    start: &Pose,
+) -> (f64, f64, Pose) {
+    let keep: Vec<usize> = (0..object.len()).filter(|&k| Some(k) != missing).collect();
+    let view: Vec<Vector2<f64>> = keep.iter().map(|&k| observed[k]).collect();
+    let assigned: Vec<Vector3<f64>> = labels.iter().map(|&l| rival[l]).collect();
+    let own: Vec<Vector3<f64>> = keep.iter().map(|&k| object[k]).collect();
+    let sigmas: Vec<f64> = keep.iter().map(|&k| sigmas_px[k]).collect();
+    let pose = ml::refine(start, &assigned, &view);
+    let (margin, probability) =
+        wrong_probability(camera, truth, &pose, &own, &assigned, &view, &sigmas);
+    (margin, probability, pose)
+}
+
+/// A marker's noise-free view: its blobs (normalised, in object order)
+/// and their noise σ (px).
+pub type SeenView = (Vec<Vector2<f64>>, Vec<f64>);
+
+/// Marker `target`'s noise-free view in `scenario` when it is visible
+/// there.
+pub fn seen_view(
+    target: &Target,
     scenario: &Scenario,
     settings: &IdentifiabilitySettings,
-) -> Option<CrossPrediction> {
+) -> Option<SeenView> {
     let images = sphere_images(
         target.camera,
         &scenario.pose(),
@@ -502,9 +541,52 @@ pub fn cross_scenario(
     let (_, normalised, sigmas) =
         clean_view(target, scenario, settings.observation, &settings.noise)?;
     let sigma = sigmas.iter().copied().fold(0.0, f64::max);
-    if !(sigma > 0.0 && sigma.is_finite()) {
+    (sigma > 0.0 && sigma.is_finite()).then_some((normalised, sigmas))
+}
+
+/// The predicted probability that one fixed confusion beats a marker's
+/// own fit in `scenario`: the blobs of its `view` ([`seen_view`] of
+/// `object`; blob `missing` left out) explained by `rival`'s points
+/// `labels`, the pose refined from `start`. A repair prices a confusion
+/// that a cross check found this way, without searching the labellings
+/// again. None when the labels do not fit the blobs and the rival.
+pub fn labelled_confusion(
+    camera: &Camera,
+    scenario: &Scenario,
+    (object, view): (&[Vector3<f64>], &SeenView),
+    rival: &[Vector3<f64>],
+    (missing, labels, start): (Option<usize>, &[usize], &Pose),
+) -> Option<f64> {
+    let kept = object.len() - usize::from(missing.is_some());
+    if labels.len() != kept
+        || labels.iter().any(|&l| l >= rival.len())
+        || view.0.len() != object.len()
+    {
         return None;
     }
+    let (_, probability, _) = fit_labelling(
+        camera,
+        &scenario.pose(),
+        (object, &view.0, &view.1),
+        rival,
+        missing,
+        labels,
+        start,
+    );
+    Some(probability)
+}
+
+/// The cross prediction of one (marker, rival) pair in one scenario; None
+/// when the marker is not visible there (or a sphere's image cannot be
+/// made).
+pub fn cross_scenario(
+    target: &Target,
+    rival: &[Vector3<f64>],
+    scenario: &Scenario,
+    settings: &IdentifiabilitySettings,
+) -> Option<CrossPrediction> {
+    let (normalised, sigmas) = seen_view(target, scenario, settings)?;
+    let sigma = sigmas.iter().copied().fold(0.0, f64::max);
     Some(predict_cross(
         target.camera,
         &scenario.pose(),
@@ -538,6 +620,11 @@ pub struct CrossPair {
     pub cross_identifiable: usize,
     /// Grid indices of the scenarios that fail the floor.
     pub failing: Vec<usize>,
+    /// Grid indices of the scenarios whose confusion probability exceeds
+    /// [`NEAR_SHARE`] of the floor's criterion (those failing among them):
+    /// the viewpoints a small change of either marker may make fail.
+    #[serde(skip)]
+    pub near: Vec<usize>,
 }
 
 impl CrossPair {
@@ -607,6 +694,19 @@ pub fn cross_matrix(
                 .map(move |j| (i, j))
         })
         .collect();
+    cross_pairs(targets, names, scenarios, settings, &pairs)
+}
+
+/// [`cross_matrix`] over the ordered `pairs` (marker, rival) alone: a
+/// set designed marker by marker checks only the pairs of its newest
+/// marker.
+pub fn cross_pairs(
+    targets: &[Target],
+    names: &[String],
+    scenarios: &[Scenario],
+    settings: &IdentifiabilitySettings,
+    pairs: &[(usize, usize)],
+) -> CrossMatrix {
     let cells: Vec<Vec<Option<CrossPrediction>>> = scenarios
         .par_iter()
         .map(|s| {
@@ -630,6 +730,7 @@ pub fn cross_matrix(
                 mean_confusion: 0.0,
                 cross_identifiable: 0,
                 failing: Vec::new(),
+                near: Vec::new(),
             };
             let mut sum = 0.0;
             for (s, row) in scenarios.iter().zip(&cells) {
@@ -649,6 +750,9 @@ pub fn cross_matrix(
                     pair.cross_identifiable += 1;
                 } else {
                     pair.failing.push(s.index);
+                }
+                if prediction.confusion_probability > NEAR_SHARE * max_wrong {
+                    pair.near.push(s.index);
                 }
             }
             if pair.visible > 0 {

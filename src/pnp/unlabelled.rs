@@ -245,9 +245,111 @@ pub fn identify(
     options: &UnlabelledOptions,
 ) -> Result<Identification, LabellingError> {
     validate(object, image, options)?;
-    let mut search = Search::new(object, image, options);
-    for triple in image_triples(image) {
-        search.run_triple(triple);
+    run_search(
+        Search::new(object, image, options),
+        options,
+        |search, triple| search.run_triple(triple),
+    )
+}
+
+/// The P3P poses of every ordered object triple against image triples of
+/// one image, kept for [`identify_without`] calls on that image with
+/// different blobs left out: the calls share every image triple their
+/// searches have in common, and solve it once.
+#[derive(Debug, Default)]
+pub struct TriplePoses {
+    /// Per image triple solved (indices into the whole image): each pose
+    /// with its ordered object triple, in the order [`identify`] meets
+    /// them.
+    solved: Vec<([usize; 3], Vec<TriplePose>)>,
+}
+
+/// A P3P pose with the ordered object triple it came from.
+type TriplePose = (Pose, [usize; 3]);
+
+impl TriplePoses {
+    /// An empty store.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// The poses of image triple `key` (indices into `image`), solved on
+    /// first use.
+    fn poses(
+        &mut self,
+        object: &[Vector3<f64>],
+        image: &[Vector2<f64>],
+        key: [usize; 3],
+    ) -> &[TriplePose] {
+        let at = match self.solved.iter().position(|(k, _)| *k == key) {
+            Some(at) => at,
+            None => {
+                let bearings = key.map(|i| Vector3::new(image[i].x, image[i].y, 1.0).normalize());
+                let mut found = Vec::new();
+                let mut poses = P3pCandidates::new();
+                for_each_object_triple(object.len(), |[a, b, c]| {
+                    p3p::solve_bearings(&[object[a], object[b], object[c]], &bearings, &mut poses);
+                    found.extend(poses.iter().map(|pose| (*pose, [a, b, c])));
+                });
+                self.solved.push((key, found));
+                self.solved.len() - 1
+            }
+        };
+        &self.solved[at].1
+    }
+}
+
+/// [`identify`] of `image` with blob `missing` left out (the result's
+/// labels are for the blobs kept, in order), its P3P poses taken from
+/// (and added to) `poses`, which must hold poses of this `object` and
+/// `image` only. The result equals [`identify`]'s on the blobs kept.
+pub fn identify_without(
+    object: &[Vector3<f64>],
+    image: &[Vector2<f64>],
+    missing: Option<usize>,
+    options: &UnlabelledOptions,
+    poses: &mut TriplePoses,
+) -> Result<Identification, LabellingError> {
+    let kept: Vec<usize> = (0..image.len()).filter(|&i| Some(i) != missing).collect();
+    let view: Vec<Vector2<f64>> = kept.iter().map(|&i| image[i]).collect();
+    validate(object, &view, options)?;
+    run_search(
+        Search::new(object, &view, options),
+        options,
+        |search, triple| {
+            let key = triple.map(|i| kept[i]);
+            search.run_poses(triple, poses.poses(object, image, key));
+        },
+    )
+}
+
+/// Every ordered triple of distinct indices below `n`, in [`identify`]'s
+/// order.
+fn for_each_object_triple(n: usize, mut each: impl FnMut([usize; 3])) {
+    for a in 0..n {
+        for b in 0..n {
+            if b == a {
+                continue;
+            }
+            for c in 0..n {
+                if c == a || c == b {
+                    continue;
+                }
+                each([a, b, c]);
+            }
+        }
+    }
+}
+
+/// The search over the image triples of `search`'s image, largest first,
+/// each run by `run`, until a labelling settles it (module docs).
+fn run_search(
+    mut search: Search<'_>,
+    options: &UnlabelledOptions,
+    mut run: impl FnMut(&mut Search<'_>, [usize; 3]),
+) -> Result<Identification, LabellingError> {
+    for triple in image_triples(search.image) {
+        run(&mut search, triple);
         if search
             .best
             .as_ref()
@@ -433,27 +535,29 @@ impl<'a> Search<'a> {
     fn run_triple(&mut self, triple: [usize; 3]) {
         let bearings =
             triple.map(|i| Vector3::new(self.image[i].x, self.image[i].y, 1.0).normalize());
-        let n = self.object.len();
+        let object = self.object;
         let mut poses = P3pCandidates::new();
-        for a in 0..n {
-            for b in 0..n {
-                if b == a {
-                    continue;
-                }
-                for c in 0..n {
-                    if c == a || c == b {
-                        continue;
-                    }
-                    let object_triple = [self.object[a], self.object[b], self.object[c]];
-                    p3p::solve_bearings(&object_triple, &bearings, &mut poses);
-                    for pose in &poses {
-                        self.hypotheses += 1;
-                        if self.assign(pose, triple, [a, b, c]) {
-                            self.verify(pose);
-                        }
-                    }
-                }
+        for_each_object_triple(object.len(), |[a, b, c]| {
+            p3p::solve_bearings(&[object[a], object[b], object[c]], &bearings, &mut poses);
+            for pose in &poses {
+                self.hypothesis(pose, triple, [a, b, c]);
             }
+        });
+    }
+
+    /// The image triple against poses already solved for it, each with
+    /// its object triple.
+    fn run_poses(&mut self, triple: [usize; 3], poses: &[TriplePose]) {
+        for (pose, object_triple) in poses {
+            self.hypothesis(pose, triple, *object_triple);
+        }
+    }
+
+    /// One hypothesis: screened, then refined and ranked if it passes.
+    fn hypothesis(&mut self, pose: &Pose, triple: [usize; 3], object_triple: [usize; 3]) {
+        self.hypotheses += 1;
+        if self.assign(pose, triple, object_triple) {
+            self.verify(pose);
         }
     }
 
@@ -597,6 +701,7 @@ mod tests {
     use crate::layout::biprism_points;
     use crate::synthetic::{random_points, random_pose, stream_rng};
     use rand::seq::SliceRandom;
+    use rand::Rng;
 
     fn shuffled_image(
         object: &[Vector3<f64>],
@@ -629,6 +734,49 @@ mod tests {
                 );
                 assert_eq!(found.best.labels, order, "n {n} case {case}");
                 assert!(found.hypotheses > 0);
+            }
+        }
+    }
+
+    /// Blob sets of one image with each blob left out in turn, searched
+    /// with shared P3P poses: exactly what [`identify`] finds on each set,
+    /// for the marker itself and for another marker offered as the model
+    /// (a set's cross check), noise-free and with 1 px of noise.
+    #[test]
+    fn shared_triple_poses_give_what_each_blob_set_gives_alone() {
+        for case in 0..12u64 {
+            let mut rng = stream_rng(7, 31, case);
+            let n = 6 + (case % 3) as usize;
+            let object = random_points(&mut rng, n, 100.0);
+            let other = random_points(&mut rng, n, 100.0);
+            let truth = random_pose(&mut rng, 500.0, 0.2);
+            let noise = if case % 2 == 0 { 0.0 } else { 1.0 / 1000.0 };
+            let image: Vec<Vector2<f64>> = object
+                .iter()
+                .map(|p| {
+                    truth.project_normalised(p)
+                        + noise * Vector2::new(rng.random::<f64>() - 0.5, rng.random::<f64>() - 0.5)
+                })
+                .collect();
+            for model in [&object, &other] {
+                let mut poses = TriplePoses::new();
+                for missing in std::iter::once(None).chain((0..n).map(Some)) {
+                    let kept: Vec<Vector2<f64>> = (0..n)
+                        .filter(|&k| Some(k) != missing)
+                        .map(|k| image[k])
+                        .collect();
+                    let options = UnlabelledOptions {
+                        gate: 0.02,
+                        max_missing: usize::from(missing.is_some()),
+                    };
+                    let alone = identify(model, &kept, &options);
+                    let shared = identify_without(model, &image, missing, &options, &mut poses);
+                    assert_eq!(
+                        format!("{alone:?}"),
+                        format!("{shared:?}"),
+                        "case {case}, missing {missing:?}"
+                    );
+                }
             }
         }
     }
