@@ -472,6 +472,7 @@ mod tests {
             floor_penalty: 0.0,
             violations: Default::default(),
             identifiability: None,
+            cross_penalty: 0.0,
         }
     }
 

@@ -481,6 +481,14 @@ pub struct Evaluation {
     /// Identifiability over the scenarios the evaluator checks (None when
     /// it checks none).
     pub identifiability: Option<IdentifiabilityFigures>,
+    /// The cross repair's penalty on confusions with earlier markers of a
+    /// set (0 outside a repair; [`set::repair`]).
+    #[serde(skip_serializing_if = "is_zero")]
+    pub cross_penalty: f64,
+}
+
+fn is_zero(value: &f64) -> bool {
+    *value == 0.0
 }
 
 impl Evaluation {
@@ -528,6 +536,8 @@ pub struct Evaluator {
     identify_scope: IdentifyScope,
     /// Which supports hide spheres ([`SupportRule`]).
     supports: SupportRule,
+    /// The confusions with earlier markers a set's cross repair holds.
+    cross: Option<std::sync::Arc<set::repair::CrossRule>>,
 }
 
 /// Which supports an [`Evaluator`] counts as occluders.
@@ -654,6 +664,7 @@ impl Evaluator {
             identify_floor: None,
             identify_scope: IdentifyScope::Off,
             supports: SupportRule::None,
+            cross: None,
             settings,
             constraints,
             penalised,
@@ -803,6 +814,14 @@ impl Evaluator {
         if evaluator.settings.min_availability == AvailabilityFloor::Reference {
             evaluator.floor = Some(evaluator.reference_availability);
         }
+        evaluator
+    }
+
+    /// The same evaluator pricing the confusions that `rule` holds (a
+    /// set's cross repair, [`set::repair`]).
+    pub fn with_cross(&self, rule: set::repair::CrossRule) -> Self {
+        let mut evaluator = self.clone();
+        evaluator.cross = Some(std::sync::Arc::new(rule));
         evaluator
     }
 
@@ -1201,8 +1220,13 @@ impl Evaluator {
         let floor_penalty = self.floor_penalty(availability, soft_availability);
         let identifiability = self.identifiability_figures(&values);
         let identify_penalty = identifiability.as_ref().map_or(0.0, |f| f.penalty);
+        let cross_penalty = self.cross.as_ref().map_or(0.0, |rule| rule.penalty(points));
         Evaluation {
-            cost: objective + self.penalty(points) + floor_penalty + identify_penalty,
+            cost: objective
+                + self.penalty(points)
+                + floor_penalty
+                + identify_penalty
+                + cross_penalty,
             objective,
             accuracy,
             terms,
@@ -1219,6 +1243,7 @@ impl Evaluator {
             floor_penalty,
             violations,
             identifiability,
+            cross_penalty,
         }
     }
 

@@ -1034,7 +1034,7 @@ fn final_polish_points(
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::camera::Camera;
     use crate::family::{Constraints, Envelope, FamilyKind};
@@ -1048,7 +1048,7 @@ mod tests {
         fn progress(&self, _: usize, _: u64, _: usize, _: f64) {}
     }
 
-    fn setup() -> (Family, Evaluator) {
+    pub(crate) fn setup() -> (Family, Evaluator) {
         let envelope = Envelope::new([100.0; 3]).unwrap();
         let family = Family::new(
             FamilyKind::Biprism {

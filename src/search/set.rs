@@ -10,13 +10,19 @@
 //! floors) and the cross matrix between it and every marker kept before
 //! meets the cross floor in both directions (over every
 //! [`SetSearchSettings::cross_thinning`]th scenario of the working
-//! volume). Otherwise the next try runs from another seed; after
+//! volume). An admissible winner that fails only the cross floor is
+//! first repaired ([`repair`]: the confusions found are held fixed and
+//! priced while Nelder–Mead moves the marker away from them, for a few
+//! rounds). A single-marker search lands in the same basin from most
+//! seeds, so new tries alone rarely get clear of the earlier markers.
+//! Otherwise the next try runs from another seed; after
 //! [`SetSearchSettings::tries`] tries the set is refused with the reason.
 //! The set's objective is the worst (or the mean) of its markers'
 //! accuracies; each marker's accuracy beside marker 1's is the price of
 //! being told apart. The final cross matrix is computed over every
 //! scenario.
 
+pub mod repair;
 pub mod validation;
 
 use super::analysis::Analysis;
@@ -28,7 +34,9 @@ use crate::identifiability::IdentifiabilitySettings;
 use crate::layout::Layout;
 use crate::montecarlo::Target;
 use crate::scenario::Scenario;
-use crate::set::{cross_matrix, CrossMatrix, MAX_MARKERS, MIN_MARKERS};
+use crate::set::{cross_pairs, CrossMatrix, MAX_MARKERS, MIN_MARKERS};
+use nalgebra::Vector3;
+use repair::{repair_cross, CrossRule};
 use serde::Serialize;
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
@@ -132,6 +140,8 @@ pub struct SetMarker {
     pub seed: u64,
     /// Tries it took.
     pub tries: usize,
+    /// Rounds of the cross repair its kept try took ([`repair`]).
+    pub cross_repair_rounds: usize,
     /// Its identifiability over the working volume.
     pub identifiability: Option<IdentifiabilityFigures>,
 }
@@ -207,6 +217,9 @@ pub fn design_set(
     };
     let diameter = config.constraints.sphere_diameter_mm;
     let mut markers: Vec<SetMarker> = Vec::with_capacity(set.markers);
+    // The pairs of each kept marker with the markers before it, as its
+    // try checked them.
+    let mut checked_pairs = Vec::new();
     for k in 0..set.markers {
         let mut best_share: Option<f64> = None;
         let mut kept = None;
@@ -221,36 +234,79 @@ pub fn design_set(
             };
             let outcome =
                 optimise::run(family, &evaluator, &settings, stop, Arc::new(Quiet), None)?;
-            let outcome = match config.min_identifiability {
+            let mut outcome = match config.min_identifiability {
                 Some(floor) => {
                     enforce_identifiability(family, &evaluator, floor, &settings, outcome, stop)?.0
                 }
                 None => outcome,
             };
-            let name = format!("{}-{}", config.name, k + 1);
-            let mut layout = family.layout(&name, &outcome.best.params);
-            let mut provenance = analysis.provenance();
-            provenance["set"] =
-                serde_json::json!({"marker": k + 1, "of": set.markers, "seed": seed});
-            layout.provenance = Some(provenance);
-            let evaluation = &outcome.best.evaluation;
-            let mut accepted = evaluation.admissible();
+            let mut accepted = outcome.best.evaluation.admissible();
+            let mut rounds = 0;
             if accepted && !markers.is_empty() {
-                let mut objects: Vec<Vec<nalgebra::Vector3<f64>>> =
+                let rivals: Vec<Vec<Vector3<f64>>> =
                     markers.iter().map(|m| m.layout.positions()).collect();
-                objects.push(layout.positions());
-                let matrix = matrix_of(config, &objects, diameter, &thinned, &cross_settings);
+                let check = |points: &[Vector3<f64>], scenarios: &[Scenario]| {
+                    let mut objects = rivals.clone();
+                    objects.push(points.to_vec());
+                    let pairs: Vec<(usize, usize)> =
+                        (0..k).flat_map(|j| [(k, j), (j, k)]).collect();
+                    matrix_of(
+                        config,
+                        &objects,
+                        diameter,
+                        scenarios,
+                        &cross_settings,
+                        &pairs,
+                    )
+                };
+                let mut matrix = check(&family.points(&outcome.best.params), &thinned);
+                if !matrix.meets_floor() {
+                    let rule = CrossRule {
+                        camera: config.camera,
+                        sphere_diameter_mm: diameter,
+                        settings: cross_settings,
+                        rivals: rivals.clone(),
+                        confusions: Vec::new(),
+                        anchor: family.points(&outcome.best.params),
+                    };
+                    let repair = repair_cross(
+                        family,
+                        &evaluator,
+                        config.min_identifiability,
+                        &settings,
+                        rule,
+                        (outcome, matrix),
+                        (&check, &thinned),
+                        stop,
+                    )?;
+                    (outcome, matrix, rounds) = (repair.outcome, repair.matrix, repair.rounds);
+                }
                 let share = matrix.worst_share();
                 best_share = Some(best_share.map_or(share, |b: f64| b.max(share)));
                 accepted = matrix.meets_floor();
+                if accepted {
+                    checked_pairs.extend(matrix.pairs);
+                }
             }
             on_try(k + 1, attempt + 1, accepted);
             if accepted {
+                let name = format!("{}-{}", config.name, k + 1);
+                let mut layout = family.layout(&name, &outcome.best.params);
+                let mut provenance = analysis.provenance();
+                provenance["set"] = serde_json::json!({
+                    "marker": k + 1,
+                    "of": set.markers,
+                    "seed": seed,
+                    "cross_repair_rounds": rounds,
+                });
+                layout.provenance = Some(provenance);
+                let evaluation = &outcome.best.evaluation;
                 kept = Some(SetMarker {
                     layout,
                     accuracy: evaluation.accuracy,
                     seed,
                     tries: attempt + 1,
+                    cross_repair_rounds: rounds,
                     identifiability: evaluation.identifiability.clone(),
                 });
                 break;
@@ -277,9 +333,33 @@ pub fn design_set(
             }
         }
     }
-    let objects: Vec<Vec<nalgebra::Vector3<f64>>> =
-        markers.iter().map(|m| m.layout.positions()).collect();
-    let mut matrix = matrix_of(config, &objects, diameter, &scenarios, &cross_settings);
+    let objects: Vec<Vec<Vector3<f64>>> = markers.iter().map(|m| m.layout.positions()).collect();
+    // Each pair was checked over every scenario when its later marker was
+    // kept; a thinned check is done again over every one.
+    let mut matrix = if set.cross_thinning == 1 {
+        checked_pairs.sort_by_key(|p| (p.marker, p.rival));
+        CrossMatrix {
+            markers: Vec::new(),
+            min_cross: set.min_cross,
+            pairs: checked_pairs,
+        }
+    } else {
+        let pairs: Vec<(usize, usize)> = (0..objects.len())
+            .flat_map(|i| {
+                (0..objects.len())
+                    .filter(move |&j| j != i)
+                    .map(move |j| (i, j))
+            })
+            .collect();
+        matrix_of(
+            config,
+            &objects,
+            diameter,
+            &scenarios,
+            &cross_settings,
+            &pairs,
+        )
+    };
     matrix.markers = markers.iter().map(|m| m.layout.name.clone()).collect();
     let accuracies: Vec<f64> = markers.iter().map(|m| m.accuracy).collect();
     let objective = match set.objective {
@@ -300,10 +380,11 @@ pub fn design_set(
 /// The cross matrix of `objects` (one sphere diameter, no per-point σ).
 fn matrix_of(
     config: &SearchConfig,
-    objects: &[Vec<nalgebra::Vector3<f64>>],
+    objects: &[Vec<Vector3<f64>>],
     diameter: f64,
     scenarios: &[Scenario],
     settings: &IdentifiabilitySettings,
+    pairs: &[(usize, usize)],
 ) -> CrossMatrix {
     let sigmas: Vec<Vec<Option<f64>>> = objects.iter().map(|o| vec![None; o.len()]).collect();
     let targets: Vec<Target> = objects
@@ -319,7 +400,7 @@ fn matrix_of(
     let names: Vec<String> = (1..=objects.len())
         .map(|k| format!("{}-{k}", config.name))
         .collect();
-    cross_matrix(&targets, &names, scenarios, settings)
+    cross_pairs(&targets, &names, scenarios, settings, pairs)
 }
 
 /// The set's report: each marker's accuracy alone and in the set, and the
@@ -341,13 +422,13 @@ pub fn set_report(outcome: &SetSearchOutcome, command: &str) -> String {
         sig(1.0 - outcome.settings.min_cross, 2),
         if outcome.matrix.meets_floor() { "yes" } else { "no" },
     );
-    text.push_str("## Markers\n\nAccuracy: the objective's accuracy term (1 = the paper's biprism scaled to the envelope; lower is better). Alone: what one marker reaches (marker 1, the single-marker search's winner).\n\n| marker | accuracy in the set | alone | price | identifiable | tries | seed |\n|---|---|---|---|---|---|---|\n");
+    text.push_str("## Markers\n\nAccuracy: the objective's accuracy term (1 = the paper's biprism scaled to the envelope; lower is better). Alone: what one marker reaches (marker 1, the single-marker search's winner).\n\n| marker | accuracy in the set | alone | price | identifiable | tries | cross repair rounds | seed |\n|---|---|---|---|---|---|---|---|\n");
     for (k, m) in outcome.markers.iter().enumerate() {
         let identifiable = m.identifiability.as_ref().map_or("—".to_string(), |f| {
             format!("{} of {}", f.identifiable, f.checked)
         });
         text.push_str(&format!(
-            "| {} ({}) | {} | {} | {:+.1}% | {} | {} | {} |\n",
+            "| {} ({}) | {} | {} | {:+.1}% | {} | {} | {} | {} |\n",
             k + 1,
             m.layout.name,
             sig(m.accuracy, 4),
@@ -355,6 +436,7 @@ pub fn set_report(outcome: &SetSearchOutcome, command: &str) -> String {
             100.0 * (m.accuracy / outcome.alone_accuracy - 1.0),
             identifiable,
             m.tries,
+            m.cross_repair_rounds,
             m.seed
         ));
     }
