@@ -687,14 +687,20 @@ pub fn cross_matrix(
     scenarios: &[Scenario],
     settings: &IdentifiabilitySettings,
 ) -> CrossMatrix {
-    let pairs: Vec<(usize, usize)> = (0..targets.len())
-        .flat_map(|i| {
-            (0..targets.len())
-                .filter(move |&j| j != i)
-                .map(move |j| (i, j))
-        })
-        .collect();
-    cross_pairs(targets, names, scenarios, settings, &pairs)
+    cross_pairs(
+        targets,
+        names,
+        scenarios,
+        settings,
+        &all_pairs(targets.len()),
+    )
+}
+
+/// Every ordered pair (marker, rival) of `n` markers, row by row.
+pub fn all_pairs(n: usize) -> Vec<(usize, usize)> {
+    (0..n)
+        .flat_map(|i| (0..n).filter(move |&j| j != i).map(move |j| (i, j)))
+        .collect()
 }
 
 /// [`cross_matrix`] over the ordered `pairs` (marker, rival) alone: a

@@ -19,8 +19,10 @@
 //! [`SetSearchSettings::tries`] tries the set is refused with the reason.
 //! The set's objective is the worst (or the mean) of its markers'
 //! accuracies; each marker's accuracy beside marker 1's is the price of
-//! being told apart. The final cross matrix is computed over every
-//! scenario.
+//! being told apart. The final cross matrix covers every scenario: each
+//! pair as the try that kept its later marker checked it (the tries check
+//! only the pairs of their own marker), or computed again when the tries'
+//! check was thinned.
 
 pub mod repair;
 pub mod validation;
@@ -34,7 +36,7 @@ use crate::identifiability::IdentifiabilitySettings;
 use crate::layout::Layout;
 use crate::montecarlo::Target;
 use crate::scenario::Scenario;
-use crate::set::{cross_pairs, CrossMatrix, MAX_MARKERS, MIN_MARKERS};
+use crate::set::{all_pairs, cross_pairs, CrossMatrix, MAX_MARKERS, MIN_MARKERS};
 use nalgebra::Vector3;
 use repair::{repair_cross, CrossRule};
 use serde::Serialize;
@@ -344,13 +346,7 @@ pub fn design_set(
             pairs: checked_pairs,
         }
     } else {
-        let pairs: Vec<(usize, usize)> = (0..objects.len())
-            .flat_map(|i| {
-                (0..objects.len())
-                    .filter(move |&j| j != i)
-                    .map(move |j| (i, j))
-            })
-            .collect();
+        let pairs = all_pairs(objects.len());
         matrix_of(
             config,
             &objects,
