@@ -4,18 +4,21 @@
 //! A try's winner that meets every single-marker floor but fails the
 //! cross floor in a few viewpoints is repaired, as the identifiability
 //! repair does for one marker (constraint generation): each confusion
-//! the cross check found (a scenario, which marker's blobs, the other
-//! marker's labelling and pose) is held fixed as a [`Confusion`], and a
-//! Nelder–Mead run from the winner minimises the objective plus
-//! [`CROSS_PENALTY`] per decade of each held confusion's predicted
-//! probability above the floor's criterion. Pricing a held confusion
-//! refits one labelling's pose ([`crate::set::labelled_confusion`], tens of
-//! microseconds), where finding it searched every labelling with every
-//! blob left out in turn (the unlabelled solver, milliseconds). The
-//! repaired layout is then checked again, alone (every single-marker
-//! floor over the whole grid) and against the earlier markers (the cross
-//! matrix); confusions it brings up are held in the next round, for at
-//! most [`CROSS_ROUNDS`] rounds.
+//! the cross check found in a viewpoint that fails the floor or comes
+//! near it ([`crate::set::CrossPair::near`]; a scenario, which marker's
+//! blobs, the other marker's labelling and pose) is held fixed as a
+//! [`Confusion`], and a Nelder–Mead run from the winner minimises the
+//! objective plus [`CROSS_PENALTY`] per decade of each held confusion's
+//! predicted probability above [`CROSS_MARGIN`] of the floor's criterion,
+//! plus [`CROSS_TRUST_PER_MM2`] per mm² of squared distance from the
+//! winner. Pricing a held confusion refits one labelling's pose
+//! ([`crate::set::labelled_confusion`], tens of microseconds), where
+//! finding it searched every labelling with every blob left out in turn
+//! (the unlabelled solver, milliseconds). The repaired layout is then
+//! checked again (`repair_cross`), alone (every single-marker floor over
+//! the whole grid) and against the earlier markers (the cross matrix);
+//! confusions it brings up are held in the next round, for at most
+//! [`CROSS_ROUNDS`] rounds.
 
 use super::super::identify::Quiet;
 use super::super::optimise::{self, Candidate, OptimiseOutcome, SearchSettings};
