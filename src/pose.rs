@@ -49,6 +49,12 @@ impl Pose {
         self.rotation * object_point + self.translation
     }
 
+    /// The camera centre in the object frame: `−Rᵀ t`.
+    #[inline]
+    pub fn camera_centre(&self) -> Vector3<f64> {
+        -(self.rotation.inverse() * self.translation)
+    }
+
     /// Projects an object point onto the normalised image plane `z = 1`.
     #[inline]
     pub fn project_normalised(&self, object_point: &Vector3<f64>) -> Vector2<f64> {

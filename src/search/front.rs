@@ -22,7 +22,7 @@
 //!   the front also lists the first-order RMS rotation and translation on
 //!   the search grid.
 
-use super::optimise::{self, Candidate, OptimiseError, SearchObserver, SearchSettings};
+use super::optimise::{self, Candidate, OptimiseError, Quiet, SearchSettings};
 use super::{Evaluation, Evaluator};
 use crate::family::Family;
 use crate::layout::Layout;
@@ -104,12 +104,6 @@ pub fn non_dominated(points: Vec<FrontPoint>) -> Vec<FrontPoint> {
             .total_cmp(&b.candidate.evaluation.availability)
     });
     front
-}
-
-struct Quiet;
-impl SearchObserver for Quiet {
-    fn improved(&self, _: &Candidate) {}
-    fn progress(&self, _: usize, _: u64, _: usize, _: f64) {}
 }
 
 /// The ε-constraint sweep. `base` is the main search's settings (its seed

@@ -2,7 +2,7 @@
 //! rounds (constraint generation); see [`enforce_identifiability`].
 
 use super::error::SearchError;
-use super::optimise::{self, Candidate, SearchObserver, SearchSettings};
+use super::optimise::{self, Candidate, SearchSettings};
 use super::summary::IdentifyBooks;
 use super::{Evaluator, IdentifiabilityFloor, IdentifyScope};
 use crate::family::Family;
@@ -31,14 +31,7 @@ fn spread_evenly(items: &[usize], count: usize) -> Vec<usize> {
     (0..count).map(|k| items[k * items.len() / count]).collect()
 }
 
-/// A search observer that hears nothing (the repair rounds report through
-/// their own phase).
-pub(crate) struct Quiet;
-
-impl SearchObserver for Quiet {
-    fn improved(&self, _: &Candidate) {}
-    fn progress(&self, _: usize, _: u64, _: usize, _: f64) {}
-}
+pub(crate) use super::optimise::Quiet;
 
 /// Enforces the identifiability floor on the search's winner by repair
 /// rounds (constraint generation): the winner is checked on every visible
@@ -97,20 +90,13 @@ pub(crate) fn enforce_identifiability(
             Some(floor),
             IdentifyScope::Scenarios(Arc::new(active.clone())),
         );
-        let round = SearchSettings {
-            starts: 0,
-            iterations: IDENTIFY_ROUND_ITERATIONS,
-            polish_iterations: 0,
-            ..settings.clone()
-        };
-        let repaired = optimise::run_with_starts(
+        let repaired = optimise::repair_round(
             family,
             &scoped,
-            &round,
-            std::slice::from_ref(&outcome.best.params),
+            settings,
+            IDENTIFY_ROUND_ITERATIONS,
+            &outcome.best.params,
             stop,
-            Arc::new(Quiet),
-            None,
         )?;
         books.evaluations += repaired.evaluations_this_run;
         if repaired.interrupted {

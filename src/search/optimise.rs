@@ -638,16 +638,11 @@ pub fn repair(
     evaluator: &Evaluator,
     params: &[f64],
 ) -> Result<Vec<f64>, OptimiseError> {
-    struct Silent;
-    impl SearchObserver for Silent {
-        fn improved(&self, _: &Candidate) {}
-        fn progress(&self, _: usize, _: u64, _: usize, _: f64) {}
-    }
     let never = AtomicBool::new(false);
     let shared = Shared {
         best: Mutex::new(None),
         evaluations: Arc::new(AtomicUsize::new(0)),
-        observer: Arc::new(Silent),
+        observer: Arc::new(Quiet),
         stop: &never,
         halted: Arc::new(AtomicBool::new(false)),
         start_states: Mutex::new(Vec::new()),
@@ -976,6 +971,44 @@ pub fn run_with_starts(
     })
 }
 
+/// A search observer that hears nothing (repairs report through their own
+/// phase).
+pub(crate) struct Quiet;
+
+impl SearchObserver for Quiet {
+    fn improved(&self, _: &Candidate) {}
+    fn progress(&self, _: usize, _: u64, _: usize, _: f64) {}
+}
+
+/// One repair round: a quiet Nelder–Mead run of `iterations` from `from`
+/// alone (no starts of its own, no final polish), under `settings`'
+/// optimiser seed. The identifiability and the cross repairs run their
+/// rounds through it.
+pub(crate) fn repair_round(
+    family: &Family,
+    evaluator: &Evaluator,
+    settings: &SearchSettings,
+    iterations: u64,
+    from: &[f64],
+    stop: &AtomicBool,
+) -> Result<OptimiseOutcome, OptimiseError> {
+    let round = SearchSettings {
+        starts: 0,
+        iterations,
+        polish_iterations: 0,
+        ..settings.clone()
+    };
+    run_with_starts(
+        family,
+        evaluator,
+        &round,
+        &[from.to_vec()],
+        stop,
+        Arc::new(Quiet),
+        None,
+    )
+}
+
 /// The best of `candidates` by [`Candidate::better_than`].
 fn best_of(candidates: &[Candidate]) -> Option<Candidate> {
     candidates
@@ -1041,12 +1074,6 @@ pub(crate) mod tests {
     use crate::noise::NoiseModel;
     use crate::scenario::{Range, ScenarioGrid};
     use crate::search::{Aggregate, ObjectiveSettings};
-
-    struct Quiet;
-    impl SearchObserver for Quiet {
-        fn improved(&self, _: &Candidate) {}
-        fn progress(&self, _: usize, _: u64, _: usize, _: f64) {}
-    }
 
     pub(crate) fn setup() -> (Family, Evaluator) {
         let envelope = Envelope::new([100.0; 3]).unwrap();

@@ -188,20 +188,12 @@ pub fn hidden_fractions(
     radius_mm: f64,
     supports: &Supports,
 ) -> Vec<Option<HiddenFractions>> {
-    let rotation = pose.rotation.matrix();
-    let eye = -(rotation.transpose() * pose.translation);
+    let eye = pose.camera_centre();
     (0..centres.len())
         .map(|k| {
             Trace {
-                camera,
-                pose,
-                eye: &eye,
-                centres,
-                radius_mm,
-                supports,
                 visible: false,
-                among: None,
-                stop_above: usize::MAX,
+                ..Trace::new(camera, pose, &eye, centres, radius_mm, supports)
             }
             .sphere(k)
         })
@@ -515,8 +507,8 @@ pub fn support_fractions(
     radius_mm: f64,
     supports: &Supports,
 ) -> Vec<f64> {
-    let rotation = pose.rotation.matrix();
-    let eye = -(rotation.transpose() * pose.translation);
+    let eye = pose.camera_centre();
+    let trace = Trace::new(camera, pose, &eye, centres, radius_mm, supports);
     (0..centres.len())
         .map(|k| {
             let centre = centres[k];
@@ -526,17 +518,6 @@ pub fn support_fractions(
             if parts_in_cone(&cone, &centre, radius_mm, supports, None).is_empty() {
                 return 0.0;
             }
-            let trace = Trace {
-                camera,
-                pose,
-                eye: &eye,
-                centres,
-                radius_mm,
-                supports,
-                visible: true,
-                among: None,
-                stop_above: usize::MAX,
-            };
             trace.sphere(k).map_or(0.0, |f| f.support)
         })
         .collect()
@@ -562,7 +543,31 @@ struct Trace<'a> {
     stop_above: usize,
 }
 
-impl Trace<'_> {
+impl<'a> Trace<'a> {
+    /// A trace of a visible scenario that follows every line and may meet
+    /// every part (fields changed by struct update where a caller knows
+    /// more).
+    fn new(
+        camera: &'a Camera,
+        pose: &'a Pose,
+        eye: &'a Vector3<f64>,
+        centres: &'a [Vector3<f64>],
+        radius_mm: f64,
+        supports: &'a Supports,
+    ) -> Self {
+        Trace {
+            camera,
+            pose,
+            eye,
+            centres,
+            radius_mm,
+            supports,
+            visible: true,
+            among: None,
+            stop_above: usize::MAX,
+        }
+    }
+
     /// The fractions of sphere `k`'s silhouette hidden by each cause, or
     /// `None` for a sphere not in front of the camera.
     fn sphere(&self, k: usize) -> Option<HiddenFractions> {
@@ -974,13 +979,7 @@ pub struct EyeCone {
 impl EyeCone {
     /// The cone of the camera centres of `scenarios`; `None` for none.
     pub fn of(scenarios: &[Scenario]) -> Option<EyeCone> {
-        let eyes: Vec<Vector3<f64>> = scenarios
-            .iter()
-            .map(|s| {
-                let pose = s.pose();
-                -(pose.rotation.matrix().transpose() * pose.translation)
-            })
-            .collect();
+        let eyes: Vec<Vector3<f64>> = scenarios.iter().map(|s| s.pose().camera_centre()).collect();
         let nearest_mm = eyes.iter().map(|e| e.norm()).fold(f64::INFINITY, f64::min);
         let farthest_mm = eyes.iter().map(|e| e.norm()).fold(0.0, f64::max);
         if eyes.is_empty() || nearest_mm <= 0.0 {
@@ -1144,23 +1143,16 @@ pub fn spheres_hidden_by_supports<'a>(
     screen: &'a [Vec<usize>],
     max_hidden: MaxHidden,
 ) -> impl Iterator<Item = usize> + 'a {
-    let rotation = pose.rotation.matrix();
-    let eye = -(rotation.transpose() * pose.translation);
+    let eye = pose.camera_centre();
     let stop_above = (max_hidden.fraction() * SILHOUETTE_RAYS as f64).floor() as usize;
     (0..centres.len()).filter(move |&k| {
         if screen[k].is_empty() {
             return false;
         }
         let trace = Trace {
-            camera,
-            pose,
-            eye: &eye,
-            centres,
-            radius_mm,
-            supports,
-            visible: true,
             among: Some(&screen[k]),
             stop_above,
+            ..Trace::new(camera, pose, &eye, centres, radius_mm, supports)
         };
         trace
             .sphere(k)
@@ -1185,7 +1177,7 @@ pub fn clear_views(
             let images = sphere_images(camera, &pose, centres, sphere_diameter_mm);
             visibility(&images, camera)
                 .is_visible()
-                .then(|| -(pose.rotation.matrix().transpose() * pose.translation))
+                .then(|| pose.camera_centre())
         })
         .collect()
 }

@@ -50,7 +50,7 @@ pub fn outline_hidden_by_supports(
     supports: &Supports,
     inset_px: f64,
 ) -> Vec<Option<f64>> {
-    let eye = -(pose.rotation.matrix().transpose() * pose.translation);
+    let eye = pose.camera_centre();
     centres
         .iter()
         .map(|centre| {

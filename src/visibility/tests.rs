@@ -208,7 +208,7 @@ fn the_screened_decision_equals_a_full_trace_over_a_grid() {
             if !centres.iter().all(|c| pose.transform(c).z > radius) {
                 continue;
             }
-            let eye = -(pose.rotation.matrix().transpose() * pose.translation);
+            let eye = pose.camera_centre();
             let full: Vec<usize> = (0..centres.len())
                 .map(|k| traced_in_full(&eye, &centres, radius, supports, k))
                 .collect();

@@ -20,7 +20,6 @@
 //! confusions it brings up are held in the next round, for at most
 //! [`CROSS_ROUNDS`] rounds.
 
-use super::super::identify::Quiet;
 use super::super::optimise::{self, Candidate, OptimiseOutcome, SearchSettings};
 use super::super::{
     Evaluator, IdentifiabilityFloor, IdentifyScope, SearchError, IDENTIFY_THINNING,
@@ -301,20 +300,13 @@ pub(crate) fn repair_cross(
     };
     while repair.rounds < CROSS_ROUNDS && !stop.load(Ordering::Relaxed) {
         repair.rounds += 1;
-        let round = SearchSettings {
-            starts: 0,
-            iterations: CROSS_ROUND_ITERATIONS,
-            polish_iterations: 0,
-            ..settings.clone()
-        };
-        let repaired = optimise::run_with_starts(
+        let repaired = optimise::repair_round(
             family,
             &if guard_identity { &scoped } else { evaluator }.with_cross(rule.clone()),
-            &round,
-            std::slice::from_ref(&from),
+            settings,
+            CROSS_ROUND_ITERATIONS,
+            &from,
             stop,
-            Arc::new(Quiet),
-            None,
         )?;
         repair.outcome.evaluations += repaired.evaluations_this_run;
         if repaired.interrupted {
@@ -454,6 +446,7 @@ mod repair_tests {
     use super::*;
     use crate::search::optimise::tests::setup;
     use crate::search::optimise::Optimiser;
+    use crate::search::optimise::Quiet;
     use crate::sphere_image::Observation;
 
     /// A near copy of the earlier marker is confused with it; the repair
