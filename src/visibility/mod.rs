@@ -163,6 +163,36 @@ impl Supports {
             .map(|own| (own.u, own.level))
     }
 
+    /// These supports made for spheres at `from`, following the spheres
+    /// to `to` (same order): every point that defines a part and lies
+    /// within `reach_mm` of a sphere's old centre moves with the nearest
+    /// such sphere (a point at the centre lands exactly on the new one, so
+    /// that a sphere's own cone and fillet stay its own); the rest stay
+    /// (the plate, the far ends of posts). For small moves this is the
+    /// part the router would build again with the same routes.
+    pub fn following(&self, from: &[Vector3<f64>], to: &[Vector3<f64>], reach_mm: f64) -> Supports {
+        debug_assert_eq!(from.len(), to.len());
+        let carry = |p: &Vector3<f64>| {
+            let nearest = from
+                .iter()
+                .enumerate()
+                .map(|(i, c)| (i, (p - c).norm()))
+                .filter(|&(_, d)| d <= reach_mm)
+                .min_by(|x, y| x.1.total_cmp(&y.1));
+            match nearest {
+                Some((i, d)) if d < 1e-12 => to[i],
+                Some((i, _)) => p + (to[i] - from[i]),
+                None => *p,
+            }
+        };
+        Supports::new(
+            self.occluders
+                .iter()
+                .map(|part| part.map_points(carry))
+                .collect(),
+        )
+    }
+
     /// No supports: spheres alone.
     pub fn none() -> Supports {
         Supports::default()

@@ -217,6 +217,50 @@ impl Occluder {
 }
 
 impl Occluder {
+    /// The same part with every point that defines it passed through `f`
+    /// (radii, blend and a box's extents kept).
+    pub fn map_points(&self, f: impl Fn(&Vector3<f64>) -> Vector3<f64>) -> Occluder {
+        match self {
+            Occluder::Capsule { a, b, radius } => Occluder::Capsule {
+                a: f(a),
+                b: f(b),
+                radius: *radius,
+            },
+            Occluder::RoundCone {
+                a,
+                radius_a,
+                b,
+                radius_b,
+            } => Occluder::RoundCone {
+                a: f(a),
+                radius_a: *radius_a,
+                b: f(b),
+                radius_b: *radius_b,
+            },
+            Occluder::Fillet {
+                hulls,
+                pieces,
+                blend_mm,
+            } => Occluder::Fillet {
+                hulls: hulls
+                    .iter()
+                    .map(|(a, ra, b, rb)| (f(a), *ra, f(b), *rb))
+                    .collect(),
+                pieces: pieces.iter().map(|(a, b, r)| (f(a), f(b), *r)).collect(),
+                blend_mm: *blend_mm,
+            },
+            Occluder::Box {
+                centre,
+                half_extents,
+            } => Occluder::Box {
+                centre: f(centre),
+                half_extents: *half_extents,
+            },
+        }
+    }
+}
+
+impl Occluder {
     /// For a fillet, how far beyond its pieces' surfaces it can reach
     /// (its own sphere's margin, [`FILLET_MARGIN_MM`], included).
     pub fn fillet_reach(&self) -> Option<f64> {

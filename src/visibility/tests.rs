@@ -287,3 +287,53 @@ fn a_sphere_in_front_hides_by_sphere_and_the_border_by_outside() {
     let f = hidden_fractions(&camera, &pose, &[Vector3::zeros()], 5.0, &Supports::none());
     assert_relative_eq!(f[0].unwrap().outside, 0.5, epsilon = 0.03);
 }
+
+#[test]
+fn supports_follow_their_spheres_and_leave_the_rest() {
+    let (centres, radius, [_, supports]) = test_parts();
+    assert_eq!(
+        supports.following(&centres, &centres, 2.0 * radius),
+        supports
+    );
+    // Sphere 0 moves 1.5 mm: its own cone and fillet go with it, exactly
+    // onto its new centre; the plate, far from every sphere, stays.
+    let mut moved = centres.clone();
+    moved[0] += Vector3::new(1.5, -0.5, 0.25);
+    let follows = supports.following(&centres, &moved, 2.0 * radius);
+    let parts = follows.occluders();
+    let Occluder::RoundCone { a, .. } = &parts[0] else {
+        panic!("the first part is sphere 0's cone: {parts:?}");
+    };
+    assert_eq!(*a, moved[0]);
+    assert!(parts.iter().any(|p| p.is_fillet_of(&moved[0])));
+    assert!(!parts.iter().any(|p| p.is_fillet_of(&centres[0])));
+    assert_eq!(parts.last(), supports.occluders().last());
+    // Every sphere moved alike, and the reach wide enough to carry every
+    // part: the supports translate, and from a translated eye each
+    // sphere hides as before.
+    let shift = Vector3::new(3.0, 2.0, -1.0);
+    let shifted: Vec<_> = centres.iter().map(|c| c + shift).collect();
+    let carried = supports.following(&centres, &shifted, 1e6);
+    let camera = Camera::paper();
+    let mut hidden_somewhere = false;
+    for eye in [
+        Vector3::new(0.0, 120.0, -500.0),
+        Vector3::new(80.0, -60.0, -400.0),
+    ] {
+        let pose = looking_at(&eye, &Vector3::zeros());
+        let moved_pose = looking_at(&(eye + shift), &shift);
+        let before = support_fractions(&camera, &pose, &centres, radius, &supports);
+        let after = support_fractions(&camera, &moved_pose, &shifted, radius, &carried);
+        hidden_somewhere |= before.iter().any(|&f| f > 0.05);
+        for (b, a) in before.iter().zip(&after) {
+            assert!(
+                (b - a).abs() <= 1.0 / SILHOUETTE_RAYS as f64,
+                "{before:?} {after:?}"
+            );
+        }
+    }
+    assert!(
+        hidden_somewhere,
+        "some eye must see a support hide a sphere"
+    );
+}
