@@ -156,6 +156,7 @@ fn config(args: SearchArgs, global: &GlobalOptions) -> anyhow::Result<SearchConf
         min_identifiability,
         identify_trials: args.identify_trials,
         count_supports: args.count_supports,
+        supports: (!args.no_supports).then_some(args.max_hidden),
     })
 }
 

@@ -32,7 +32,9 @@ use super::feasibility::unsatisfiable;
 use super::front::{self, FrontFiles};
 use super::identify::{enforce_identifiability, Quiet, IDENTIFY_ROUNDS};
 use super::optimise::{self, Candidate, OptimiseOutcome, SearchObserver, SearchSettings};
+use super::summary::SupportsBooks;
 use super::summary::{verdicts, HeldOutCheck, IdentifyBooks, SearchHeader, SearchSummary};
+use super::supports::{enforce_supports, PrintedParts, SUPPORT_ROUNDS, SUPPORT_ROUND_ITERATIONS};
 use super::{Evaluator, IdentifyScope};
 use crate::family::{Family, FamilyError, FamilyKind};
 use crate::layout::Layout;
@@ -55,6 +57,9 @@ pub const PHASE_VALIDATE: &str = "validation";
 pub const PHASE_FRONT: &str = "front";
 /// Progress phase of the identifiability repair (one step per round).
 pub const PHASE_IDENTIFY: &str = "identifiability";
+/// Progress phase of the winner's check as printed, and its repair (one
+/// step for the check, one per round).
+pub const PHASE_SUPPORTS: &str = "supports";
 
 /// The family and its free parameters, in words.
 pub fn family_description(family: &Family) -> String {
@@ -357,10 +362,13 @@ impl Run<'_, '_> {
     ) -> Result<Finished, Halt> {
         let outcome = self.optimise(observer, hooks)?;
         let (outcome, identify_books) = self.identify(observer, outcome)?;
+        let (outcome, printed) = self.supports(observer, outcome)?;
         let winner = self.winner(observer, &outcome)?;
         let (rows, seeds, ranges) = self.compare(observer, &outcome, &winner)?;
         let held_out = self.held_out(&winner);
-        let held_out_with_supports = self.held_out_with_supports(&winner);
+        let held_out_with_supports = printed
+            .as_ref()
+            .map(|(_, parts)| self.held_out_with_supports(&winner, parts));
         let front = self.front(observer, &outcome, &rows[ranges.paper..])?;
         let config = self.config();
         let summary = SearchSummary {
@@ -392,6 +400,7 @@ impl Run<'_, '_> {
             designs: rows,
             held_out,
             held_out_with_supports,
+            supports: printed.map(|(books, _)| books),
             front: front.as_ref().map(|f| f.report.clone()),
             identifiability: identify_books,
         };
@@ -666,11 +675,69 @@ impl Run<'_, '_> {
     }
 
     /// [`Self::held_out`] with the supports `export` would print for the
-    /// winner and the paper's biprism counted as occluders (`None`: a part
-    /// could not be built).
-    fn held_out_with_supports(&self, winner: &Layout) -> Option<HeldOutCheck> {
+    /// winner and the paper's biprism (`parts`) counted as occluders.
+    fn held_out_with_supports(&self, winner: &Layout, parts: &PrintedParts) -> HeldOutCheck {
         let volume = self.config().volume.held_out(held_out_grid);
-        super::held_out_with_supports(&self.evaluator, &volume, winner, &self.hand[0]).ok()
+        super::held_out_with_supports(
+            &self.evaluator,
+            &volume,
+            winner,
+            &self.hand[0],
+            parts,
+            self.config().supports.unwrap_or_default(),
+        )
+    }
+
+    /// The winner checked as printed and repaired to the printed
+    /// availability floor ([`PHASE_SUPPORTS`], [`enforce_supports`]), when
+    /// asked for. A part that cannot be built leaves the supports
+    /// uncounted, and says so.
+    fn supports(
+        &self,
+        observer: &mut impl Observer,
+        outcome: OptimiseOutcome,
+    ) -> Result<(OptimiseOutcome, Option<(SupportsBooks, PrintedParts)>), Halt> {
+        let Some(max_hidden) = self.config().supports else {
+            return Ok((outcome, None));
+        };
+        let fallback = outcome.clone();
+        let done = AtomicU64::new(0);
+        let result = watch(
+            observer,
+            PHASE_SUPPORTS,
+            1 + SUPPORT_ROUNDS as u64,
+            || done.load(Ordering::Relaxed),
+            Some(&self.stop),
+            || {
+                let result = enforce_supports(
+                    &self.analysis.family,
+                    &self.evaluator,
+                    &self.hand[0],
+                    max_hidden,
+                    &self.config().search,
+                    SUPPORT_ROUND_ITERATIONS,
+                    outcome,
+                    &self.stop,
+                );
+                done.store(1 + SUPPORT_ROUNDS as u64, Ordering::Relaxed);
+                result
+            },
+        );
+        let (outcome, books, parts) = match result {
+            Ok(done) => done,
+            Err(SearchError::Supports(reason)) => {
+                observer.log(&format!(
+                    "supports not counted: {reason}; the winner is scored as the spheres alone"
+                ));
+                return Ok((fallback, None));
+            }
+            Err(error) => return Err(Halt::Failed(error)),
+        };
+        if outcome.interrupted {
+            let stopped = self.stopped(&outcome, PHASE_SUPPORTS, "interrupted: best layout seen");
+            return Err(Halt::Stopped(Analysed::Interrupted(stopped)));
+        }
+        Ok((outcome, Some((books, parts))))
     }
 
     /// The Pareto front's sweep ([`PHASE_FRONT`]), when asked for; `hand`

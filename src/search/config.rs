@@ -174,6 +174,11 @@ pub struct SearchConfig {
     /// (the default): the spheres alone. It multiplies an evaluation's
     /// cost many times over (see docs/commands.md).
     pub count_supports: Option<crate::visibility::MaxHidden>,
+    /// Check the winner as printed, its routed supports counted (a sphere
+    /// hidden more than this fraction counts as not seen), and repair it
+    /// to the availability floor as printed (`crate::search` supports
+    /// phase); `None`: the spheres alone.
+    pub supports: Option<crate::visibility::MaxHidden>,
 }
 
 impl SearchConfig {
@@ -238,6 +243,7 @@ impl SearchConfig {
             min_identifiability: Some(IdentifiabilityFloor::DEFAULT),
             identify_trials: WINNER_IDENTIFY_TRIALS,
             count_supports: None,
+            supports: Some(crate::visibility::MaxHidden::default()),
         }
     }
 

@@ -43,6 +43,10 @@ pub enum SearchError {
     /// The winning layout could not be written.
     #[error(transparent)]
     Layout(#[from] LayoutError),
+    /// The winner's or the paper's biprism's part could not be built to
+    /// count its supports.
+    #[error("the printed part's supports could not be routed: {0}")]
+    Supports(String),
     /// No layout can meet the constraints (found before the search).
     #[error("the constraints cannot all be met: {0}")]
     Unsatisfiable(String),

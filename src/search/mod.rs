@@ -98,10 +98,12 @@ pub(crate) mod optimise;
 pub mod report;
 pub mod set;
 pub mod summary;
+mod supports;
 pub mod workflow;
 
 pub use analysis::{
-    PHASE_COMPARE, PHASE_FRONT, PHASE_IDENTIFY, PHASE_SEARCH, PHASE_VALIDATE, STATUS_FINISHED,
+    PHASE_COMPARE, PHASE_FRONT, PHASE_IDENTIFY, PHASE_SEARCH, PHASE_SUPPORTS, PHASE_VALIDATE,
+    STATUS_FINISHED,
 };
 pub use checkpoint::CheckpointError;
 pub use compare::{hand_designs, DesignRow, MonteCarloFigures, PooledFigures};
@@ -115,8 +117,11 @@ pub use optimise::{
     Candidate, OptimiseError, OptimiseOutcome, Optimiser, SearchSettings, FINAL_POLISH_STARTS,
 };
 pub use summary::{
-    ClosestDesign, HeldOutCheck, IdentifyBooks, SearchHeader, SearchSummary, Verdicts,
+    ClosestDesign, HeldOutCheck, IdentifyBooks, PrintedFigures, SearchHeader, SearchSummary,
+    SupportsBooks, Verdicts,
 };
+pub use supports::{held_out_with_supports, SUPPORT_ROUNDS, SUPPORT_ROUND_ITERATIONS};
+use supports::{Following, SupportRule};
 
 use crate::camera::Camera;
 use crate::error_model::first_order::{pose_covariance, pose_covariance_and_bias};
@@ -540,58 +545,6 @@ pub struct Evaluator {
     cross: Option<std::sync::Arc<set::repair::CrossRule>>,
 }
 
-/// Which supports an [`Evaluator`] counts as occluders.
-#[derive(Debug, Clone)]
-enum SupportRule {
-    /// None: the spheres alone hide each other.
-    None,
-    /// The supports of the one layout this evaluator scores
-    /// ([`Evaluator::with_supports`]).
-    Fixed(std::sync::Arc<Supports>, MaxHidden),
-    /// Every candidate's own straight supports
-    /// ([`crate::mesh::straight_supports`] with these options,
-    /// [`Evaluator::with_candidate_supports`]), screened once per
-    /// candidate against the cone of the grid's eyes.
-    Candidate(
-        std::sync::Arc<crate::mesh::MarkerOptions>,
-        MaxHidden,
-        Option<EyeCone>,
-    ),
-}
-
-/// [`HeldOutCheck`] of `winner` and `paper` on `grid`, first order, with
-/// the supports counted that `export`'s default structure builds for each,
-/// routed to clear the views of `evaluator`'s (the search's) grid: the
-/// winner's and the biprism's figures as printed. An error when a part
-/// cannot be built.
-pub fn held_out_with_supports(
-    evaluator: &Evaluator,
-    volume: &crate::volume::WorkingVolume,
-    winner: &crate::layout::Layout,
-    paper: &crate::layout::Layout,
-) -> Result<HeldOutCheck, crate::mesh::GeometryError> {
-    let range = crate::visibility::WorkingRange {
-        camera: evaluator.camera,
-        scenarios: evaluator.scenarios.clone(),
-        max_hidden: MaxHidden::default(),
-    };
-    let first_order = evaluator
-        .on_scenarios(volume.scenarios(&evaluator.camera), &paper.positions())
-        .first_order(&paper.positions());
-    let options = crate::mesh::MarkerOptions::default();
-    let evaluate = |layout: &crate::layout::Layout| {
-        crate::mesh::supports_for_range(layout, &options, &range).map(|supports| {
-            first_order
-                .with_supports(supports, range.max_hidden)
-                .evaluate(&layout.positions(), &layout.point_sigmas())
-        })
-    };
-    // Routing a part for the range is mostly serial: the two run side by
-    // side.
-    let (winner_values, paper_values) = rayon::join(|| evaluate(winner), || evaluate(paper));
-    Ok(HeldOutCheck::new(volume, &winner_values?, &paper_values?))
-}
-
 /// Per-scenario raw values of one layout: visibility flags and, per term,
 /// (rotation, translation) for the in-front scenarios it can score.
 struct ScenarioValues {
@@ -817,6 +770,17 @@ impl Evaluator {
         evaluator
     }
 
+    /// The same evaluator pricing a printed part's supports as they follow
+    /// the candidate's spheres ([`supports::Following`]), under the
+    /// availability floor `floor` of the part as printed (a supports
+    /// repair round).
+    fn with_following(&self, rule: Following, floor: Option<f64>) -> Self {
+        let mut evaluator = self.clone();
+        evaluator.supports = SupportRule::Following(std::sync::Arc::new(rule));
+        evaluator.floor = floor;
+        evaluator
+    }
+
     /// The same evaluator pricing the confusions that `rule` holds (a
     /// set's cross repair, [`set::repair`]).
     pub fn with_cross(&self, rule: set::repair::CrossRule) -> Self {
@@ -904,10 +868,17 @@ impl Evaluator {
         let radius_mm = 0.5 * self.constraints.sphere_diameter_mm;
         let own;
         let screen;
+        // A repair round's part, carried to these spheres and judged on
+        // the held scenarios that the spheres alone leave visible (in
+        // parallel: a round runs one Nelder–Mead start).
+        let following = match &self.supports {
+            SupportRule::Following(rule) => Some(rule.judge_all(self, points)),
+            _ => None,
+        };
         // The supports, and per sphere those that may hide it (all of
         // them for a fixed part; a candidate's, screened once).
         let supports = match &self.supports {
-            SupportRule::None => None,
+            SupportRule::None | SupportRule::Following(_) => None,
             SupportRule::Fixed(supports, max_hidden) => Some((&**supports, *max_hidden, None)),
             SupportRule::Candidate(options, max_hidden, eyes) => {
                 own = crate::mesh::straight_supports(
@@ -931,6 +902,11 @@ impl Evaluator {
                 self.constraints.sphere_diameter_mm,
             );
             let mut v = visibility(&images, &self.camera);
+            // The soft visibility the supports leave (a repair round's ramp).
+            let mut support_soft = 1.0;
+            if let Some(Some((hidden, soft))) = following.as_ref().map(|judged| &judged[s]) {
+                (v.hidden_by_support, support_soft) = (hidden.clone(), *soft);
+            }
             if let Some((supports, max_hidden, screen)) = supports {
                 if v.is_visible() {
                     // Whether the scenario is visible is all that counts
@@ -971,12 +947,13 @@ impl Evaluator {
                     &images,
                 ));
             }
-            let margin = if v.hidden_by_support.is_empty() {
+            let margin = if v.hidden_by_support.is_empty() || following.is_some() {
                 visibility_margin_px(&images, &self.camera)
             } else {
                 f64::NEG_INFINITY
             };
-            values.soft_visible += (0.5 + margin / (2.0 * SOFT_MARGIN_PX)).clamp(0.0, 1.0);
+            values.soft_visible +=
+                (0.5 + margin / (2.0 * SOFT_MARGIN_PX)).clamp(0.0, 1.0) * support_soft;
             if !v.all_in_front() {
                 continue;
             }

@@ -179,6 +179,109 @@ fn designs_markdown(summary: &SearchSummary, table: &Table) -> String {
     out
 }
 
+/// The section on the winner as printed ([`super::SupportsBooks`]).
+fn supports_markdown(summary: &SearchSummary) -> String {
+    let mut out = String::new();
+    let Some(books) = &summary.supports else {
+        return out;
+    };
+    let _ = writeln!(out, "\n## The winner as printed\n");
+    let identifiable = books
+        .identifiable_as_printed
+        .map_or(String::new(), |(visible, identifiable)| {
+            format!(
+                " The winner is identifiable from one image in {identifiable} of its {visible} scenarios visible as printed."
+            )
+        });
+    let _ = writeln!(
+        out,
+        "How: {}. Floor as printed: {}. {}.{identifiable}\n",
+        books.method(),
+        books.floor.map_or("none".to_string(), |f| format!(
+            "{:.1}% of the scenarios",
+            100.0 * f
+        )),
+        supports_outcome(books)
+    );
+    let mut table = Table::new([
+        "design",
+        "availability as printed %",
+        "spheres alone %",
+        "scenarios lost to supports",
+        "accuracy (1 = the paper's biprism)",
+    ]);
+    let mut row = |name: &str, f: &super::PrintedFigures| {
+        table.row([
+            name.to_string(),
+            format!("{:.1}", 100.0 * f.availability),
+            format!("{:.1}", 100.0 * f.availability_without),
+            f.lost_to_supports.to_string(),
+            significant(Some(f.accuracy), 4),
+        ]);
+    };
+    if books.rounds > 0 {
+        row("winner as found", &books.found);
+    }
+    row("winner", &books.winner);
+    row("paper-biprism", &books.paper);
+    out.push_str(&table.markdown());
+    out
+}
+
+/// What the check as printed found and did, in one sentence.
+fn supports_outcome(books: &super::SupportsBooks) -> String {
+    let state = if books.met { "met" } else { "NOT met" };
+    if books.rounds == 0 {
+        return format!(
+            "The winner as found: {state}, no repair needed ({:.1} s)",
+            books.seconds
+        );
+    }
+    format!(
+        "The winner as found missed it; {} repair round{} (scenarios held per round: {}; {} evaluations, {:.1} s): {state}{}",
+        books.rounds,
+        if books.rounds == 1 { "" } else { "s" },
+        books
+            .held_per_round
+            .iter()
+            .map(|n| n.to_string())
+            .collect::<Vec<_>>()
+            .join(", "),
+        books.evaluations,
+        books.seconds,
+        if books.met {
+            format!(
+                ", accuracy {} → {}",
+                significant(Some(books.found.accuracy), 4),
+                significant(Some(books.winner.accuracy), 4)
+            )
+        } else {
+            "; the winner is the layout as found".to_string()
+        }
+    )
+}
+
+/// The check as printed's line of [`console`].
+fn console_supports(out: &mut String, summary: &SearchSummary) {
+    let Some(books) = &summary.supports else {
+        return;
+    };
+    let _ = writeln!(
+        out,
+        "as printed (routed supports counted, a sphere hidden over {}% not seen): availability {:.1}% vs the paper's biprism's {:.1}% (spheres alone {:.1}% vs {:.1}%); floor {}: {}. {}",
+        100.0 * books.max_hidden,
+        100.0 * books.winner.availability,
+        100.0 * books.paper.availability,
+        100.0 * books.winner.availability_without,
+        100.0 * books.paper.availability_without,
+        books
+            .floor
+            .map_or("none".to_string(), |f| format!("{:.1}%", 100.0 * f)),
+        met(books.met),
+        supports_outcome(books)
+    );
+}
+
 fn identifiability_markdown(summary: &SearchSummary) -> String {
     let mut out = String::new();
     let Some(books) = &summary.identifiability else {
@@ -417,6 +520,7 @@ fn markdown(summary: &SearchSummary, table: &Table) -> String {
     let _ = writeln!(out, "The objective is accuracy (1 = the paper's biprism; scored on every scenario with all spheres in front) plus the availability term, without constraint penalties; lower is better. Monte-Carlo columns pool every scenario (\"all\"), the design's own visible scenarios, and the scenarios visible to both the design and the winner, where the two are compared like for like.\n");
     out.push_str(&designs_markdown(summary, table));
     out.push_str(&identifiability_markdown(summary));
+    out.push_str(&supports_markdown(summary));
     let _ = writeln!(out, "\n## Verdicts\n");
     let mut verdicts = Table::new(["claim", "result"]);
     for (k, seed) in h.comparison_seeds.iter().enumerate() {
@@ -460,6 +564,20 @@ fn markdown(summary: &SearchSummary, table: &Table) -> String {
         "winner reaches the availability floor".to_string(),
         yes(v.winner_meets_availability_floor).to_string(),
     ]);
+    if let Some(books) = &summary.supports {
+        verdicts.row([
+            "winner reaches the availability floor as printed (its routed supports counted)"
+                .to_string(),
+            format!(
+                "{:.1}% against {}: {}",
+                100.0 * books.winner.availability,
+                books
+                    .floor
+                    .map_or("no floor".to_string(), |f| format!("{:.1}%", 100.0 * f)),
+                yes(books.met)
+            ),
+        ]);
+    }
     let held = &summary.held_out;
     verdicts.row([
         format!(
@@ -732,6 +850,7 @@ pub fn console(summary: &SearchSummary) -> String {
         met(v.winner_meets_availability_floor)
     );
     console_identifiability(&mut out, summary);
+    console_supports(&mut out, summary);
     let yes_no = |b: bool| if b { "yes" } else { "no" };
     if v.admissible_hand_designs.is_empty() {
         let _ = writeln!(

@@ -217,6 +217,10 @@ pub struct SearchSummary {
     /// The same with the supports `export` builds for each counted as
     /// occluders (`None`: a part could not be built).
     pub held_out_with_supports: Option<HeldOutCheck>,
+    /// The winner and the paper's biprism as printed on the search's own
+    /// scenarios, and how the winner was repaired to the floor as printed
+    /// (`None`: not checked).
+    pub supports: Option<SupportsBooks>,
     /// The Pareto front, when asked for.
     pub front: Option<FrontReport>,
     /// How the identifiability floor was enforced (None: no floor).
@@ -383,5 +387,68 @@ mod tests {
             .collect();
         assert!(largest_shift_mm(&a, &moved).unwrap() < 1e-9);
         assert_eq!(largest_shift_mm(&a, &b[..2]), None);
+    }
+}
+
+/// One layout on the search's scenarios, as printed and as the spheres
+/// alone.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PrintedFigures {
+    /// Share of the scenarios with every sphere visible, the routed
+    /// supports counted.
+    pub availability: f64,
+    /// The same, the spheres alone.
+    pub availability_without: f64,
+    /// Scenarios the spheres alone leave visible in which a support hides
+    /// more than `max_hidden` of a sphere.
+    pub lost_to_supports: usize,
+    /// Accuracy (1 = the paper's biprism; supports do not change it).
+    pub accuracy: f64,
+}
+
+/// How the winner was checked, and repaired, as printed.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SupportsBooks {
+    /// A sphere hidden more than this fraction counts as not seen.
+    pub max_hidden: f64,
+    /// The search's scenarios.
+    pub scenarios: usize,
+    /// The availability floor as printed (None: no floor).
+    pub floor: Option<f64>,
+    /// The optimiser's winner, before any repair.
+    pub found: PrintedFigures,
+    /// The winner after the repair (the same as `found` when none ran).
+    pub winner: PrintedFigures,
+    /// The paper's biprism.
+    pub paper: PrintedFigures,
+    /// Whether the winner meets the floor as printed.
+    pub met: bool,
+    /// The winner's scenarios visible as printed, and of them those
+    /// predicted identifiable from one image (None: identifiability was not
+    /// checked on every visible scenario).
+    pub identifiable_as_printed: Option<(usize, usize)>,
+    /// Repair rounds run.
+    pub rounds: usize,
+    /// Most repair rounds.
+    pub max_rounds: usize,
+    /// Nelder–Mead iterations of a round.
+    pub round_iterations: u64,
+    /// Scenarios held per round.
+    pub held_per_round: Vec<usize>,
+    /// Evaluations of the repair rounds.
+    pub evaluations: usize,
+    /// Time of the check and the repair, s.
+    pub seconds: f64,
+}
+
+impl SupportsBooks {
+    /// How the check and the repair work, in words (report and summary).
+    pub fn method(&self) -> String {
+        format!(
+            "the supports of export's default structure, routed to clear the search's own scenarios, counted as occluders (a sphere hidden more than {}% counts as not seen); the availability floor applies to the part as printed, the paper's biprism's own printed availability; a winner below it is repaired by Nelder–Mead rounds of {} iterations that price its routed supports following the spheres on the scenarios lost or nearly lost so far, each round's layout routed again and checked on every scenario, at most {} rounds",
+            100.0 * self.max_hidden,
+            self.round_iterations,
+            self.max_rounds
+        )
     }
 }

@@ -334,23 +334,28 @@ fn validate_counts_the_scenarios_the_supports_hide() {
     }
 }
 
-/// A `--max-hidden` outside 0–1 is refused by `validate` and `export`
-/// before any work, naming the flag, and nothing is written.
+/// A `--max-hidden` outside 0–1 is refused by `validate`, `export` and
+/// `search` before any work, naming the flag, and nothing is written.
 #[test]
 fn a_bad_max_hidden_is_refused_before_any_work() {
     for bad in ["1.5", "NaN", "-0.1"] {
-        for command in ["validate", "export"] {
+        for command in ["validate", "export", "search"] {
             let dir = tempfile::tempdir().unwrap();
             let max_hidden = format!("--max-hidden={bad}");
             let args: Vec<&str> = match command {
                 "validate" => vec!["validate", "--trials", "1", &max_hidden],
-                _ => vec!["export", "--depth", "600", &max_hidden],
+                "export" => vec!["export", "--depth", "600", &max_hidden],
+                _ => vec!["search", "--iterations", "10", &max_hidden],
+            };
+            let out = match command {
+                "search" => dir.path().join("w.json"),
+                _ => dir.path().to_path_buf(),
             };
             let output = assert_cmd::Command::cargo_bin("layout-opt")
                 .unwrap()
                 .args(args)
                 .arg("--out")
-                .arg(dir.path())
+                .arg(out)
                 .output()
                 .unwrap();
             let stderr = String::from_utf8_lossy(&output.stderr);

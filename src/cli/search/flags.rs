@@ -33,6 +33,16 @@ pub struct SearchArgs {
     /// about twice as much (`cargo bench --bench supports`).
     #[arg(long, value_name = "FRACTION")]
     pub(super) count_supports: Option<layout_opt::visibility::MaxHidden>,
+    /// The winner is checked as printed: the supports export routes for
+    /// the search's scenarios are counted, a sphere they hide more than
+    /// this fraction (0–1) of counts as not seen, the availability floor
+    /// applies to the printed part (the paper's biprism's as printed), and
+    /// a winner below it is repaired (docs/commands.md, "Supports").
+    #[arg(long, value_name = "FRACTION", default_value = "0.01")]
+    pub(super) max_hidden: layout_opt::visibility::MaxHidden,
+    /// Score the winner as the spheres alone: no check as printed.
+    #[arg(long)]
+    pub(super) no_supports: bool,
     /// Leave out the centre point (biprism: O0; tetrahedron: the centroid point).
     #[arg(long)]
     pub(super) no_centre: bool,

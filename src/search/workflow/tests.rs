@@ -9,7 +9,8 @@ use crate::observer::{Collect, Silent};
 use crate::pnp::Solver;
 use crate::scenario::{Range, ScenarioGrid};
 use crate::search::analysis::{
-    self, PHASE_COMPARE, PHASE_FRONT, PHASE_IDENTIFY, PHASE_SEARCH, PHASE_VALIDATE, STATUS_FINISHED,
+    self, PHASE_COMPARE, PHASE_FRONT, PHASE_IDENTIFY, PHASE_SEARCH, PHASE_SUPPORTS, PHASE_VALIDATE,
+    STATUS_FINISHED,
 };
 use crate::search::config::FrontOutput;
 use crate::search::identify::IDENTIFY_ROUNDS;
@@ -290,20 +291,43 @@ fn every_phase_has_a_bar_that_ends_at_its_total() {
     config.search.iterations = 400;
     let mut observer = Record::default();
     run(&config, &mut observer).unwrap();
+    // The winner as printed: its scenarios visible as printed are those
+    // its availability as printed counts, each checked for identity.
+    let summary: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(config.report_dir.join("summary.json")).unwrap(),
+    )
+    .unwrap();
+    let books = &summary["supports"];
+    let visible = books["identifiable_as_printed"][0].as_f64().unwrap();
+    let identifiable = books["identifiable_as_printed"][1].as_f64().unwrap();
+    let scenarios = books["scenarios"].as_f64().unwrap();
+    assert_eq!(
+        visible,
+        books["winner"]["availability"].as_f64().unwrap() * scenarios
+    );
+    assert!(identifiable <= visible && visible > 0.0, "{books}");
     let phases: Vec<&str> = observer.last.iter().map(|p| p.0.as_str()).collect();
     assert_eq!(
         phases,
-        [PHASE_SEARCH, PHASE_IDENTIFY, PHASE_COMPARE, PHASE_VALIDATE]
+        [
+            PHASE_SEARCH,
+            PHASE_IDENTIFY,
+            PHASE_SUPPORTS,
+            PHASE_COMPARE,
+            PHASE_VALIDATE
+        ]
     );
     // The search's total is its real budget: starts × iterations.
     assert_eq!(observer.last[0].2, 3 * 400);
     assert_eq!(observer.last[1].2, IDENTIFY_ROUNDS as u64);
+    // The check as printed: one step, then one per repair round.
+    assert_eq!(observer.last[2].2, 1 + crate::search::SUPPORT_ROUNDS as u64);
     // The comparison: 5 designs (winner, start, 3 hand designs; none
     // made admissible, the stereo distance rule being off) × 2 seeds ×
     // 20 scenarios.
-    assert_eq!(observer.last[2].2, 5 * 2 * 20);
+    assert_eq!(observer.last[3].2, 5 * 2 * 20);
     // The validation: its Monte-Carlo run, then identifiability.
-    assert_eq!(observer.last[3].2, 2 * 20);
+    assert_eq!(observer.last[4].2, 2 * 20);
     for (phase, done, total) in &observer.last {
         assert_eq!(done, total, "{phase} ended short of its total");
     }
