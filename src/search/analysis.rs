@@ -34,7 +34,7 @@ use super::identify::{enforce_identifiability, Quiet, IDENTIFY_ROUNDS};
 use super::optimise::{self, Candidate, OptimiseOutcome, SearchObserver, SearchSettings};
 use super::summary::SupportsBooks;
 use super::summary::{verdicts, HeldOutCheck, IdentifyBooks, SearchHeader, SearchSummary};
-use super::supports::{enforce_supports, PrintedParts, SUPPORT_ROUNDS, SUPPORT_ROUND_ITERATIONS};
+use super::supports::{enforce_supports, PrintedParts, RepairBudget, SUPPORT_ROUNDS};
 use super::{Evaluator, IdentifyScope};
 use crate::family::{Family, FamilyError, FamilyKind};
 use crate::layout::Layout;
@@ -715,7 +715,7 @@ impl Run<'_, '_> {
                     &self.hand[0],
                     max_hidden,
                     &self.config().search,
-                    SUPPORT_ROUND_ITERATIONS,
+                    RepairBudget::SEARCH,
                     outcome,
                     &self.stop,
                 );

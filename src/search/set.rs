@@ -30,8 +30,9 @@ pub mod validation;
 use super::analysis::Analysis;
 use super::identify::{enforce_identifiability, Quiet};
 use super::optimise;
+use super::supports::{enforce_supports, RepairBudget};
 use super::SearchError;
-use super::{IdentifiabilityFigures, SearchConfig};
+use super::{IdentifiabilityFigures, SearchConfig, SupportsBooks};
 use crate::identifiability::IdentifiabilitySettings;
 use crate::layout::Layout;
 use crate::montecarlo::Target;
@@ -146,6 +147,9 @@ pub struct SetMarker {
     pub cross_repair_rounds: usize,
     /// Its identifiability over the working volume.
     pub identifiability: Option<IdentifiabilityFigures>,
+    /// It and the paper's biprism as printed, and its repair to the floor
+    /// as printed (None: not checked), as in a single search.
+    pub printed: Option<SupportsBooks>,
 }
 
 /// A designed set.
@@ -218,6 +222,23 @@ pub fn design_set(
         noise: config.objective.noise,
     };
     let diameter = config.constraints.sphere_diameter_mm;
+    let paper = super::hand_designs(&config.constraints.envelope, diameter).swap_remove(0);
+    // Each try's winner checked (and repaired) as printed, as a single
+    // search's is; `budget` CHECK_ONLY once a cross repair has moved it.
+    let printed = |outcome: optimise::OptimiseOutcome,
+                   settings: &optimise::SearchSettings,
+                   budget: RepairBudget|
+     -> Result<(optimise::OptimiseOutcome, Option<SupportsBooks>), SearchError> {
+        match config.supports {
+            Some(max_hidden) => {
+                let (outcome, books, _) = enforce_supports(
+                    family, &evaluator, &paper, max_hidden, settings, budget, outcome, stop,
+                )?;
+                Ok((outcome, Some(books)))
+            }
+            None => Ok((outcome, None)),
+        }
+    };
     let mut markers: Vec<SetMarker> = Vec::with_capacity(set.markers);
     // The pairs of each kept marker with the markers before it, as its
     // try checked them.
@@ -236,13 +257,15 @@ pub fn design_set(
             };
             let outcome =
                 optimise::run(family, &evaluator, &settings, stop, Arc::new(Quiet), None)?;
-            let mut outcome = match config.min_identifiability {
+            let outcome = match config.min_identifiability {
                 Some(floor) => {
                     enforce_identifiability(family, &evaluator, floor, &settings, outcome, stop)?.0
                 }
                 None => outcome,
             };
-            let mut accepted = outcome.best.evaluation.admissible();
+            let (mut outcome, mut books) = printed(outcome, &settings, RepairBudget::SEARCH)?;
+            let mut accepted =
+                outcome.best.evaluation.admissible() && books.as_ref().is_none_or(|b| b.met);
             let mut rounds = 0;
             if accepted && !markers.is_empty() {
                 let rivals: Vec<Vec<Vector3<f64>>> =
@@ -282,10 +305,12 @@ pub fn design_set(
                         stop,
                     )?;
                     (outcome, matrix, rounds) = (repair.outcome, repair.matrix, repair.rounds);
+                    // The repair moved it: checked as printed again.
+                    (outcome, books) = printed(outcome, &settings, RepairBudget::CHECK_ONLY)?;
                 }
                 let share = matrix.worst_share();
                 best_share = Some(best_share.map_or(share, |b: f64| b.max(share)));
-                accepted = matrix.meets_floor();
+                accepted = matrix.meets_floor() && books.as_ref().is_none_or(|b| b.met);
                 if accepted {
                     checked_pairs.extend(matrix.pairs);
                 }
@@ -310,6 +335,7 @@ pub fn design_set(
                     tries: attempt + 1,
                     cross_repair_rounds: rounds,
                     identifiability: evaluation.identifiability.clone(),
+                    printed: books,
                 });
                 break;
             }
@@ -418,13 +444,26 @@ pub fn set_report(outcome: &SetSearchOutcome, command: &str) -> String {
         sig(1.0 - outcome.settings.min_cross, 2),
         if outcome.matrix.meets_floor() { "yes" } else { "no" },
     );
-    text.push_str("## Markers\n\nAccuracy: the objective's accuracy term (1 = the paper's biprism scaled to the envelope; lower is better). Alone: what one marker reaches (marker 1, the single-marker search's winner).\n\n| marker | accuracy in the set | alone | price | identifiable | tries | cross repair rounds | seed |\n|---|---|---|---|---|---|---|---|\n");
+    text.push_str("## Markers\n\nAccuracy: the objective's accuracy term (1 = the paper's biprism scaled to the envelope; lower is better). Alone: what one marker reaches (marker 1, the single-marker search's winner).\n\n| marker | accuracy in the set | alone | price | identifiable | available as printed (spheres alone; the paper's biprism as printed) | tries | cross repair rounds | seed |\n|---|---|---|---|---|---|---|---|---|\n");
     for (k, m) in outcome.markers.iter().enumerate() {
         let identifiable = m.identifiability.as_ref().map_or("—".to_string(), |f| {
             format!("{} of {}", f.identifiable, f.checked)
         });
+        let printed = m.printed.as_ref().map_or("not checked".to_string(), |b| {
+            format!(
+                "{:.1}% ({:.1}%; {:.1}%){}",
+                100.0 * b.winner.availability,
+                100.0 * b.winner.availability_without,
+                100.0 * b.paper.availability,
+                if b.rounds > 0 {
+                    format!(", {} repair rounds", b.rounds)
+                } else {
+                    String::new()
+                }
+            )
+        });
         text.push_str(&format!(
-            "| {} ({}) | {} | {} | {:+.1}% | {} | {} | {} | {} |\n",
+            "| {} ({}) | {} | {} | {:+.1}% | {} | {printed} | {} | {} | {} |\n",
             k + 1,
             m.layout.name,
             sig(m.accuracy, 4),

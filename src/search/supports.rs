@@ -41,6 +41,29 @@ use std::time::Instant;
 pub const SUPPORT_ROUNDS: usize = 4;
 /// Nelder–Mead iterations of one such round.
 pub const SUPPORT_ROUND_ITERATIONS: u64 = 300;
+/// How much repair [`enforce_supports`] may spend.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) struct RepairBudget {
+    /// Most rounds (0: check only).
+    pub rounds: usize,
+    /// Nelder–Mead iterations of a round.
+    pub iterations: u64,
+}
+
+impl RepairBudget {
+    /// The search's: [`SUPPORT_ROUNDS`] rounds of
+    /// [`SUPPORT_ROUND_ITERATIONS`].
+    pub const SEARCH: RepairBudget = RepairBudget {
+        rounds: SUPPORT_ROUNDS,
+        iterations: SUPPORT_ROUND_ITERATIONS,
+    };
+    /// The check alone, no repair.
+    pub const CHECK_ONLY: RepairBudget = RepairBudget {
+        rounds: 0,
+        iterations: 0,
+    };
+}
+
 /// A scenario whose printed part hides more than this share of
 /// `max_hidden` of some sphere is held by the repair (it is near the limit).
 const NEAR_SHARE: f64 = 0.5;
@@ -213,8 +236,7 @@ impl Printed {
 /// Checks the winner of `outcome` as printed, against the paper's biprism
 /// `paper` as printed, on the scenarios of `evaluator` (the search's), and
 /// repairs it while it misses the printed availability floor (module
-/// docs), each round a Nelder–Mead run of `iterations` (the search uses
-/// [`SUPPORT_ROUND_ITERATIONS`]). A repaired layout must still meet the
+/// docs), within `budget`. A repaired layout must still meet the
 /// constraints and the floors of `evaluator`, identifiability over every
 /// visible scenario included. The winner of the returned outcome is the
 /// repaired layout when a round succeeded.
@@ -225,7 +247,7 @@ pub(super) fn enforce_supports(
     paper: &Layout,
     max_hidden: MaxHidden,
     settings: &SearchSettings,
-    iterations: u64,
+    budget: RepairBudget,
     outcome: OptimiseOutcome,
     stop: &AtomicBool,
 ) -> Result<(OptimiseOutcome, SupportsBooks, PrintedParts), SearchError> {
@@ -262,8 +284,8 @@ pub(super) fn enforce_supports(
         met: meets(&found),
         identifiable_as_printed: None,
         rounds: 0,
-        max_rounds: SUPPORT_ROUNDS,
-        round_iterations: iterations,
+        max_rounds: budget.rounds,
+        round_iterations: budget.iterations,
         held_per_round: Vec::new(),
         evaluations: 0,
         seconds: 0.0,
@@ -283,7 +305,7 @@ pub(super) fn enforce_supports(
     let mut current = found;
     let mut from = outcome.best.params.clone();
     let mut held = vec![false; plain.scenarios.len()];
-    while !books.met && books.rounds < SUPPORT_ROUNDS && !stop.load(Ordering::Relaxed) {
+    while !books.met && books.rounds < budget.rounds && !stop.load(Ordering::Relaxed) {
         for s in current.near(max_hidden) {
             held[s] = true;
         }
@@ -298,7 +320,8 @@ pub(super) fn enforce_supports(
             max_hidden,
         };
         let round = plain.with_following(rule, floor);
-        let repaired = optimise::repair_round(family, &round, settings, iterations, &from, stop)?;
+        let repaired =
+            optimise::repair_round(family, &round, settings, budget.iterations, &from, stop)?;
         books.evaluations += repaired.evaluations_this_run;
         if repaired.interrupted {
             outcome.interrupted = true;
@@ -492,7 +515,10 @@ mod tests {
             &paper,
             MaxHidden::default(),
             &settings(),
-            iterations,
+            RepairBudget {
+                rounds: SUPPORT_ROUNDS,
+                iterations,
+            },
             outcome,
             &AtomicBool::new(false),
         )
