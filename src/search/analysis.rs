@@ -32,8 +32,9 @@ use super::feasibility::unsatisfiable;
 use super::front::{self, FrontFiles};
 use super::identify::{enforce_identifiability, Quiet, IDENTIFY_ROUNDS};
 use super::optimise::{self, Candidate, OptimiseOutcome, SearchObserver, SearchSettings};
-use super::summary::SupportsBooks;
-use super::summary::{verdicts, HeldOutCheck, IdentifyBooks, SearchHeader, SearchSummary};
+use super::summary::{
+    verdicts, HeldOutCheck, IdentifyBooks, SearchHeader, SearchSummary, SupportsBooks,
+};
 use super::supports::{enforce_supports, PrintedParts, RepairBudget, SUPPORT_ROUNDS};
 use super::{Evaluator, IdentifyScope};
 use crate::family::{Family, FamilyError, FamilyKind};
