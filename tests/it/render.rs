@@ -426,3 +426,75 @@ fn the_command_names_the_flag_of_a_bad_value() {
         ));
     assert!(!out.exists());
 }
+
+/// With no structure flags, `render` draws the part `export` prints: for a
+/// layout that records its search's range, the supports routed for that
+/// range (not for the view cone), so that its ground truth is that part's.
+#[test]
+fn the_command_renders_the_part_export_prints() {
+    let layout = layout("biprism-search.json");
+    let dir = tempfile::tempdir().unwrap();
+    let output = assert_cmd::Command::cargo_bin("layout-opt")
+        .unwrap()
+        .args(["render", "layouts/biprism-search.json", "--depth", "600"])
+        .args(["--tilt=-60..60:20", "--pan=-20,20", "--no-noise", "--quiet"])
+        .arg("--out")
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let grid = layout_opt::visibility::RangeAxes::default()
+        .grid_for(&layout)
+        .unwrap()
+        .expect("the winner records its search's range");
+    let range = layout_opt::visibility::WorkingRange {
+        camera: Camera::paper(),
+        scenarios: grid.scenarios(),
+        max_hidden: layout_opt::visibility::MaxHidden::default(),
+    };
+    let printed = Scene::from_marker(
+        layout_opt::mesh::marker_for_range(&layout, &MarkerOptions::default(), &range).unwrap(),
+    );
+    let coned = Scene::from_marker(Marker::design(&layout, &MarkerOptions::default()).unwrap());
+    let names: Vec<String> = layout.points.iter().map(|p| p.name.clone()).collect();
+    let camera = Camera::paper();
+    let (mut frames, mut differ) = (0, 0);
+    for entry in std::fs::read_dir(dir.path()).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().is_none_or(|e| e != "json") {
+            continue;
+        }
+        let record: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+        let rows: Vec<Vec<f64>> = serde_json::from_value(record["R"].clone()).unwrap();
+        let t: Vec<f64> = serde_json::from_value(record["t"].clone()).unwrap();
+        let rotation = nalgebra::Matrix3::from_fn(|i, j| rows[i][j]);
+        let pose = Pose::new(
+            Rotation3::from_matrix_unchecked(rotation),
+            Vector3::new(t[0], t[1], t[2]),
+        );
+        let of = |scene: &Scene| frame_truth(scene, &names, &pose, &camera).unwrap();
+        let (printed, coned) = (of(&printed), of(&coned));
+        let mut differs = false;
+        for (k, sphere) in record["spheres"].as_array().unwrap().iter().enumerate() {
+            let drawn = sphere["hidden"]["by_support"].as_f64().unwrap();
+            assert!(
+                (drawn - printed.spheres[k].hidden.by_support).abs() < 1e-9,
+                "{}: {drawn} drawn, {} on the printed part",
+                path.display(),
+                printed.spheres[k].hidden.by_support
+            );
+            differs |= (printed.spheres[k].hidden.by_support - coned.spheres[k].hidden.by_support)
+                .abs()
+                > 0.01;
+        }
+        frames += 1;
+        differ += usize::from(differs);
+    }
+    assert_eq!(frames, 14);
+    assert!(differ > 0, "some frame must tell the two parts apart");
+}
