@@ -6,12 +6,12 @@ use super::{progress, GlobalOptions};
 use anyhow::Context;
 use clap::Args;
 use layout_opt::layout::Layout;
+use layout_opt::mesh::routed_as_recorded;
 use layout_opt::render::workflow::{self, FramePose, RenderJob};
 use layout_opt::render::{
     poses_from_json, Appearance, Blur, Lighting, Noise, Optics, RenderConfig, RenderError, Sensor,
 };
 use layout_opt::scenario::{Range, ScenarioGrid};
-use layout_opt::visibility::{MaxHidden, RangeAxes, WorkingRange};
 use std::path::PathBuf;
 
 /// Flags of `render`.
@@ -194,19 +194,9 @@ pub fn run(args: RenderArgs, global: &GlobalOptions) -> anyhow::Result<()> {
         Some(path) => naming_file(Layout::load(path), "layout", path)?,
         None => Layout::paper_biprism(),
     };
-    // The part export prints: its supports routed for the search's range
-    // recorded in the layout, when there is one (else for the view cone).
-    let mut marker = args.structure.marker_options();
-    if let Some(grid) = RangeAxes::default().grid_for(&layout)? {
-        let range = WorkingRange {
-            camera: layout_opt::camera::Camera::paper(),
-            scenarios: grid.scenarios(),
-            max_hidden: MaxHidden::default(),
-        };
-        marker.working_views = range.clear_views(&layout.positions(), layout.sphere_diameter_mm);
-    }
     let job = RenderJob {
-        marker,
+        // The part export prints (supports routed as it routes them).
+        marker: routed_as_recorded(&layout, args.structure.marker_options())?,
         poses: poses(&args)?,
         config: config(&args, global)?,
         out_dir: args.out.clone(),

@@ -70,8 +70,8 @@ pub mod workflow;
 pub use error::ExportError;
 pub use format::Format;
 pub use geometry::{
-    marker_for_range, straight_supports, supports_for_range, Axis, GeometryError, Marker,
-    MarkerOptions, MountHoles,
+    marker_for_range, routed_as_recorded, straight_supports, supports_for_range, Axis,
+    GeometryError, Marker, MarkerOptions, MountHoles,
 };
 pub use tolerance::{datum_positions, Datum, DatumPosition, Tolerances};
 pub use trimesh::{Topology, TriangleMesh};

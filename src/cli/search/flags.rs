@@ -33,11 +33,9 @@ pub struct SearchArgs {
     /// about twice as much (`cargo bench --bench supports`).
     #[arg(long, value_name = "FRACTION")]
     pub(super) count_supports: Option<layout_opt::visibility::MaxHidden>,
-    /// The winner is checked as printed: the supports export routes for
-    /// the search's scenarios are counted, a sphere they hide more than
-    /// this fraction (0–1) of counts as not seen, the availability floor
-    /// applies to the printed part (the paper's biprism's as printed), and
-    /// a winner below it is repaired (docs/commands.md, "The winner as printed").
+    /// The winner is checked, and repaired, as printed: a sphere its routed
+    /// supports hide more than this fraction (0–1) of counts as not seen
+    /// (docs/commands.md, "The winner as printed").
     #[arg(long, value_name = "FRACTION", default_value = "0.01")]
     pub(super) max_hidden: layout_opt::visibility::MaxHidden,
     /// Score the winner as the spheres alone: no check as printed.

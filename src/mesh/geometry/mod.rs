@@ -231,7 +231,7 @@ pub use frames::{gltf_rotation, print_rotation};
 pub use options::{Axis, Bed, MarkerOptions, MountHoles, Structure};
 pub use parts::{Foot, Hole, Node, Plate, SphereFeature, Strut, StrutKind};
 use router::Router;
-pub use router::{marker_for_range, straight_supports, supports_for_range};
+pub use router::{marker_for_range, routed_as_recorded, straight_supports, supports_for_range};
 pub use solid::Marker;
 
 /// The main view `view` and rings of directions around it out to

@@ -757,6 +757,28 @@ pub fn marker_for_range(
     Marker::design(layout, &options)
 }
 
+/// `options` with the supports routed as `export` routes them for `layout`
+/// when no range is given: for the search's range recorded in the
+/// layout's provenance (the paper camera, the default `--max-hidden`), or,
+/// when it records none, for the view cone (`options` unchanged).
+pub fn routed_as_recorded(
+    layout: &crate::layout::Layout,
+    options: MarkerOptions,
+) -> Result<MarkerOptions, crate::scenario::ScenarioError> {
+    let Some(grid) = crate::visibility::RangeAxes::default().grid_for(layout)? else {
+        return Ok(options);
+    };
+    let range = crate::visibility::WorkingRange {
+        camera: crate::camera::Camera::paper(),
+        scenarios: grid.scenarios(),
+        max_hidden: crate::visibility::MaxHidden::default(),
+    };
+    Ok(MarkerOptions {
+        working_views: range.clear_views(&layout.positions(), layout.sphere_diameter_mm),
+        ..options
+    })
+}
+
 /// The supports of [`marker_for_range`], as occluders for the visibility
 /// model.
 pub fn supports_for_range(
