@@ -871,7 +871,7 @@ impl Evaluator {
         // A repair round's part, carried to these spheres and judged on
         // the held scenarios that the spheres alone leave visible (in
         // parallel: a round runs one Nelder–Mead start).
-        let following = match &self.supports {
+        let mut following = match &self.supports {
             SupportRule::Following(rule) => Some(rule.judge_all(self, points)),
             _ => None,
         };
@@ -904,8 +904,8 @@ impl Evaluator {
             let mut v = visibility(&images, &self.camera);
             // The soft visibility the supports leave (a repair round's ramp).
             let mut support_soft = 1.0;
-            if let Some(Some((hidden, soft))) = following.as_ref().map(|judged| &judged[s]) {
-                (v.hidden_by_support, support_soft) = (hidden.clone(), *soft);
+            if let Some(Some((hidden, soft))) = following.as_mut().map(|judged| judged[s].take()) {
+                (v.hidden_by_support, support_soft) = (hidden, soft);
             }
             if let Some((supports, max_hidden, screen)) = supports {
                 if v.is_visible() {

@@ -19,7 +19,8 @@
 //! checked on every scenario; the first that meets both availability
 //! floors (spheres alone and as printed), every constraint and the
 //! identifiability floor is kept. After [`SUPPORT_ROUNDS`] rounds without
-//! one, the winner stands and the books say so.
+//! one, or at a round's layout whose part cannot be built, the winner
+//! stands and the books say so.
 
 use super::summary::{HeldOutCheck, PrintedFigures, SupportsBooks};
 use super::{
@@ -329,8 +330,11 @@ pub(super) fn enforce_supports(
             break;
         }
         let params = repaired.best.params;
-        let candidate = Printed::of(&plain, &range, &layout_of(&params), max_hidden)
-            .map_err(|e| SearchError::Supports(e.to_string()))?;
+        // A round's layout whose part cannot be built ends the repair; the
+        // winner found stands, its own part counted.
+        let Ok(candidate) = Printed::of(&plain, &range, &layout_of(&params), max_hidden) else {
+            break;
+        };
         let checked = full.evaluate(&family.points(&params), &point_sigma);
         if meets(&candidate) && checked.admissible() {
             books.met = true;
