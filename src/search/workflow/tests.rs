@@ -287,8 +287,7 @@ impl Observer for Record {
 fn every_phase_has_a_bar_that_ends_at_its_total() {
     let dir = tempfile::tempdir().unwrap();
     let mut config = small_with_floor(dir.path());
-    config.search.starts = 3;
-    config.search.iterations = 400;
+    config.search.iterations = 150;
     let mut observer = Record::default();
     run(&config, &mut observer).unwrap();
     // The winner as printed: its scenarios visible as printed are those
@@ -318,7 +317,7 @@ fn every_phase_has_a_bar_that_ends_at_its_total() {
         ]
     );
     // The search's total is its real budget: starts × iterations.
-    assert_eq!(observer.last[0].2, 3 * 400);
+    assert_eq!(observer.last[0].2, 2 * 150);
     assert_eq!(observer.last[1].2, IDENTIFY_ROUNDS as u64);
     // The check as printed: one step, then one per repair round.
     assert_eq!(observer.last[2].2, 1 + crate::search::SUPPORT_ROUNDS as u64);
