@@ -472,7 +472,7 @@ pub fn detect(
             }
             let mut measured = vec![(
                 stats.first,
-                measure(&context, &levels, &labels, &window, id as u32 + 1, stats),
+                measure(&context, &labels, &window, id as u32 + 1, stats),
             )];
             // Two discs that the blur joins, or discs in front of a dimmer
             // region above the threshold: each bright core on its own.
@@ -493,10 +493,7 @@ pub fn detect(
                         .iter()
                         .map(|&part| {
                             let stats = &parts[part as usize - 1];
-                            (
-                                stats.first,
-                                measure(&context, &levels, &split, &window, part, stats),
-                            )
+                            (stats.first, measure(&context, &split, &window, part, stats))
                         })
                         .collect();
                     if pieces.iter().any(|(_, m)| m.is_ok()) {
@@ -1100,7 +1097,6 @@ fn local_outside_level(dark: f64, outer: f64, outer2: f64, noise: f64) -> f64 {
 /// Measures component `id` of the window's labels (module docs, step 3).
 fn measure(
     context: &Context,
-    levels: &Levels,
     labels: &[u32],
     window: &Window,
     id: u32,
@@ -1416,7 +1412,6 @@ fn measure(
     if (sphere.axis_ratio - sphere.expected_axis_ratio).abs() > MAX_AXIS_RATIO_ERROR {
         hidden_because.push("axis ratio not a sphere's");
     }
-    let _ = levels;
     let to_array = |v: Vector2<f64>| [v.x, v.y];
     Ok(Blob {
         area_px: stats.count,
