@@ -36,6 +36,7 @@ use super::{IdentifiabilityFigures, SearchConfig, SupportsBooks};
 use crate::identifiability::IdentifiabilitySettings;
 use crate::layout::Layout;
 use crate::montecarlo::Target;
+use crate::report::number::share_percent;
 use crate::scenario::Scenario;
 use crate::set::{all_pairs, cross_pairs, CrossMatrix, MAX_MARKERS, MIN_MARKERS};
 use nalgebra::Vector3;
@@ -350,9 +351,9 @@ pub fn design_set(
                     set.tries,
                     match best_share {
                         Some(share) => format!(
-                            " (the best was cross-identifiable with the earlier markers in {:.1}% of the checked viewpoints, the floor {:.1}%)",
-                            100.0 * share,
-                            100.0 * set.min_cross
+                            " (the best was cross-identifiable with the earlier markers in {}% of the checked viewpoints, the floor {}%)",
+                            share_percent(share),
+                            share_percent(set.min_cross)
                         ),
                         None => " (none was admissible on its own)".to_string(),
                     },
