@@ -8,6 +8,7 @@
 //! cargo run --release --example track_accuracy -- speed [RUNS]
 //! cargo run --release --example track_accuracy -- lost [TRIALS] [TILT_STEP]
 //! cargo run --release --example track_accuracy -- bias
+//! cargo run --release --example track_accuracy -- clean [DEPTH_MM]
 //! ```
 //!
 //! * `centres`: noise-free renders (16 bit, σ 0.5 px blur, 8×8
@@ -17,6 +18,11 @@
 //!   centre) against the render's exact ellipse (projected) centres over
 //!   whole spheres, and the worst rotation error of the views where no
 //!   sphere is hidden.
+//! * `clean`: noise-free renders (as `centres`) at `DEPTH_MM` (1000 by
+//!   default) on a dense grid, tilt −40…40° and pan −30…30° in 5° steps,
+//!   rolls 10° and 100°, the views with no sphere hidden: the spread of
+//!   the rotation error, the views beyond 0.01°, and the six worst with
+//!   each sphere's ellipse-centre error (x, y) in px.
 //! * `labels`: random views at 300–900 mm within ±30° of head on, those
 //!   where the identifiability model predicts ≥ 99.9 % correct labels at
 //!   σ = 0.5 px and no sphere is hidden, each read `REALISATIONS` times by
@@ -182,6 +188,77 @@ fn centres(part: &Part, camera: Camera) {
         let worst = rotations.iter().cloned().fold(0.0, f64::max);
         let rms = (rotations.iter().map(|r| r * r).sum::<f64>() / rotations.len() as f64).sqrt();
         println!("  rotation error, clean views: RMS {rms:.4}°, worst {worst:.4}°");
+    }
+}
+
+fn clean(part: &Part, camera: Camera, depth: f64) {
+    let config = TrackConfig::new(&part.layout, camera);
+    let render = frames::noise_free(camera, 8);
+    let views: Vec<(f64, f64, f64)> = (-8..=8)
+        .flat_map(|t| (-6..=6).flat_map(move |p| [10.0, 100.0].map(|r| (t, p, r))))
+        .map(|(t, p, r)| (5.0 * t as f64, 5.0 * p as f64, r))
+        .collect();
+    type Row = (f64, f64, f64, f64, Vec<(usize, Vector2<f64>)>);
+    let mut rows: Vec<Row> = views
+        .par_iter()
+        .filter_map(|&(tilt, pan, roll)| {
+            let truth = centred(&camera, depth, tilt, pan, roll);
+            let rendered = part.render(&render, &truth);
+            if !clean_view(&rendered.truth, &camera) {
+                return None;
+            }
+            let analysis = analyse(&config, &rendered.frame());
+            let detection = analysis.detection.as_ref()?;
+            let errors = rendered
+                .truth
+                .spheres
+                .iter()
+                .enumerate()
+                .filter_map(|(k, sphere)| {
+                    let b = &detection.blobs[blob_of_sphere(&detection.blobs, sphere)?];
+                    Some((
+                        k,
+                        Vector2::from(b.ellipse_centre_px) - ellipse_centre(sphere),
+                    ))
+                })
+                .collect();
+            let rotation = analysis.pose.map_or(f64::NAN, |p| {
+                rotation_error_deg(&truth.rotation, &p.rotation)
+            });
+            Some((tilt, pan, roll, rotation, errors))
+        })
+        .collect();
+    rows.sort_by(|a, b| b.3.total_cmp(&a.3));
+    let rotations: Vec<f64> = rows.iter().rev().map(|r| r.3).collect();
+    let centres: Vec<f64> = rows
+        .iter()
+        .flat_map(|r| r.4.iter().map(|e| e.1.norm()))
+        .collect();
+    let rms = (centres.iter().map(|e| e * e).sum::<f64>() / centres.len() as f64).sqrt();
+    println!(
+        "{depth:.0} mm: {} clean views of {}; rotation error median {:.4}°, 90th percentile {:.4}°, worst {:.4}°; {} beyond 0.01°; ellipse centres RMS {rms:.4} px, worst {:.4} px",
+        rows.len(),
+        views.len(),
+        rotations[rotations.len() / 2],
+        rotations[rotations.len() * 9 / 10],
+        rotations[rotations.len() - 1],
+        rotations.iter().filter(|r| **r > 0.01).count(),
+        centres.iter().copied().fold(0.0, f64::max)
+    );
+    for (tilt, pan, roll, rotation, errors) in rows.iter().take(6) {
+        let spheres: Vec<String> = errors
+            .iter()
+            .map(|(k, e)| {
+                format!(
+                    "{}: ({:+.3}, {:+.3})",
+                    part.layout.points[*k].name, e.x, e.y
+                )
+            })
+            .collect();
+        println!(
+            "  tilt {tilt}° pan {pan}° roll {roll}°: {rotation:.4}°; {}",
+            spheres.join(", ")
+        );
     }
 }
 
@@ -708,8 +785,9 @@ fn main() {
         Some("speed") => speed(&part, camera, number(1, 300)),
         Some("lost") => lost(&part, camera, number(1, 20), number(2, 10) as f64),
         Some("bias") => bias(&part, camera),
+        Some("clean") => clean(&part, camera, number(1, 1000) as f64),
         _ => eprintln!(
-            "usage: track_accuracy centres | labels [POSES] [REALISATIONS] | hidden [POSES] | speed [RUNS] | lost [TRIALS] | bias"
+            "usage: track_accuracy centres | labels [POSES] [REALISATIONS] | hidden [POSES] | speed [RUNS] | lost [TRIALS] | bias | clean [DEPTH_MM]"
         ),
     }
 }
