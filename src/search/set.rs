@@ -42,6 +42,7 @@ use crate::set::{all_pairs, cross_pairs, CrossMatrix, MAX_MARKERS, MIN_MARKERS};
 use nalgebra::Vector3;
 use repair::{repair_cross, CrossRule};
 use serde::Serialize;
+use std::fmt;
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 use std::time::Instant;
@@ -184,13 +185,53 @@ pub fn check_set_size(markers: usize) -> Result<(), SearchError> {
     Ok(())
 }
 
-/// Designs the set (module docs). `on_try(marker, try, accepted)` hears
+/// How a try of a set's marker ended.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum TryVerdict {
+    /// The try's winner is the marker.
+    Kept,
+    /// Its winner misses a floor of its own: a constraint, availability or
+    /// identifiability.
+    NotAdmissible,
+    /// Its winner as printed misses the availability floor.
+    NotAsPrinted,
+    /// Its winner, repaired, is cross-identifiable with the earlier markers
+    /// in this share of the checked viewpoints only (the worst pair's).
+    Confusable {
+        /// The worst pair's share of viewpoints that meet the floor.
+        share: f64,
+        /// The floor.
+        floor: f64,
+    },
+}
+
+impl fmt::Display for TryVerdict {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            TryVerdict::Kept => f.write_str("kept"),
+            TryVerdict::NotAdmissible => f.write_str(
+                "refused: it misses a floor of its own (constraints, availability or identifiability)",
+            ),
+            TryVerdict::NotAsPrinted => {
+                f.write_str("refused: as printed it misses the availability floor")
+            }
+            TryVerdict::Confusable { share, floor } => write!(
+                f,
+                "refused: cross-identifiable with the earlier markers in {}% of the checked viewpoints, the floor {}%",
+                share_percent(*share),
+                share_percent(*floor)
+            ),
+        }
+    }
+}
+
+/// Designs the set (module docs). `on_try(marker, try, verdict)` hears
 /// each try's end.
 pub fn design_set(
     config: &SearchConfig,
     set: &SetSearchSettings,
     stop: &AtomicBool,
-    on_try: &dyn Fn(usize, usize, bool),
+    on_try: &dyn Fn(usize, usize, TryVerdict),
 ) -> Result<SetSearchOutcome, SearchError> {
     check_set_size(set.markers)?;
     if !(set.min_cross > 0.0 && set.min_cross < 1.0) {
@@ -265,10 +306,17 @@ pub fn design_set(
                 None => outcome,
             };
             let (mut outcome, mut books) = printed(outcome, &settings, RepairBudget::SEARCH)?;
-            let mut accepted =
-                outcome.best.evaluation.admissible() && books.as_ref().is_none_or(|b| b.met);
+            let met_as_printed =
+                |books: &Option<SupportsBooks>| books.as_ref().is_none_or(|b| b.met);
+            let mut verdict = if !outcome.best.evaluation.admissible() {
+                TryVerdict::NotAdmissible
+            } else if !met_as_printed(&books) {
+                TryVerdict::NotAsPrinted
+            } else {
+                TryVerdict::Kept
+            };
             let mut rounds = 0;
-            if accepted && !markers.is_empty() {
+            if verdict == TryVerdict::Kept && !markers.is_empty() {
                 let rivals: Vec<Vec<Vector3<f64>>> =
                     markers.iter().map(|m| m.layout.positions()).collect();
                 let check = |points: &[Vector3<f64>], scenarios: &[Scenario]| {
@@ -311,13 +359,20 @@ pub fn design_set(
                 }
                 let share = matrix.worst_share();
                 best_share = Some(best_share.map_or(share, |b: f64| b.max(share)));
-                accepted = matrix.meets_floor() && books.as_ref().is_none_or(|b| b.met);
-                if accepted {
+                verdict = if !matrix.meets_floor() {
+                    TryVerdict::Confusable {
+                        share,
+                        floor: set.min_cross,
+                    }
+                } else if !met_as_printed(&books) {
+                    TryVerdict::NotAsPrinted
+                } else {
                     checked_pairs.extend(matrix.pairs);
-                }
+                    TryVerdict::Kept
+                };
             }
-            on_try(k + 1, attempt + 1, accepted);
-            if accepted {
+            on_try(k + 1, attempt + 1, verdict);
+            if verdict == TryVerdict::Kept {
                 let name = format!("{}-{}", config.name, k + 1);
                 let mut layout = family.layout(&name, &outcome.best.params);
                 let mut provenance = analysis.provenance();
@@ -345,7 +400,7 @@ pub fn design_set(
             Some(marker) => markers.push(marker),
             None => {
                 return Err(SearchError::Unsatisfiable(format!(
-                    "marker {} of {}: none of {} searches met the floors{}; a larger --envelope, more spheres (--points with --family custom), a lower --min-cross-identifiability or more --set-tries would make it feasible, or a smaller --set ({} markers were found)",
+                    "marker {} of {}: none of {} searches met the floors{}; a larger --envelope, more spheres (--points with --family custom), a lower --min-cross-identifiability or more --set-tries would make it feasible, or a smaller --set ({} found)",
                     k + 1,
                     set.markers,
                     set.tries,
@@ -357,7 +412,10 @@ pub fn design_set(
                         ),
                         None => " (none was admissible on its own)".to_string(),
                     },
-                    markers.len()
+                    match markers.len() {
+                        1 => "1 marker was".to_string(),
+                        n => format!("{n} markers were"),
+                    }
                 )));
             }
         }
@@ -524,4 +582,27 @@ pub fn matrix_markdown(matrix: &CrossMatrix) -> String {
         }
     }
     text
+}
+
+#[cfg(test)]
+mod tests {
+    use super::TryVerdict;
+
+    #[test]
+    fn a_refused_try_names_the_floor_it_missed() {
+        assert_eq!(TryVerdict::Kept.to_string(), "kept");
+        assert!(TryVerdict::NotAdmissible
+            .to_string()
+            .contains("a floor of its own"));
+        assert!(TryVerdict::NotAsPrinted.to_string().contains("as printed"));
+        let confusable = TryVerdict::Confusable {
+            share: 0.96,
+            floor: 0.9999,
+        }
+        .to_string();
+        assert!(
+            confusable.contains("in 96.0% of the checked viewpoints, the floor 99.99%"),
+            "{confusable}"
+        );
+    }
 }

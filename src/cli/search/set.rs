@@ -28,16 +28,11 @@ pub(super) fn run(
     progress::catch_ctrl_c();
     let stop = std::sync::atomic::AtomicBool::new(false);
     let quiet = global.quiet;
-    let outcome = design_set(config, set, &stop, &|marker, attempt, accepted| {
+    let outcome = design_set(config, set, &stop, &|marker, attempt, verdict| {
         if !quiet {
             eprintln!(
-                "marker {marker} of {}: try {attempt} {}",
-                set.markers,
-                if accepted {
-                    "kept"
-                } else {
-                    "refused (a floor not met)"
-                }
+                "marker {marker} of {}: try {attempt} {verdict}",
+                set.markers
             );
         }
     })
