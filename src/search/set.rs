@@ -205,22 +205,32 @@ pub enum TryVerdict {
     },
 }
 
-impl fmt::Display for TryVerdict {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+impl TryVerdict {
+    /// Why the try was refused; None when it was kept.
+    pub fn reason(&self) -> Option<String> {
         match self {
-            TryVerdict::Kept => f.write_str("kept"),
-            TryVerdict::NotAdmissible => f.write_str(
-                "refused: it misses a floor of its own (constraints, availability or identifiability)",
+            TryVerdict::Kept => None,
+            TryVerdict::NotAdmissible => Some(
+                "it misses a floor of its own (constraints, availability or identifiability)"
+                    .to_string(),
             ),
             TryVerdict::NotAsPrinted => {
-                f.write_str("refused: as printed it misses the availability floor")
+                Some("as printed it misses the availability floor".to_string())
             }
-            TryVerdict::Confusable { share, floor } => write!(
-                f,
-                "refused: cross-identifiable with the earlier markers in {}% of the checked viewpoints, the floor {}%",
+            TryVerdict::Confusable { share, floor } => Some(format!(
+                "cross-identifiable with the earlier markers in {}% of the checked viewpoints, the floor {}%",
                 share_percent(*share),
                 share_percent(*floor)
-            ),
+            )),
+        }
+    }
+}
+
+impl fmt::Display for TryVerdict {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self.reason() {
+            None => f.write_str("kept"),
+            Some(reason) => write!(f, "refused: {reason}"),
         }
     }
 }
@@ -287,6 +297,7 @@ pub fn design_set(
     let mut checked_pairs = Vec::new();
     for k in 0..set.markers {
         let mut best_share: Option<f64> = None;
+        let mut last = TryVerdict::Kept;
         let mut kept = None;
         for attempt in 0..set.tries {
             let seed = config
@@ -372,6 +383,7 @@ pub fn design_set(
                 };
             }
             on_try(k + 1, attempt + 1, verdict);
+            last = verdict;
             if verdict == TryVerdict::Kept {
                 let name = format!("{}-{}", config.name, k + 1);
                 let mut layout = family.layout(&name, &outcome.best.params);
@@ -406,11 +418,18 @@ pub fn design_set(
                     set.tries,
                     match best_share {
                         Some(share) => format!(
-                            " (the best was cross-identifiable with the earlier markers in {}% of the checked viewpoints, the floor {}%)",
-                            share_percent(share),
-                            share_percent(set.min_cross)
+                            " (the best was {})",
+                            TryVerdict::Confusable {
+                                share,
+                                floor: set.min_cross
+                            }
+                            .reason()
+                            .unwrap_or_default()
                         ),
-                        None => " (none was admissible on its own)".to_string(),
+                        None => format!(
+                            " (none reached the cross check; the last: {})",
+                            last.reason().unwrap_or_default()
+                        ),
                     },
                     match markers.len() {
                         1 => "1 marker was".to_string(),
