@@ -412,10 +412,13 @@ pub fn design_set(
             Some(marker) => markers.push(marker),
             None => {
                 return Err(SearchError::Unsatisfiable(format!(
-                    "marker {} of {}: none of {} searches met the floors{}; a larger --envelope, more spheres (--points with --family custom), a lower --min-cross-identifiability or more --set-tries would make it feasible, or a smaller --set ({} found)",
+                    "marker {} of {}: {} met the floors{}; a larger --envelope, more spheres (--points with --family custom), a lower --min-cross-identifiability or more --set-tries would make it feasible, or a smaller --set ({} found)",
                     k + 1,
                     set.markers,
-                    set.tries,
+                    match set.tries {
+                        1 => "its one search never".to_string(),
+                        n => format!("none of {n} searches"),
+                    },
                     match best_share {
                         Some(share) => format!(
                             " (the best was {})",
