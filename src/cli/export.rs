@@ -170,18 +170,12 @@ fn working_range(args: &ExportArgs, layout: &Layout) -> anyhow::Result<Option<Wo
         tilt: args.tilt.as_deref().cloned(),
         pan: args.pan.as_deref().cloned(),
     };
-    let Some(grid) = given.grid_for(layout)? else {
-        anyhow::ensure!(
-            given.offset_x.is_none() && given.offset_y.is_none(),
-            "--offset-x and --offset-y set the working range: give --depth too"
-        );
-        return Ok(None);
-    };
-    Ok(Some(WorkingRange {
-        camera: layout_opt::camera::Camera::paper(),
-        scenarios: grid.scenarios(),
-        max_hidden: args.range.max_hidden,
-    }))
+    let range = given.working_range(layout, args.range.max_hidden)?;
+    anyhow::ensure!(
+        range.is_some() || (given.offset_x.is_none() && given.offset_y.is_none()),
+        "--offset-x and --offset-y set the working range: give --depth too"
+    );
+    Ok(range)
 }
 
 pub fn run(args: ExportArgs, global: &GlobalOptions) -> anyhow::Result<()> {

@@ -1257,6 +1257,22 @@ impl RangeAxes {
             Range::single(0.5),
         )?))
     }
+
+    /// The working range of [`RangeAxes::grid_for`] seen by the paper
+    /// camera, a sphere hidden more than `max_hidden` counting as not
+    /// seen: the range `export` routes a part's supports for; `None` as
+    /// for the grid.
+    pub fn working_range(
+        &self,
+        layout: &Layout,
+        max_hidden: MaxHidden,
+    ) -> Result<Option<WorkingRange>, ScenarioError> {
+        Ok(self.grid_for(layout)?.map(|grid| WorkingRange {
+            camera: crate::camera::Camera::paper(),
+            scenarios: grid.scenarios(),
+            max_hidden,
+        }))
+    }
 }
 
 /// The working range a part is designed for: the camera, the scenarios

@@ -752,9 +752,19 @@ pub fn marker_for_range(
     options: &MarkerOptions,
     range: &crate::visibility::WorkingRange,
 ) -> Result<Marker, GeometryError> {
-    let mut options = options.clone();
-    options.working_views = range.clear_views(&layout.positions(), layout.sphere_diameter_mm);
-    Marker::design(layout, &options)
+    Marker::design(layout, &routed_for(options.clone(), layout, range))
+}
+
+/// `options` with the supports routed to clear the views of `range`.
+fn routed_for(
+    options: MarkerOptions,
+    layout: &crate::layout::Layout,
+    range: &crate::visibility::WorkingRange,
+) -> MarkerOptions {
+    MarkerOptions {
+        working_views: range.clear_views(&layout.positions(), layout.sphere_diameter_mm),
+        ..options
+    }
 }
 
 /// `options` with the supports routed as `export` routes them for `layout`
@@ -765,17 +775,11 @@ pub fn routed_as_recorded(
     layout: &crate::layout::Layout,
     options: MarkerOptions,
 ) -> Result<MarkerOptions, crate::scenario::ScenarioError> {
-    let Some(grid) = crate::visibility::RangeAxes::default().grid_for(layout)? else {
-        return Ok(options);
-    };
-    let range = crate::visibility::WorkingRange {
-        camera: crate::camera::Camera::paper(),
-        scenarios: grid.scenarios(),
-        max_hidden: crate::visibility::MaxHidden::default(),
-    };
-    Ok(MarkerOptions {
-        working_views: range.clear_views(&layout.positions(), layout.sphere_diameter_mm),
-        ..options
+    let range = crate::visibility::RangeAxes::default()
+        .working_range(layout, crate::visibility::MaxHidden::default())?;
+    Ok(match range {
+        Some(range) => routed_for(options, layout, &range),
+        None => options,
     })
 }
 
