@@ -8,7 +8,8 @@
 //! cargo run --release --example track_accuracy -- speed [RUNS]
 //! cargo run --release --example track_accuracy -- lost [TRIALS] [TILT_STEP]
 //! cargo run --release --example track_accuracy -- bias
-//! cargo run --release --example track_accuracy -- clean [DEPTH_MM]
+//! cargo run --release --example track_accuracy -- clean [DEPTH_MM [REFINE_SUPERSAMPLING [REFINE_BLUR_PX]]]
+//! cargo run --release --example track_accuracy -- noisy [DEPTH_MM [REALISATIONS [REFINE_SUPERSAMPLING]]]
 //! ```
 //!
 //! * `centres`: noise-free renders (16 bit, σ 0.5 px blur, 8×8
@@ -22,7 +23,15 @@
 //!   default) on a dense grid, tilt −40…40° and pan −30…30° in 5° steps,
 //!   rolls 10° and 100°, the views with no sphere hidden: the spread of
 //!   the rotation error, the views beyond 0.01°, and the six worst with
-//!   each sphere's ellipse-centre error (x, y) in px.
+//!   each sphere's ellipse-centre error (x, y) in px. With
+//!   `REFINE_SUPERSAMPLING`, each frame is refined ([`Refiner`], one
+//!   round) by a render of the part at that supersampling and Gaussian blur
+//!   `REFINE_BLUR_PX` (0.5 by default; the frames' own is 0.5), and the
+//!   centre errors are those of the corrected centres.
+//! * `noisy`: the `clean` views at `DEPTH_MM` (1000) read `REALISATIONS`
+//!   (5) times each by the default noisy 8-bit sensor (4×4 supersampling):
+//!   the RMS rotation error unrefined and refined by a render at
+//!   `REFINE_SUPERSAMPLING` (8).
 //! * `labels`: random views at 300–900 mm within ±30° of head on, those
 //!   where the identifiability model predicts ≥ 99.9 % correct labels at
 //!   σ = 0.5 px and no sphere is hidden, each read `REALISATIONS` times by
@@ -55,6 +64,7 @@ use layout_opt::identifiability::predict;
 use layout_opt::pose::{rotation_error_deg, Pose};
 use layout_opt::scenario::Scenario;
 use layout_opt::sphere_image::Observation;
+use layout_opt::track::refine::Refiner;
 use layout_opt::track::{analyse, TrackConfig, TrackedFrame};
 use nalgebra::{Rotation3, Vector2, Vector3};
 use rand::{Rng, SeedableRng};
@@ -191,13 +201,66 @@ fn centres(part: &Part, camera: Camera) {
     }
 }
 
-fn clean(part: &Part, camera: Camera, depth: f64) {
-    let config = TrackConfig::new(&part.layout, camera);
-    let render = frames::noise_free(camera, 8);
-    let views: Vec<(f64, f64, f64)> = (-8..=8)
+/// The `clean` grid: tilt −40…40°, pan −30…30° in 5° steps, rolls 10°
+/// and 100°.
+fn clean_grid() -> Vec<(f64, f64, f64)> {
+    (-8..=8)
         .flat_map(|t| (-6..=6).flat_map(move |p| [10.0, 100.0].map(|r| (t, p, r))))
         .map(|(t, p, r)| (5.0 * t as f64, 5.0 * p as f64, r))
+        .collect()
+}
+
+/// A one-round refiner rendering at `supersampling` with blur `blur` px.
+fn refiner(part: &Part, camera: Camera, supersampling: u32, blur: f64) -> Refiner {
+    let mut model = frames::noise_free(camera, supersampling);
+    model.optics.blur = layout_opt::render::Blur::Gaussian { sigma_px: blur };
+    Refiner::new(part.scene.clone(), model, 1).unwrap()
+}
+
+/// The `clean` grid's clean views at `depth`, each read `realisations`
+/// times by the default noisy 8-bit sensor (4×4 supersampling): the RMS
+/// rotation error over the frames tracked both ways, unrefined and refined
+/// by a render at `supersampling`.
+fn noisy(part: &Part, camera: Camera, depth: f64, realisations: u64, supersampling: u32) {
+    let config = TrackConfig::new(&part.layout, camera);
+    let render = frames::noisy(camera, 4);
+    let refiner = refiner(part, camera, supersampling, 0.5);
+    let pairs: Vec<(f64, f64)> = clean_grid()
+        .par_iter()
+        .enumerate()
+        .flat_map_iter(|(k, &(tilt, pan, roll))| {
+            let truth = centred(&camera, depth, tilt, pan, roll);
+            let rendered = part.render(&render, &truth);
+            let clean = clean_view(&rendered.truth, &camera);
+            let error =
+                |pose: Option<Pose>| pose.map(|p| rotation_error_deg(&truth.rotation, &p.rotation));
+            (0..realisations)
+                .filter(move |_| clean)
+                .filter_map(|r| {
+                    let first = analyse(&config, &rendered.expose(k as u64, r));
+                    let before = error(first.pose)?;
+                    let after = error(refiner.refine(&config, first).pose)?;
+                    Some((before, after))
+                })
+                .collect::<Vec<_>>()
+        })
         .collect();
+    let rms = |v: &dyn Fn(&(f64, f64)) -> f64| {
+        (pairs.iter().map(|p| v(p).powi(2)).sum::<f64>() / pairs.len().max(1) as f64).sqrt()
+    };
+    println!(
+        "{depth:.0} mm, noisy 8-bit frames of the clean views, {} tracked both ways: rotation error RMS {:.4}° unrefined, {:.4}° refined (render {supersampling}×{supersampling})",
+        pairs.len(),
+        rms(&|p| p.0),
+        rms(&|p| p.1)
+    );
+}
+
+fn clean(part: &Part, camera: Camera, depth: f64, refine: Option<(u32, f64)>) {
+    let config = TrackConfig::new(&part.layout, camera);
+    let render = frames::noise_free(camera, 8);
+    let refiner = refine.map(|(supersampling, blur)| refiner(part, camera, supersampling, blur));
+    let views = clean_grid();
     type Row = (f64, f64, f64, f64, Vec<(usize, Vector2<f64>)>);
     let mut rows: Vec<Row> = views
         .par_iter()
@@ -207,8 +270,14 @@ fn clean(part: &Part, camera: Camera, depth: f64) {
             if !clean_view(&rendered.truth, &camera) {
                 return None;
             }
-            let analysis = analyse(&config, &rendered.frame());
+            let mut analysis = analyse(&config, &rendered.frame());
+            if let Some(refiner) = &refiner {
+                analysis = refiner.refine(&config, analysis);
+            }
             let detection = analysis.detection.as_ref()?;
+            let bias = |b: &layout_opt::track::detect::Blob| {
+                b.bias.map_or(Vector2::zeros(), |c| Vector2::from(c.px))
+            };
             let errors = rendered
                 .truth
                 .spheres
@@ -218,7 +287,7 @@ fn clean(part: &Part, camera: Camera, depth: f64) {
                     let b = &detection.blobs[blob_of_sphere(&detection.blobs, sphere)?];
                     Some((
                         k,
-                        Vector2::from(b.ellipse_centre_px) - ellipse_centre(sphere),
+                        Vector2::from(b.ellipse_centre_px) - bias(b) - ellipse_centre(sphere),
                     ))
                 })
                 .collect();
@@ -228,6 +297,10 @@ fn clean(part: &Part, camera: Camera, depth: f64) {
             Some((tilt, pan, roll, rotation, errors))
         })
         .collect();
+    if rows.is_empty() {
+        println!("{depth:.0} mm: no clean view of {}", views.len());
+        return;
+    }
     rows.sort_by(|a, b| b.3.total_cmp(&a.3));
     let rotations: Vec<f64> = rows.iter().rev().map(|r| r.3).collect();
     let centres: Vec<f64> = rows
@@ -235,8 +308,11 @@ fn clean(part: &Part, camera: Camera, depth: f64) {
         .flat_map(|r| r.4.iter().map(|e| e.1.norm()))
         .collect();
     let rms = (centres.iter().map(|e| e * e).sum::<f64>() / centres.len() as f64).sqrt();
+    let refined = refine.map_or(String::new(), |(supersampling, blur)| {
+        format!(", refined (render {supersampling}×{supersampling}, blur {blur} px)")
+    });
     println!(
-        "{depth:.0} mm: {} clean views of {}; rotation error median {:.4}°, 90th percentile {:.4}°, worst {:.4}°; {} beyond 0.01°; ellipse centres RMS {rms:.4} px, worst {:.4} px",
+        "{depth:.0} mm{refined}: {} clean views of {}; rotation error median {:.4}°, 90th percentile {:.4}°, worst {:.4}°; {} beyond 0.01°; ellipse centres RMS {rms:.4} px, worst {:.4} px",
         rows.len(),
         views.len(),
         rotations[rotations.len() / 2],
@@ -785,9 +861,22 @@ fn main() {
         Some("speed") => speed(&part, camera, number(1, 300)),
         Some("lost") => lost(&part, camera, number(1, 20), number(2, 10) as f64),
         Some("bias") => bias(&part, camera),
-        Some("clean") => clean(&part, camera, number(1, 1000) as f64),
+        Some("noisy") => noisy(
+            &part,
+            camera,
+            number(1, 1000) as f64,
+            number(2, 5),
+            number(3, 8) as u32,
+        ),
+        Some("clean") => {
+            let refine = std::env::args().nth(3).map(|_| {
+                let blur = std::env::args().nth(4).map_or(0.5, |b| b.parse().unwrap());
+                (number(2, 8) as u32, blur)
+            });
+            clean(&part, camera, number(1, 1000) as f64, refine)
+        }
         _ => eprintln!(
-            "usage: track_accuracy centres | labels [POSES] [REALISATIONS] | hidden [POSES] | speed [RUNS] | lost [TRIALS] | bias | clean [DEPTH_MM]"
+            "usage: track_accuracy centres | labels [POSES] [REALISATIONS] | hidden [POSES] | speed [RUNS] | lost [TRIALS] | bias | clean [DEPTH_MM [REFINE_SUPERSAMPLING [REFINE_BLUR_PX]]] | noisy [DEPTH_MM [REALISATIONS [REFINE_SUPERSAMPLING]]]"
         ),
     }
 }

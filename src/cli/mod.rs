@@ -4,6 +4,7 @@
 mod common;
 mod export;
 mod export_set;
+mod look;
 mod progress;
 mod render;
 mod reproduce;

@@ -2,15 +2,14 @@
 //! the ground truth of each frame beside it.
 
 use super::common::{naming_file, CameraArgs, GridArgs, StructureArgs};
+use super::look::{flag, LookArgs};
 use super::{progress, GlobalOptions};
 use anyhow::Context;
 use clap::Args;
 use layout_opt::layout::Layout;
 use layout_opt::mesh::routed_as_recorded;
 use layout_opt::render::workflow::{self, FramePose, RenderJob};
-use layout_opt::render::{
-    poses_from_json, Appearance, Blur, Lighting, Noise, Optics, RenderConfig, RenderError, Sensor,
-};
+use layout_opt::render::{poses_from_json, Noise, RenderConfig, RenderError, Sensor};
 use layout_opt::scenario::{Range, ScenarioGrid};
 use std::path::PathBuf;
 
@@ -35,44 +34,8 @@ pub struct RenderArgs {
     poses: Option<PathBuf>,
     #[command(flatten)]
     structure: StructureArgs,
-    /// Appearance preset: retroreflective (bright discs under a ring light
-    /// on dark supports) or diffuse (white Lambertian spheres, light beside
-    /// the camera).
-    #[arg(long, value_name = "PRESET", default_value = "retroreflective")]
-    preset: Lighting,
-    /// Sphere radiance, fraction of full scale (default: the preset's).
-    #[arg(long, value_name = "L")]
-    sphere_radiance: Option<f64>,
-    /// Support radiance (default: the preset's).
-    #[arg(long, value_name = "L")]
-    support_radiance: Option<f64>,
-    /// Background radiance (default: the preset's).
-    #[arg(long, value_name = "L")]
-    background_radiance: Option<f64>,
-    /// Diffuse preset: share of the light that reaches every surface
-    /// whatever its orientation, 0–1 (default: the preset's).
-    #[arg(long, value_name = "SHARE")]
-    ambient: Option<f64>,
-    /// Exposure: multiplies every radiance.
-    #[arg(long, value_name = "X", default_value_t = 1.0)]
-    exposure: f64,
-    /// Sub-samples per pixel side at edges (4..16).
-    #[arg(long, value_name = "N", default_value_t = 4)]
-    supersampling: u32,
-    /// Gaussian blur of the lens, px (0: none).
-    #[arg(
-        long,
-        value_name = "PX",
-        default_value_t = 0.5,
-        conflicts_with = "aperture"
-    )]
-    blur: f64,
-    /// Thin-lens defocus instead of --blur: aperture diameter, mm.
-    #[arg(long, value_name = "MM", requires = "focus")]
-    aperture: Option<f64>,
-    /// Distance in focus, mm (with --aperture).
-    #[arg(long, value_name = "MM", requires = "aperture")]
-    focus: Option<f64>,
+    #[command(flatten)]
+    look: LookArgs,
     /// Bits per pixel: 8 or 16.
     #[arg(long, value_name = "BITS", default_value_t = 8)]
     bit_depth: u8,
@@ -90,47 +53,11 @@ pub struct RenderArgs {
     realisations: u32,
 }
 
-/// The flag a configuration field comes from.
-fn flag(field: &str) -> String {
-    match field {
-        "blur_sigma_px" => "--blur".into(),
-        "aperture_mm" => "--aperture".into(),
-        "focus_mm" => "--focus".into(),
-        "full_well_electrons" => "--full-well".into(),
-        "read_noise_electrons" => "--read-noise".into(),
-        other => format!("--{}", other.replace('_', "-")),
-    }
-}
-
 fn config(args: &RenderArgs, global: &GlobalOptions) -> anyhow::Result<RenderConfig> {
-    let preset = Appearance::preset(args.preset);
-    let appearance = Appearance {
-        sphere_radiance: args.sphere_radiance.unwrap_or(preset.sphere_radiance),
-        support_radiance: args.support_radiance.unwrap_or(preset.support_radiance),
-        background_radiance: args
-            .background_radiance
-            .unwrap_or(preset.background_radiance),
-        exposure: args.exposure,
-        ambient: args.ambient.unwrap_or(preset.ambient),
-        ..preset
-    };
-    let blur = match (args.aperture, args.focus) {
-        (Some(aperture_mm), Some(focus_mm)) => Blur::Defocus {
-            aperture_mm,
-            focus_mm,
-        },
-        _ if args.blur == 0.0 => Blur::None,
-        _ => Blur::Gaussian {
-            sigma_px: args.blur,
-        },
-    };
     let config = RenderConfig {
         camera: args.camera.camera()?,
-        appearance,
-        optics: Optics {
-            supersampling: args.supersampling,
-            blur,
-        },
+        appearance: args.look.appearance(),
+        optics: args.look.render_optics(),
         sensor: Sensor {
             bit_depth: args.bit_depth,
             noise: (!args.no_noise).then_some(Noise {

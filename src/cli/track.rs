@@ -1,15 +1,19 @@
 //! `layout-opt track`: grey camera frames of a printed marker → labelled
 //! poses with their uncertainty, one JSON line per frame.
 
-use super::common::{naming_file, CameraArgs};
+use super::common::{naming_file, CameraArgs, StructureArgs};
+use super::look::{flag, LookArgs};
 use super::{progress, GlobalOptions};
 use anyhow::Context;
 use clap::Args;
 use layout_opt::layout::Layout;
+use layout_opt::mesh::{routed_as_recorded, Marker};
 use layout_opt::pnp::Solver;
+use layout_opt::render::{RenderConfig, Scene};
 use layout_opt::track::config::{
     DEFAULT_MAX_AREA_PX, DEFAULT_MIN_AREA_PX, DEFAULT_MIN_CONTRAST, MAX_EXTRA_BLOBS,
 };
+use layout_opt::track::refine::{self, Refiner};
 use layout_opt::track::workflow::{run as run_track, TrackOutputs, WorkflowError};
 use layout_opt::track::{CentreMethod, Threshold, TrackConfig};
 use std::path::PathBuf;
@@ -77,6 +81,21 @@ pub struct TrackArgs {
     /// Write an annotated PNG per frame into this directory.
     #[arg(long, value_name = "DIR")]
     overlay: Option<PathBuf>,
+    /// Render-and-compare: render the part at each frame's pose, read the
+    /// render with the same detector, take each sphere's bias (the part
+    /// behind its limb) off its centre and solve again. The part and its
+    /// look come from the flags below, as for `render`; they must be what
+    /// the camera sees. Not with --set.
+    #[arg(long, conflicts_with = "set")]
+    refine: bool,
+    /// Rounds of --refine.
+    #[arg(long, value_name = "N", default_value_t = 1, requires = "refine")]
+    refine_rounds: u32,
+    #[command(flatten)]
+    #[command(next_help_heading = "The part and its look, for --refine")]
+    structure: StructureArgs,
+    #[command(flatten)]
+    look: LookArgs,
 }
 
 /// Exit status of a run stopped by Ctrl-C.
@@ -113,6 +132,7 @@ pub fn run(args: TrackArgs, global: &GlobalOptions) -> anyhow::Result<()> {
         .expect("clap requires LAYOUT without --set");
     let layout = naming_file(Layout::load(&layout_path), "layout", &layout_path)?;
     let config = configure(&args, &layout)?;
+    let refiner = refiner(&args, &layout, &config)?;
     let outputs = TrackOutputs {
         json_lines: args.output.clone(),
         csv: args.csv.clone(),
@@ -120,7 +140,7 @@ pub fn run(args: TrackArgs, global: &GlobalOptions) -> anyhow::Result<()> {
     };
     progress::catch_ctrl_c();
     let mut bars = progress::Bars::new(global.quiet);
-    let result = run_track(&config, &args.images, &outputs, &mut bars);
+    let result = run_track(&config, refiner.as_ref(), &args.images, &outputs, &mut bars);
     bars.finish();
     let run = match result {
         Ok(run) => run,
@@ -135,8 +155,12 @@ pub fn run(args: TrackArgs, global: &GlobalOptions) -> anyhow::Result<()> {
             eprintln!("{name}: {error}");
         }
     }
+    let refined = match &refiner {
+        Some(_) => format!(", refined by {} render round(s)", args.refine_rounds),
+        None => String::new(),
+    };
     let summary = format!(
-        "tracked {} of {} frames with {} ({} spheres of {} mm, {} centres, {} solver)",
+        "tracked {} of {} frames with {} ({} spheres of {} mm, {} centres, {} solver{refined})",
         run.tracked(),
         run.frames.len(),
         layout.name,
@@ -182,4 +206,27 @@ fn configure(args: &TrackArgs, layout: &Layout) -> anyhow::Result<TrackConfig> {
         "--max-extra-blobs must be at most {MAX_EXTRA_BLOBS}"
     );
     Ok(config)
+}
+
+/// The render-and-compare refiner the flags ask for, if any.
+fn refiner(
+    args: &TrackArgs,
+    layout: &Layout,
+    config: &TrackConfig,
+) -> anyhow::Result<Option<Refiner>> {
+    if !args.refine {
+        anyhow::ensure!(
+            !args.look.any_given(),
+            "the look flags (--preset, --blur, …) describe the render of --refine; give --refine too"
+        );
+        return Ok(None);
+    }
+    let options = routed_as_recorded(layout, args.structure.marker_options())?;
+    let marker = Marker::design(layout, &options).context("cannot build the part for --refine")?;
+    let mut render = RenderConfig::new(config.camera);
+    render.appearance = args.look.appearance();
+    render.optics = args.look.optics(refine::DEFAULT_SUPERSAMPLING);
+    let refiner = Refiner::new(Scene::from_marker(marker), render, args.refine_rounds)
+        .map_err(|e| anyhow::anyhow!("{}: {}", flag(e.field), e.reason))?;
+    Ok(Some(refiner))
 }

@@ -83,6 +83,9 @@ pub enum TrackError {
     /// The covariance could not be computed.
     #[error(transparent)]
     Figures(#[from] FiguresError),
+    /// The render-and-compare refinement ([`super::refine`]) failed.
+    #[error("refinement failed: {0}")]
+    Refine(String),
 }
 
 /// A tracked frame (docs/formats.md, "`track` output").
@@ -107,6 +110,26 @@ pub struct TrackedFrame {
     pub missing: Vec<usize>,
     /// RMS of the residuals, px.
     pub reprojection_rms_px: f64,
+    /// What the render-and-compare refinement did ([`super::refine`]);
+    /// `None` (and absent from the JSON) without it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub refinement: Option<Refinement>,
+}
+
+/// What the render-and-compare refinement ([`super::refine`]) did to a
+/// frame (docs/formats.md, "`track` output").
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Refinement {
+    /// Rounds run.
+    pub rounds: u32,
+    /// For each sphere of the layout, the bias taken off its centre in the
+    /// last round, raw px; `null` where none was (not in the pose, or not
+    /// whole in the render).
+    pub bias_px: Vec<Option<[f64; 2]>>,
+    /// Rotation between the first pose and the refined one, degrees.
+    pub rotation_change_deg: f64,
+    /// Distance between their translations, mm.
+    pub translation_change_mm: f64,
 }
 
 /// [`super::uncertainty::PoseFigures`] with residuals per sphere.
@@ -159,17 +182,24 @@ pub fn analyse_png(config: &TrackConfig, bytes: &[u8]) -> FrameAnalysis {
     }
 }
 
-/// Tracks one frame (module docs). `config` must have been validated.
-pub fn analyse(config: &TrackConfig, frame: &GreyFrame) -> FrameAnalysis {
-    let spheres = config.object.len();
-    let max_blobs = (spheres + config.max_extra_blobs) * 4 + 16;
-    let mut detection = match detect(
+/// The blobs of `frame` by `config`'s detector, for `config`'s marker.
+pub(super) fn detect_blobs(
+    config: &TrackConfig,
+    frame: &GreyFrame,
+) -> Result<Detection, DetectError> {
+    let max_blobs = (config.object.len() + config.max_extra_blobs) * 4 + 16;
+    detect(
         frame,
         &config.camera,
         &config.detector,
         config.radius_mm(),
         max_blobs,
-    ) {
+    )
+}
+
+/// Tracks one frame (module docs). `config` must have been validated.
+pub fn analyse(config: &TrackConfig, frame: &GreyFrame) -> FrameAnalysis {
+    let mut detection = match detect_blobs(config, frame) {
         Ok(detection) => detection,
         Err(error) => {
             return FrameAnalysis {
@@ -193,20 +223,23 @@ pub fn analyse(config: &TrackConfig, frame: &GreyFrame) -> FrameAnalysis {
     }
 }
 
-/// The measured centre of a blob, normalised, by the configured method.
+/// The measured centre of a blob, normalised, by the configured method,
+/// less its bias where the refinement measured one.
 pub(super) fn measured_normalised(blob: &Blob, method: CentreMethod) -> Vector2<f64> {
-    match method {
+    let raw = match method {
         CentreMethod::Ellipse => blob.ellipse_centre_normalised,
         CentreMethod::Centroid => blob.centroid_normalised,
-    }
+    };
+    raw - blob.bias.map_or(Vector2::zeros(), |b| b.normalised)
 }
 
-fn measured_px(blob: &Blob, method: CentreMethod) -> Vector2<f64> {
+/// [`measured_normalised`] in raw px.
+pub(super) fn measured_px(blob: &Blob, method: CentreMethod) -> Vector2<f64> {
     let p = match method {
         CentreMethod::Ellipse => blob.ellipse_centre_px,
         CentreMethod::Centroid => blob.centroid_px,
     };
-    Vector2::new(p[0], p[1])
+    Vector2::from(p) - blob.bias.map_or(Vector2::zeros(), |b| Vector2::from(b.px))
 }
 
 /// Every `size`-subset of `0..n`, in lexicographic order.
@@ -405,6 +438,7 @@ pub(super) fn locate(
         },
         missing: (0..spheres).filter(|&k| !used[k]).collect(),
         reprojection_rms_px: rms,
+        refinement: None,
     };
     Ok((tracked, pose))
 }

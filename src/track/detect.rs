@@ -217,6 +217,11 @@ pub struct Blob {
     /// The label the tracker gave the blob (index into the layout's
     /// spheres), if any.
     pub label: Option<usize>,
+    /// The part's bias on this blob's centre, measured on a render of the
+    /// part at the tracked pose ([`super::refine`]) and taken off the
+    /// measured centre (either method) before the pose; `None` unrefined.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub bias: Option<CentreBias>,
     /// Ellipse centre on the undistorted normalised plane.
     #[serde(skip)]
     pub ellipse_centre_normalised: Vector2<f64>,
@@ -230,6 +235,17 @@ pub struct Blob {
     /// The fitted ellipse in undistorted pixels.
     #[serde(skip)]
     pub ellipse_px: Ellipse,
+}
+
+/// A blob centre's bias: what the detector measures on a noise-free render
+/// minus the exact ellipse centre there.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct CentreBias {
+    /// Raw px.
+    pub px: [f64; 2],
+    /// On the undistorted normalised plane.
+    #[serde(skip)]
+    pub normalised: Vector2<f64>,
 }
 
 impl Blob {
@@ -1432,6 +1448,7 @@ fn measure(
         expected_axis_ratio: sphere.expected_axis_ratio,
         hidden_because,
         label: None,
+        bias: None,
         ellipse_centre_normalised: normalised.centre,
         centroid_normalised,
         centre_shrink,

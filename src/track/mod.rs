@@ -7,6 +7,8 @@
 //!   direct least-squares ellipse fit, the sphere's projected centre) and
 //!   the partly-hidden flag;
 //! * [`analysis`]: one frame in, labels + pose + covariance out (no files);
+//! * [`refine`]: render-and-compare, the part's own bias on each centre
+//!   measured on a render at the tracked pose and taken off;
 //! * [`uncertainty`]: rvec/tvec, residuals, σ, covariance and label trust,
 //!   shared with `solve`;
 //! * [`report`]: JSON lines, CSV, overlay PNGs;
@@ -20,6 +22,7 @@ pub mod config;
 pub mod conic;
 pub mod detect;
 pub mod frame;
+pub mod refine;
 pub mod report;
 pub mod set;
 pub mod uncertainty;

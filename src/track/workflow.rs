@@ -5,6 +5,7 @@
 use super::analysis::{analyse_png, FrameAnalysis, TrackError};
 use super::config::TrackConfig;
 use super::frame::GreyFrame;
+use super::refine::Refiner;
 use super::report;
 use super::set::{analyse_set, set_json_lines, SetFrameAnalysis, SetTrackConfig};
 use crate::config::ConfigError;
@@ -105,14 +106,23 @@ impl TrackRun {
     }
 }
 
-/// Tracks every frame of `inputs` and writes the outputs.
+/// Tracks every frame of `inputs`, each refined by `refiner` when given
+/// ([`super::refine`]; its camera must be `config`'s), and writes the
+/// outputs.
 pub fn run(
     config: &TrackConfig,
+    refiner: Option<&Refiner>,
     inputs: &[PathBuf],
     outputs: &TrackOutputs,
     observer: &mut impl Observer,
 ) -> Result<TrackRun, WorkflowError> {
     config.validate()?;
+    if refiner.is_some_and(|r| *r.camera() != config.camera) {
+        return Err(WorkflowError::Config(ConfigError::new(
+            "refine",
+            "the refinement renders through another camera than the frames'",
+        )));
+    }
     let paths = expand_inputs(inputs)?;
     if let Some(dir) = &outputs.overlay_dir {
         std::fs::create_dir_all(dir).map_err(|source| WorkflowError::Write {
@@ -121,7 +131,7 @@ pub fn run(
         })?;
     }
     let frames = each_frame(observer, &paths, |path| {
-        track_file(config, path, outputs.overlay_dir.as_deref())
+        track_file(config, refiner, path, outputs.overlay_dir.as_deref())
     })?
     .into_iter()
     .collect::<Result<Vec<(String, FrameAnalysis)>, _>>()?;
@@ -236,6 +246,7 @@ fn write(path: &Path, bytes: &[u8]) -> Result<(), WorkflowError> {
 /// One file: read, analyse and (when asked) write its overlay.
 fn track_file(
     config: &TrackConfig,
+    refiner: Option<&Refiner>,
     path: &Path,
     overlay_dir: Option<&Path>,
 ) -> Result<(String, FrameAnalysis), WorkflowError> {
@@ -253,7 +264,10 @@ fn track_file(
             return Ok((name, analysis));
         }
     };
-    let analysis = analyse_png(config, &bytes);
+    let mut analysis = analyse_png(config, &bytes);
+    if let Some(refiner) = refiner {
+        analysis = refiner.refine(config, analysis);
+    }
     if let Some(dir) = overlay_dir {
         if let Ok(frame) = GreyFrame::from_png(&bytes) {
             let png = report::overlay_png(

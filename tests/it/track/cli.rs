@@ -117,6 +117,55 @@ fn bad_flags_and_inputs_fail_with_a_named_error() {
         .stderr(predicate::str::contains("tracked 0 of 1 frames"));
 }
 
+/// `--refine` renders the part at each frame's pose and takes each sphere's
+/// bias off its centre: the JSON line says how many rounds, the bias per
+/// sphere and how far the pose moved, and stderr says the frames were
+/// refined. The render's flags without --refine, --refine with --set and
+/// a bad round count or supersampling are refused, naming the flag.
+#[test]
+fn refine_reports_its_bias_and_its_flags_are_checked() {
+    let dir = tempfile::tempdir().unwrap();
+    let frame = dir.path().join("frame.png");
+    std::fs::write(&frame, super::good_frame_png()).unwrap();
+    let assert = layout_opt()
+        .arg("track")
+        .arg(winner_path())
+        .arg(&frame)
+        .args(["--refine", "--supersampling", "4", "--quiet"])
+        .assert()
+        .success()
+        .stderr(predicate::str::contains("refined by 1 render round"));
+    let line: serde_json::Value = serde_json::from_slice(&assert.get_output().stdout).unwrap();
+    let refinement = &line["refinement"];
+    assert_eq!(refinement["rounds"], 1, "{line}");
+    let biases = refinement["bias_px"].as_array().unwrap();
+    assert_eq!(biases.len(), 7, "{line}");
+    for bias in biases {
+        // A whole sphere at 500 mm: a few hundredths of a pixel.
+        let [x, y] = [0, 1].map(|i| bias[i].as_f64().unwrap());
+        assert!(x.hypot(y) < 0.2, "{line}");
+    }
+    let change = refinement["rotation_change_deg"].as_f64().unwrap();
+    assert!(change > 0.0 && change < 0.05, "{line}");
+    let set = dir.path().join("pair.set.json");
+    let cases: [(&[&str], &str); 4] = [
+        (&["--blur", "0.7"], "give --refine too"),
+        (&["--refine", "--refine-rounds", "0"], "--refine-rounds"),
+        (&["--refine", "--supersampling", "40"], "--supersampling"),
+        (&["--refine", "--set", set.to_str().unwrap()], "--set"),
+    ];
+    for (flags, needle) in cases {
+        layout_opt()
+            .arg("track")
+            .arg(winner_path())
+            .arg(&frame)
+            .args(flags)
+            .assert()
+            .failure()
+            .stderr(predicate::str::contains(needle));
+    }
+}
+
 /// `solve` gives each pose the tracker's figures (OpenCV's rvec/tvec, a
 /// residual per point, σ and the 6×6 covariance), and where the unlabelled
 /// solver's labels cannot be trusted (`examples/shots.json`: ambiguity 1.0,

@@ -1,0 +1,194 @@
+//! Render-and-compare: the printed part's own bias on each blob centre,
+//! measured on a render of the part at the tracked pose and taken off
+//! (`track --refine`).
+//!
+//! **Why.** The detector places each edge point against the background
+//! right outside the limb ([`super::detect`]). Where the part itself lies
+//! behind the limb, that background is not flat: the base plate's grey,
+//! the shaded cone under the sphere ringing the limb, the plate's edge
+//! within a pixel of it. The edge points on such an arc move by a tenth of
+//! a pixel or more, and a small disc's centre by a few hundredths: at
+//! 1000 mm (13 px discs) the search winner's noise-free pose is off by up
+//! to 0.019° (docs/commands.md, `track`). No model of one edge point's
+//! profile sees a step inside the first pixel outside the limb; the pose
+//! does, since it says where the plate and the cones lie.
+//!
+//! **Each round** ([`Refiner::refine`]):
+//! 1. renders the part (as `export` builds it) at the current pose without
+//!    noise, with the appearance and optics given ([`crate::render`]);
+//! 2. reads the render with the frame's own detector and centre method;
+//! 3. takes as each sphere's bias the centre read there minus the exact
+//!    ellipse centre at that pose ([`crate::sphere_image`]);
+//! 4. takes each labelled whole blob's bias off its measured centre and
+//!    locates the marker again: identification, pose and covariance.
+//!
+//! A sphere whose blob the render does not show whole (a support hides it
+//! at that pose, or it merges with a neighbour) keeps its measured centre.
+//! The correction is only as good as the render's likeness to the camera:
+//! the appearance, the blur and the part's supports must be the ones the
+//! camera sees. Its render needs no noise, and its supersampling should
+//! not be coarser than the camera's own sampling (a render's sampling
+//! error moves a small disc's centre by about a hundredth of a pixel at
+//! 4×4); docs/commands.md gives what a mismatch costs.
+
+use super::analysis::{
+    detect_blobs, locate, measured_normalised, FrameAnalysis, Refinement, TrackError,
+};
+use super::config::TrackConfig;
+use super::detect::CentreBias;
+use super::frame::GreyFrame;
+use crate::config::ConfigError;
+use crate::pose::{rotation_error_deg, Pose};
+use crate::render::{expose, render_radiance, RenderConfig, Scene, Sensor};
+use crate::sphere_image::ellipse_centre_normalised;
+use nalgebra::Vector2;
+
+/// The most rounds of refinement.
+pub const MAX_ROUNDS: u32 = 5;
+/// Render supersampling `track --refine` uses unless told (sub-samples per
+/// pixel side): finer than `render`'s default 4, whose own sampling error
+/// would otherwise show in the correction.
+pub const DEFAULT_SUPERSAMPLING: u32 = 8;
+
+/// Renders the part and measures the bias of each centre (module docs).
+#[derive(Debug, Clone)]
+pub struct Refiner {
+    scene: Scene,
+    render: RenderConfig,
+    rounds: u32,
+}
+
+impl Refiner {
+    /// A refiner drawing `scene` with `render`'s camera, appearance and
+    /// optics (its sensor is replaced by a noise-free 16-bit one), for
+    /// `rounds` rounds. The camera must be the tracker's.
+    pub fn new(scene: Scene, mut render: RenderConfig, rounds: u32) -> Result<Self, ConfigError> {
+        render.sensor = Sensor {
+            bit_depth: 16,
+            noise: None,
+        };
+        render.realisations = 1;
+        render.validate()?;
+        if !(1..=MAX_ROUNDS).contains(&rounds) {
+            return Err(ConfigError::new(
+                "refine_rounds",
+                format!("must lie in 1..{MAX_ROUNDS}, got {rounds}"),
+            ));
+        }
+        Ok(Refiner {
+            scene,
+            render,
+            rounds,
+        })
+    }
+
+    /// The camera the part is rendered through.
+    pub fn camera(&self) -> &crate::camera::Camera {
+        &self.render.camera
+    }
+
+    /// For each sphere of `config`'s layout, the bias of `config`'s centre
+    /// method at `pose`; `None` where the render shows no whole blob of it.
+    pub fn biases(
+        &self,
+        config: &TrackConfig,
+        pose: &Pose,
+    ) -> Result<Vec<Option<CentreBias>>, String> {
+        let radiance =
+            render_radiance(&self.scene, pose, &self.render).map_err(|e| e.to_string())?;
+        let digital = expose(&radiance, &self.render.sensor, 0, 0, 0);
+        let frame = GreyFrame::new(
+            digital.width as u32,
+            digital.height as u32,
+            digital.bit_depth,
+            digital.values,
+        )
+        .map_err(|e| e.to_string())?;
+        let detection = detect_blobs(config, &frame).map_err(|e| format!("the render: {e}"))?;
+        let radius = config.radius_mm();
+        let camera = &config.camera;
+        Ok(config
+            .object
+            .iter()
+            .map(|p| {
+                let exact = ellipse_centre_normalised(&pose.transform(p), radius).ok()?;
+                let exact_px = camera.normalised_to_pixel(&exact);
+                let blob = detection
+                    .blobs
+                    .iter()
+                    .filter(|b| !b.hidden())
+                    .map(|b| (b, (Vector2::from(b.ellipse_centre_px) - exact_px).norm()))
+                    .filter(|(b, distance)| *distance < b.semi_axes_px[0])
+                    .min_by(|a, b| a.1.total_cmp(&b.1))?
+                    .0;
+                let measured = measured_normalised(blob, config.centre);
+                let measured_px = camera.normalised_to_pixel(&measured);
+                Some(CentreBias {
+                    px: (measured_px - exact_px).into(),
+                    normalised: measured - exact,
+                })
+            })
+            .collect())
+    }
+
+    /// `analysis` refined (module docs); a frame without a pose is
+    /// returned as it is, and one whose render or second location fails
+    /// gets [`TrackError::Refine`].
+    pub fn refine(&self, config: &TrackConfig, analysis: FrameAnalysis) -> FrameAnalysis {
+        let FrameAnalysis {
+            outcome: Ok(_),
+            detection: Some(mut detection),
+            pose: Some(first),
+        } = analysis
+        else {
+            return analysis;
+        };
+        let failed = |detection, reason: String| FrameAnalysis {
+            outcome: Err(TrackError::Refine(reason)),
+            detection: Some(detection),
+            pose: None,
+        };
+        let mut pose = first;
+        let mut tracked = None;
+        for _ in 0..self.rounds {
+            let biases = match self.biases(config, &pose) {
+                Ok(biases) => biases,
+                Err(reason) => return failed(detection, reason),
+            };
+            for blob in &mut detection.blobs {
+                blob.bias = blob
+                    .label
+                    .filter(|_| !blob.hidden())
+                    .and_then(|k| biases[k]);
+                blob.label = None;
+            }
+            match locate(config, &mut detection.blobs, &detection.rejected) {
+                Ok((frame, refined)) => {
+                    tracked = Some(frame);
+                    pose = refined;
+                }
+                Err(error) => {
+                    return failed(detection, format!("after the correction: {error}"));
+                }
+            }
+        }
+        let mut tracked = tracked.expect("at least one round");
+        let mut bias_px = vec![None; config.object.len()];
+        for blob in &detection.blobs {
+            if let (Some(k), Some(bias)) = (blob.label, blob.bias) {
+                bias_px[k] = Some(bias.px);
+            }
+        }
+        tracked.refinement = Some(Refinement {
+            rounds: self.rounds,
+            bias_px,
+            rotation_change_deg: rotation_error_deg(&first.rotation, &pose.rotation),
+            translation_change_mm: (first.translation - pose.translation).norm(),
+        });
+        FrameAnalysis {
+            outcome: Ok(tracked),
+            detection: Some(detection),
+            pose: Some(pose),
+        }
+    }
+}
