@@ -13,6 +13,19 @@ fn winner_path() -> std::path::PathBuf {
     std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("layouts/biprism-search.json")
 }
 
+/// `track` on the winner and `frame` with `flags` fails, naming `needle`
+/// on stderr.
+fn refused(frame: &std::path::Path, flags: &[&str], needle: &str) {
+    layout_opt()
+        .arg("track")
+        .arg(winner_path())
+        .arg(frame)
+        .args(flags)
+        .assert()
+        .failure()
+        .stderr(predicate::str::contains(needle));
+}
+
 /// A directory of two frames, a rendered one and an empty file: two JSON
 /// lines in file order, the good frame tracked with all seven labels, the
 /// bad one an error record naming its file; the CSV has a header and a row
@@ -90,14 +103,7 @@ fn bad_flags_and_inputs_fail_with_a_named_error() {
         (&["--min-contrast", "2"], "--min-contrast"),
     ];
     for (flags, needle) in cases {
-        layout_opt()
-            .arg("track")
-            .arg(winner_path())
-            .arg(&frame)
-            .args(flags)
-            .assert()
-            .failure()
-            .stderr(predicate::str::contains(needle));
+        refused(&frame, flags, needle);
     }
     layout_opt()
         .arg("track")
@@ -155,14 +161,7 @@ fn refine_reports_its_bias_and_its_flags_are_checked() {
         (&["--refine", "--set", set.to_str().unwrap()], "--set"),
     ];
     for (flags, needle) in cases {
-        layout_opt()
-            .arg("track")
-            .arg(winner_path())
-            .arg(&frame)
-            .args(flags)
-            .assert()
-            .failure()
-            .stderr(predicate::str::contains(needle));
+        refused(&frame, flags, needle);
     }
 }
 
