@@ -1,7 +1,8 @@
 //! `track`'s per-frame cost: detection, identification and pose of a
 //! 1280×720 frame of the 7-sphere search winner on its supports, drawn by
 //! `render` (retroreflective preset, σ 0.5 px blur, 8-bit with the default
-//! sensor noise), on one core. Target: ≤ 5 ms. Timed in the process's CPU
+//! sensor noise), on one core. Target: ≤ 5 ms. Beside it, what one round
+//! of `track --refine` adds (no target: it renders the part). Timed in the process's CPU
 //! time ([`cpu_time::CpuTime`]), so the figures hold on a shared machine.
 
 mod cpu_time;
@@ -14,6 +15,7 @@ use cpu_time::CpuTime;
 use criterion::{criterion_group, criterion_main, Criterion};
 use layout_opt::camera::Camera;
 use layout_opt::scenario::Scenario;
+use layout_opt::track::refine::{Refiner, DEFAULT_SUPERSAMPLING};
 use layout_opt::track::{analyse, GreyFrame, TrackConfig};
 
 fn bench(c: &mut Criterion<CpuTime>) {
@@ -57,6 +59,18 @@ fn bench(c: &mut Criterion<CpuTime>) {
     c.bench_function("track: detect + identify + pose, 1280x720, 7 blobs", |b| {
         b.iter(|| analyse(&config, std::hint::black_box(&frame)))
     });
+    // `track --refine`'s extra cost: one round, its render at the default
+    // 8×8 supersampling, on the same frame.
+    let refiner = Refiner::new(
+        part.scene.clone(),
+        frames::noise_free(camera, DEFAULT_SUPERSAMPLING),
+        1,
+    )
+    .unwrap();
+    c.bench_function(
+        "track --refine: one round (render 8x8, detect, pose)",
+        |b| b.iter(|| refiner.refine(&config, std::hint::black_box(analysis.clone()))),
+    );
     c.bench_function("track: PNG decode, 1280x720 8-bit", |b| {
         b.iter(|| GreyFrame::from_png(std::hint::black_box(&png)).unwrap())
     });
