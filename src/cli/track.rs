@@ -221,8 +221,13 @@ fn refiner(
         );
         return Ok(None);
     }
-    let options = routed_as_recorded(layout, args.structure.marker_options())?;
-    let marker = Marker::design(layout, &options).context("cannot build the part for --refine")?;
+    // The part with the spheres the tracker assumes (--sphere-diameter).
+    let part = Layout {
+        sphere_diameter_mm: config.sphere_diameter_mm,
+        ..layout.clone()
+    };
+    let options = routed_as_recorded(&part, args.structure.marker_options())?;
+    let marker = Marker::design(&part, &options).context("cannot build the part for --refine")?;
     let mut render = RenderConfig::new(config.camera);
     render.appearance = args.look.appearance();
     render.optics = args.look.optics(refine::DEFAULT_SUPERSAMPLING);
