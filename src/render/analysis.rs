@@ -64,6 +64,20 @@ pub fn render_radiance(
     pose: &Pose,
     config: &RenderConfig,
 ) -> Result<Radiance, RenderError> {
+    render_radiance_within(scene, pose, config, None)
+}
+
+/// [`render_radiance`] traced only in the tiles that meet one of the
+/// `regions` (`(x0, y0, x1, y1)`, px, ends excluded) when given; the rest
+/// of the image is left at the background's radiance. Within a region,
+/// every pixel farther than the blur's reach from its border is the full
+/// render's (to the rounding of a blurred uniform background).
+pub fn render_radiance_within(
+    scene: &Scene,
+    pose: &Pose,
+    config: &RenderConfig,
+    regions: Option<&[(usize, usize, usize, usize)]>,
+) -> Result<Radiance, RenderError> {
     let camera = &config.camera;
     let appearance = &config.appearance;
     let (width, height) = (camera.width() as usize, camera.height() as usize);
@@ -92,6 +106,12 @@ pub fn render_radiance(
             continue;
         }
         let (x0, y0) = ((index % tiles_x) * TILE_PX, (index / tiles_x) * TILE_PX);
+        let meets = |&(a, b, c, d): &(usize, usize, usize, usize)| {
+            a < x0 + TILE_PX && x0 < c && b < y0 + TILE_PX && y0 < d
+        };
+        if regions.is_some_and(|regions| !regions.iter().any(meets)) {
+            continue;
+        }
         render_tile(
             &shader,
             candidates,
@@ -396,6 +416,61 @@ fn weighted(kernel: &[f32], value: impl Fn(usize) -> f32) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Traced within regions, the image is the full render's inside each
+    /// region (beyond the blur's reach from its border) and the
+    /// background beyond the tiles traced.
+    #[test]
+    fn a_render_within_regions_is_the_full_render_there() {
+        let spheres = [
+            (Vector3::new(-30.0, 0.0, 400.0), 5.0),
+            (Vector3::new(30.0, 10.0, 420.0), 5.0),
+        ];
+        let scene = Scene::spheres_only(&spheres);
+        let config = RenderConfig::new(Camera::paper());
+        let pose = Pose::new(nalgebra::Rotation3::identity(), Vector3::zeros());
+        let full = render_radiance(&scene, &pose, &config).unwrap();
+        let camera = &config.camera;
+        let centre = camera.normalised_to_pixel(&Vector2::new(-30.0 / 400.0, 0.0));
+        let (x, y) = (centre.x as usize, centre.y as usize);
+        let region = (x - 30, y - 30, x + 30, y + 30);
+        let part = render_radiance_within(&scene, &pose, &config, Some(&[region])).unwrap();
+        let background =
+            (config.appearance.background_radiance * config.appearance.exposure) as f32;
+        let mut inside = 0;
+        for row in 0..full.height {
+            for column in 0..full.width {
+                let (a, b) = (
+                    full.values[row * full.width + column],
+                    part.values[row * full.width + column],
+                );
+                if (region.0 + 2..region.2 - 2).contains(&column)
+                    && (region.1 + 2..region.3 - 2).contains(&row)
+                {
+                    // Equal but for the rounding of a blurred
+                    // background (the full render blurs a larger box).
+                    assert!((a - b).abs() < 1e-6, "({column}, {row}): {a} against {b}");
+                    inside += usize::from(a > background);
+                } else if !(region.0 - 2..region.2 + 2).contains(&column)
+                    || !(region.1 - 2..region.3 + 2).contains(&row)
+                {
+                    // The traced tiles reach past the region; beyond
+                    // them the background, blurred or not.
+                    let in_tiles = (region.0 / TILE_PX * TILE_PX
+                        ..region.2.div_ceil(TILE_PX) * TILE_PX + 2)
+                        .contains(&column)
+                        && (region.1 / TILE_PX * TILE_PX..region.3.div_ceil(TILE_PX) * TILE_PX + 2)
+                            .contains(&row);
+                    if !in_tiles {
+                        assert!((b - background).abs() < 1e-6, "({column}, {row}): {b}");
+                    }
+                }
+            }
+        }
+        // The first sphere's disc (about 16 px across) is inside.
+        assert!(inside > 150, "{inside}");
+        assert!(full.values.iter().filter(|v| **v > background).count() > 2 * inside);
+    }
 
     #[test]
     fn the_blur_keeps_the_total_and_leaves_a_uniform_image_alone() {

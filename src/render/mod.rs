@@ -18,7 +18,7 @@ pub mod sensor;
 pub mod truth;
 pub mod workflow;
 
-pub use analysis::{render_radiance, Radiance};
+pub use analysis::{render_radiance, render_radiance_within, Radiance};
 pub use config::{Appearance, Blur, Lighting, Noise, Optics, RenderConfig, Sensor};
 pub use scene::Scene;
 pub use sensor::{expose, Digital};

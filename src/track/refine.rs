@@ -35,16 +35,19 @@ use super::analysis::{
     detect_blobs, locate, measured_normalised, FrameAnalysis, Refinement, TrackError,
 };
 use super::config::TrackConfig;
-use super::detect::CentreBias;
+use super::detect::{Blob, CentreBias, WINDOW_PAD_PX};
 use super::frame::GreyFrame;
 use crate::config::ConfigError;
 use crate::pose::{rotation_error_deg, Pose};
-use crate::render::{expose, render_radiance, RenderConfig, Scene, Sensor};
+use crate::render::{expose, render_radiance_within, RenderConfig, Scene, Sensor};
 use crate::sphere_image::ellipse_centre_normalised;
 use nalgebra::Vector2;
 
 /// The most rounds of refinement.
 pub const MAX_ROUNDS: u32 = 5;
+/// Pixels traced around a blob beyond its ellipse, the detector's window
+/// padding and the blur's reach.
+pub const REGION_MARGIN_PX: f64 = 4.0;
 /// Render supersampling `track --refine` uses unless told (sub-samples per
 /// pixel side): finer than `render`'s default 4, whose own sampling error
 /// would otherwise show in the correction.
@@ -89,13 +92,39 @@ impl Refiner {
 
     /// For each sphere of `config`'s layout, the bias of `config`'s centre
     /// method at `pose`; `None` where the render shows no whole blob of it.
+    /// The part is traced only around the frame's `blobs` (their ellipse's
+    /// box, grown by the detector's window padding, the blur's reach and
+    /// [`REGION_MARGIN_PX`]): a blob's centre depends on no pixel beyond.
     pub fn biases(
         &self,
         config: &TrackConfig,
         pose: &Pose,
+        blobs: &[Blob],
     ) -> Result<Vec<Option<CentreBias>>, String> {
-        let radiance =
-            render_radiance(&self.scene, pose, &self.render).map_err(|e| e.to_string())?;
+        let camera = &config.camera;
+        let blur = self
+            .render
+            .optics
+            .blur
+            .sigma_px(camera.fx(), pose.translation.z);
+        let grow = WINDOW_PAD_PX as f64 + (3.0 * blur).ceil() + REGION_MARGIN_PX;
+        let (width, height) = (camera.width() as f64, camera.height() as f64);
+        let regions: Vec<(usize, usize, usize, usize)> = blobs
+            .iter()
+            .map(|b| {
+                let reach = b.semi_axes_px[0] + grow;
+                let [u, v] = b.ellipse_centre_px;
+                let at = |value: f64, size: f64| value.clamp(0.0, size) as usize;
+                (
+                    at(u - reach, width),
+                    at(v - reach, height),
+                    at(u + reach + 1.0, width),
+                    at(v + reach + 1.0, height),
+                )
+            })
+            .collect();
+        let radiance = render_radiance_within(&self.scene, pose, &self.render, Some(&regions))
+            .map_err(|e| e.to_string())?;
         let digital = expose(&radiance, &self.render.sensor, 0, 0, 0);
         let frame = GreyFrame::new(
             digital.width as u32,
@@ -106,7 +135,6 @@ impl Refiner {
         .map_err(|e| e.to_string())?;
         let detection = detect_blobs(config, &frame).map_err(|e| format!("the render: {e}"))?;
         let radius = config.radius_mm();
-        let camera = &config.camera;
         Ok(config
             .object
             .iter()
@@ -151,7 +179,13 @@ impl Refiner {
         let mut pose = first;
         let mut tracked = None;
         for _ in 0..self.rounds {
-            let biases = match self.biases(config, &pose) {
+            let around: Vec<Blob> = detection
+                .blobs
+                .iter()
+                .filter(|b| b.label.is_some() && !b.hidden())
+                .cloned()
+                .collect();
+            let biases = match self.biases(config, &pose, &around) {
                 Ok(biases) => biases,
                 Err(reason) => return failed(detection, reason),
             };
