@@ -85,8 +85,9 @@ pub struct TrackArgs {
     /// render with the same detector, take each sphere's bias (the part
     /// behind its limb) off its centre and solve again. The part and its
     /// look come from the flags below, as for `render`; they must be what
-    /// the camera sees. Not with --set.
-    #[arg(long, conflicts_with = "set")]
+    /// the camera sees. With --set, each marker found is refined with its
+    /// own part alone.
+    #[arg(long)]
     refine: bool,
     /// Rounds of --refine.
     #[arg(long, value_name = "N", default_value_t = 1, requires = "refine")]
@@ -122,9 +123,14 @@ pub fn run(args: TrackArgs, global: &GlobalOptions) -> anyhow::Result<()> {
     if let Some(set) = &args.set {
         let frames: Vec<PathBuf> = args.layout.iter().chain(&args.images).cloned().collect();
         anyhow::ensure!(!frames.is_empty(), "--set needs frames (IMAGES)");
-        return super::track_set::run(set, &frames, args.output.as_deref(), global, &|layout| {
-            configure(&args, layout)
-        });
+        return super::track_set::run(
+            set,
+            &frames,
+            args.output.as_deref(),
+            global,
+            &|layout| configure(&args, layout),
+            &|layout, config| refiner(&args, layout, config),
+        );
     }
     let layout_path = args
         .layout

@@ -6,19 +6,22 @@ use super::{progress, GlobalOptions};
 use anyhow::Context;
 use layout_opt::layout::Layout;
 use layout_opt::set::MarkerSet;
+use layout_opt::track::refine::Refiner;
 use layout_opt::track::set::SetTrackConfig;
 use layout_opt::track::workflow::{run_set, TrackOutputs, WorkflowError};
 use layout_opt::track::TrackConfig;
 use std::path::{Path, PathBuf};
 
 /// Tracks the set's markers in `frames`; `configure` applies the flags to
-/// one marker's layout.
+/// one marker's layout, and `refiner` gives its refiner when --refine asks
+/// for one.
 pub fn run(
     set_path: &Path,
     frames: &[PathBuf],
     output: Option<&Path>,
     global: &GlobalOptions,
     configure: &dyn Fn(&Layout) -> anyhow::Result<TrackConfig>,
+    refiner: &dyn Fn(&Layout, &TrackConfig) -> anyhow::Result<Option<Refiner>>,
 ) -> anyhow::Result<()> {
     let set = MarkerSet::load(set_path)?;
     set.check_distinct()?;
@@ -27,7 +30,13 @@ pub fn run(
         .iter()
         .map(|m| Ok((m.layout.name.clone(), configure(&m.layout)?)))
         .collect::<anyhow::Result<Vec<_>>>()?;
-    let config = SetTrackConfig { markers };
+    let refiners = set
+        .members
+        .iter()
+        .zip(&markers)
+        .map(|(m, (_, config))| refiner(&m.layout, config))
+        .collect::<anyhow::Result<Option<Vec<Refiner>>>>()?;
+    let config = SetTrackConfig { markers, refiners };
     let outputs = TrackOutputs {
         json_lines: output.map(Path::to_path_buf),
         ..Default::default()

@@ -9,6 +9,7 @@ use super::analysis::{locate, measured_normalised, FrameAnalysis, TrackedFrame};
 use super::config::TrackConfig;
 use super::detect::{detect, Blob, Detection, Rejected};
 use super::frame::GreyFrame;
+use super::refine::Refiner;
 use crate::config::ConfigError;
 use crate::pnp::unlabelled::UnlabelledOptions;
 use crate::set::group_blobs;
@@ -21,6 +22,10 @@ use serde::Serialize;
 pub struct SetTrackConfig {
     /// (layout name, configuration) per marker, in set order.
     pub markers: Vec<(String, TrackConfig)>,
+    /// One render-and-compare refiner per marker, in set order
+    /// ([`super::refine`]), or none. Each marker found is refined with its
+    /// own part alone: the other markers are not drawn.
+    pub refiners: Option<Vec<Refiner>>,
 }
 
 impl SetTrackConfig {
@@ -30,6 +35,16 @@ impl SetTrackConfig {
         let Some((_, first)) = self.markers.first() else {
             return Err(ConfigError::new("markers", "a set has markers"));
         };
+        if let Some(refiners) = &self.refiners {
+            if refiners.len() != self.markers.len()
+                || refiners.iter().any(|r| *r.camera() != first.camera)
+            {
+                return Err(ConfigError::new(
+                    "refine",
+                    "one refiner per marker, rendering through the frames' camera",
+                ));
+            }
+        }
         for (_, config) in &self.markers {
             config.validate()?;
             if config.sphere_diameter_mm != first.sphere_diameter_mm {
@@ -114,7 +129,7 @@ pub fn analyse_set(config: &SetTrackConfig, frame: &GreyFrame) -> SetFrameAnalys
             .map(|&k| detection.blobs[usable[k]].clone())
             .collect();
         let rejected = detection.rejected;
-        let analysis = match locate(marker_config, &mut blobs, &rejected) {
+        let mut analysis = match locate(marker_config, &mut blobs, &rejected) {
             Ok((tracked, pose)) => FrameAnalysis {
                 outcome: Ok(tracked),
                 detection: Some(Detection {
@@ -129,6 +144,13 @@ pub fn analyse_set(config: &SetTrackConfig, frame: &GreyFrame) -> SetFrameAnalys
                 continue;
             }
         };
+        if let Some(refiners) = &config.refiners {
+            analysis = refiners[placement.marker].refine(marker_config, analysis);
+            if let Err(error) = &analysis.outcome {
+                errors.push(format!("marker {}: {error}", placement.marker + 1));
+                continue;
+            }
+        }
         markers.push(MarkerTrack {
             number: placement.marker + 1,
             layout: layout.clone(),

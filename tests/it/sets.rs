@@ -803,7 +803,8 @@ fn exporting_a_set_with_a_missing_layout_names_it_and_writes_nothing() {
 
 /// `track --set`: each marker of a set rendered alone (the renderer draws
 /// one part per frame), with its supports, is found and named by its
-/// number and layout, with a pose near the truth and a covariance.
+/// number and layout, with a pose near the truth and a covariance; with
+/// `--refine` each one found is refined with its own part.
 #[test]
 fn track_set_names_the_marker_each_frame_shows() {
     use layout_opt::render::workflow::{run, FramePose, RenderJob};
@@ -847,48 +848,61 @@ fn track_set_names_the_marker_each_frame_shows() {
                 .collect::<Vec<_>>(),
         );
     }
-    let output = assert_cmd::Command::cargo_bin("layout-opt")
-        .unwrap()
-        .args(["track", "--quiet", "--set"])
-        .arg(&set_path)
-        .args(frames.iter().flatten())
-        .assert()
-        .success()
-        .get_output()
-        .stdout
-        .clone();
-    let stdout = String::from_utf8(output).unwrap();
-    let records: Vec<serde_json::Value> = stdout
-        .lines()
-        .map(|l| serde_json::from_str(l).unwrap())
-        .collect();
-    for (k, (shown, layout)) in frames.iter().zip(&layouts).enumerate() {
-        let mut found = 0;
-        for (frame, truth) in shown.iter().zip(&truths) {
-            let name = frame.display().to_string();
-            let records: Vec<&serde_json::Value> = records
-                .iter()
-                .filter(|r| r["frame"] == name && !r["marker"].is_null())
-                .collect();
-            // A frame of one marker never names another.
-            assert!(records.len() <= 1, "{stdout}");
-            let Some(record) = records.first() else {
-                continue;
-            };
-            found += 1;
-            assert_eq!(record["marker"], k + 1, "{record}");
-            assert_eq!(record["layout"], layout.name.as_str());
-            let t: Vec<f64> = serde_json::from_value(record["t"].clone()).unwrap();
+    // Unrefined, then refined (each marker found rendered alone).
+    for refine in [false, true] {
+        let output = assert_cmd::Command::cargo_bin("layout-opt")
+            .unwrap()
+            .args(["track", "--quiet", "--set"])
+            .arg(&set_path)
+            .args(frames.iter().flatten())
+            .args(if refine {
+                &["--refine", "--supersampling", "4"][..]
+            } else {
+                &[][..]
+            })
+            .assert()
+            .success()
+            .get_output()
+            .stdout
+            .clone();
+        let stdout = String::from_utf8(output).unwrap();
+        let records: Vec<serde_json::Value> = stdout
+            .lines()
+            .map(|l| serde_json::from_str(l).unwrap())
+            .collect();
+        for (k, (shown, layout)) in frames.iter().zip(&layouts).enumerate() {
+            let mut found = 0;
+            for (frame, truth) in shown.iter().zip(&truths) {
+                let name = frame.display().to_string();
+                let records: Vec<&serde_json::Value> = records
+                    .iter()
+                    .filter(|r| r["frame"] == name && !r["marker"].is_null())
+                    .collect();
+                // A frame of one marker never names another.
+                assert!(records.len() <= 1, "{stdout}");
+                let Some(record) = records.first() else {
+                    continue;
+                };
+                found += 1;
+                assert_eq!(record["marker"], k + 1, "{record}");
+                assert_eq!(record["layout"], layout.name.as_str());
+                let t: Vec<f64> = serde_json::from_value(record["t"].clone()).unwrap();
+                assert!(
+                    (Vector3::new(t[0], t[1], t[2]) - truth.translation).norm() < 10.0,
+                    "{record}"
+                );
+                assert!(record["covariance"].is_array());
+                assert_eq!(
+                    record["refinement"]["rounds"].as_u64(),
+                    refine.then_some(1),
+                    "{record}"
+                );
+            }
             assert!(
-                (Vector3::new(t[0], t[1], t[2]) - truth.translation).norm() < 10.0,
-                "{record}"
+                found >= 1,
+                "marker {} found in none of its frames:\n{stdout}",
+                k + 1
             );
-            assert!(record["covariance"].is_array());
         }
-        assert!(
-            found >= 1,
-            "marker {} found in none of its frames:\n{stdout}",
-            k + 1
-        );
     }
 }

@@ -126,8 +126,8 @@ fn bad_flags_and_inputs_fail_with_a_named_error() {
 /// `--refine` renders the part at each frame's pose and takes each sphere's
 /// bias off its centre: the JSON line says how many rounds, the bias per
 /// sphere and how far the pose moved, and stderr says the frames were
-/// refined. The render's flags without --refine, --refine with --set and
-/// a bad round count or supersampling are refused, naming the flag.
+/// refined. The render's flags without --refine and a bad round count or
+/// supersampling are refused, naming the flag.
 #[test]
 fn refine_reports_its_bias_and_its_flags_are_checked() {
     let dir = tempfile::tempdir().unwrap();
@@ -153,12 +153,10 @@ fn refine_reports_its_bias_and_its_flags_are_checked() {
     }
     let change = refinement["rotation_change_deg"].as_f64().unwrap();
     assert!(change > 0.0 && change < 0.05, "{line}");
-    let set = dir.path().join("pair.set.json");
-    let cases: [(&[&str], &str); 4] = [
+    let cases: [(&[&str], &str); 3] = [
         (&["--blur", "0.7"], "give --refine too"),
         (&["--refine", "--refine-rounds", "0"], "--refine-rounds"),
         (&["--refine", "--supersampling", "40"], "--supersampling"),
-        (&["--refine", "--set", set.to_str().unwrap()], "--set"),
     ];
     for (flags, needle) in cases {
         refused(&frame, flags, needle);
