@@ -437,37 +437,36 @@ mod tests {
         let part = render_radiance_within(&scene, &pose, &config, Some(&[region])).unwrap();
         let background =
             (config.appearance.background_radiance * config.appearance.exposure) as f32;
+        // The tiles traced (those meeting the region), grown by the
+        // blur's reach.
+        let traced = (
+            region.0 / TILE_PX * TILE_PX - 2,
+            region.1 / TILE_PX * TILE_PX - 2,
+            region.2.div_ceil(TILE_PX) * TILE_PX + 2,
+            region.3.div_ceil(TILE_PX) * TILE_PX + 2,
+        );
+        let within = |(x0, y0, x1, y1): (usize, usize, usize, usize), x: usize, y: usize| {
+            (x0..x1).contains(&x) && (y0..y1).contains(&y)
+        };
+        let inner = (region.0 + 2, region.1 + 2, region.2 - 2, region.3 - 2);
         let mut inside = 0;
-        for row in 0..full.height {
-            for column in 0..full.width {
+        for y in 0..full.height {
+            for x in 0..full.width {
                 let (a, b) = (
-                    full.values[row * full.width + column],
-                    part.values[row * full.width + column],
+                    full.values[y * full.width + x],
+                    part.values[y * full.width + x],
                 );
-                if (region.0 + 2..region.2 - 2).contains(&column)
-                    && (region.1 + 2..region.3 - 2).contains(&row)
-                {
-                    // Equal but for the rounding of a blurred
-                    // background (the full render blurs a larger box).
-                    assert!((a - b).abs() < 1e-6, "({column}, {row}): {a} against {b}");
+                if within(inner, x, y) {
+                    // Equal but for the rounding of a blurred background
+                    // (the full render blurs a larger box).
+                    assert!((a - b).abs() < 1e-6, "({x}, {y}): {a} against {b}");
                     inside += usize::from(a > background);
-                } else if !(region.0 - 2..region.2 + 2).contains(&column)
-                    || !(region.1 - 2..region.3 + 2).contains(&row)
-                {
-                    // The traced tiles reach past the region; beyond
-                    // them the background, blurred or not.
-                    let in_tiles = (region.0 / TILE_PX * TILE_PX
-                        ..region.2.div_ceil(TILE_PX) * TILE_PX + 2)
-                        .contains(&column)
-                        && (region.1 / TILE_PX * TILE_PX..region.3.div_ceil(TILE_PX) * TILE_PX + 2)
-                            .contains(&row);
-                    if !in_tiles {
-                        assert!((b - background).abs() < 1e-6, "({column}, {row}): {b}");
-                    }
+                } else if !within(traced, x, y) {
+                    assert!((b - background).abs() < 1e-6, "({x}, {y}): {b}");
                 }
             }
         }
-        // The first sphere's disc (about 16 px across) is inside.
+        // The first sphere's disc (about 32 px across) is inside.
         assert!(inside > 150, "{inside}");
         assert!(full.values.iter().filter(|v| **v > background).count() > 2 * inside);
     }
