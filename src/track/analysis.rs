@@ -182,18 +182,23 @@ pub fn analyse_png(config: &TrackConfig, bytes: &[u8]) -> FrameAnalysis {
     }
 }
 
+/// The most blobs the detector accepts in a frame of `spheres` spheres
+/// with `extra` clutter blobs allowed, before it gives up on the frame.
+pub(super) fn max_blobs(spheres: usize, extra: usize) -> usize {
+    (spheres + extra) * 4 + 16
+}
+
 /// The blobs of `frame` by `config`'s detector, for `config`'s marker.
 pub(super) fn detect_blobs(
     config: &TrackConfig,
     frame: &GreyFrame,
 ) -> Result<Detection, DetectError> {
-    let max_blobs = (config.object.len() + config.max_extra_blobs) * 4 + 16;
     detect(
         frame,
         &config.camera,
         &config.detector,
         config.radius_mm(),
-        max_blobs,
+        max_blobs(config.object.len(), config.max_extra_blobs),
     )
 }
 

@@ -85,9 +85,17 @@ impl Refiner {
         })
     }
 
-    /// The camera the part is rendered through.
-    pub fn camera(&self) -> &crate::camera::Camera {
-        &self.render.camera
+    /// Checks that the part is rendered through `config`'s camera (the
+    /// frames').
+    pub fn check(&self, config: &TrackConfig) -> Result<(), ConfigError> {
+        if self.render.camera == config.camera {
+            Ok(())
+        } else {
+            Err(ConfigError::new(
+                "refine",
+                "the refinement renders through another camera than the frames'",
+            ))
+        }
     }
 
     /// For each sphere of `config`'s layout, the bias of `config`'s centre

@@ -5,7 +5,7 @@
 //! pose, covariance and label trust, [`super::analysis`]), and named by its
 //! number in the set (1…N) and its layout's name.
 
-use super::analysis::{locate, measured_normalised, FrameAnalysis, TrackedFrame};
+use super::analysis::{locate, max_blobs, measured_normalised, FrameAnalysis, TrackedFrame};
 use super::config::TrackConfig;
 use super::detect::{detect, Blob, Detection, Rejected};
 use super::frame::GreyFrame;
@@ -36,13 +36,11 @@ impl SetTrackConfig {
             return Err(ConfigError::new("markers", "a set has markers"));
         };
         if let Some(refiners) = &self.refiners {
-            if refiners.len() != self.markers.len()
-                || refiners.iter().any(|r| *r.camera() != first.camera)
-            {
-                return Err(ConfigError::new(
-                    "refine",
-                    "one refiner per marker, rendering through the frames' camera",
-                ));
+            if refiners.len() != self.markers.len() {
+                return Err(ConfigError::new("refine", "one refiner per marker"));
+            }
+            for refiner in refiners {
+                refiner.check(first)?;
             }
         }
         for (_, config) in &self.markers {
@@ -85,7 +83,7 @@ pub struct SetFrameAnalysis {
 pub fn analyse_set(config: &SetTrackConfig, frame: &GreyFrame) -> SetFrameAnalysis {
     let first = &config.markers[0].1;
     let spheres: usize = config.markers.iter().map(|(_, c)| c.object.len()).sum();
-    let max_blobs = (spheres + first.max_extra_blobs) * 4 + 16;
+    let max_blobs = max_blobs(spheres, first.max_extra_blobs);
     let failed = |error: String, blobs: Vec<Blob>| SetFrameAnalysis {
         markers: Vec::new(),
         error: Some(error),

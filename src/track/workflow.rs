@@ -117,11 +117,8 @@ pub fn run(
     observer: &mut impl Observer,
 ) -> Result<TrackRun, WorkflowError> {
     config.validate()?;
-    if refiner.is_some_and(|r| *r.camera() != config.camera) {
-        return Err(WorkflowError::Config(ConfigError::new(
-            "refine",
-            "the refinement renders through another camera than the frames'",
-        )));
+    if let Some(refiner) = refiner {
+        refiner.check(config)?;
     }
     let paths = expand_inputs(inputs)?;
     if let Some(dir) = &outputs.overlay_dir {
