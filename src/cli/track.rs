@@ -41,8 +41,11 @@ pub struct TrackArgs {
     /// fixed level in 0..1 of full scale.
     #[arg(long, default_value = "otsu")]
     threshold: Threshold,
-    /// Which blob centre feeds the pose: ellipse (fit to the subpixel edge)
-    /// or centroid (intensity-weighted).
+    /// Which blob centre feeds the pose: ellipse (fit to the subpixel edge),
+    /// centroid (intensity-weighted, above a quarter of the step) or window
+    /// (background-subtracted, over the fitted ellipse grown by 1.5 px: the
+    /// least noisy, but pulled by the part behind the limb; use it with
+    /// --refine).
     #[arg(long, default_value = "ellipse")]
     centre: CentreMethod,
     /// Solver of the final pose; ml fits the exact sphere-image model, the

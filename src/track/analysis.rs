@@ -234,8 +234,17 @@ pub(super) fn measured_normalised(blob: &Blob, method: CentreMethod) -> Vector2<
     let raw = match method {
         CentreMethod::Ellipse => blob.ellipse_centre_normalised,
         CentreMethod::Centroid => blob.centroid_normalised,
+        CentreMethod::Window => blob.window_centroid_normalised,
     };
     raw - blob.bias.map_or(Vector2::zeros(), |b| b.normalised)
+}
+
+/// The projected sphere centre of a blob on the undistorted normalised
+/// plane: its measured centre ([`measured_normalised`]) over `1 + b²`
+/// ([`Blob::centre_shrink`]), what identification and the centre solvers
+/// fit.
+pub fn projected_centre_normalised(blob: &Blob, method: CentreMethod) -> Vector2<f64> {
+    measured_normalised(blob, method) / blob.centre_shrink
 }
 
 /// [`measured_normalised`] in raw px.
@@ -243,6 +252,7 @@ pub(super) fn measured_px(blob: &Blob, method: CentreMethod) -> Vector2<f64> {
     let p = match method {
         CentreMethod::Ellipse => blob.ellipse_centre_px,
         CentreMethod::Centroid => blob.centroid_px,
+        CentreMethod::Window => blob.window_centroid_px,
     };
     Vector2::from(p) - blob.bias.map_or(Vector2::zeros(), |b| Vector2::from(b.px))
 }
@@ -295,7 +305,7 @@ pub(super) fn locate(
     }
     let projected: Vec<Vector2<f64>> = usable
         .iter()
-        .map(|&i| measured_normalised(&blobs[i], config.centre) / blobs[i].centre_shrink)
+        .map(|&i| projected_centre_normalised(&blobs[i], config.centre))
         .collect();
     let focal = config.camera.fx().min(config.camera.fy());
     let options = UnlabelledOptions::with_gate_px(config.gate_px, focal, 1);

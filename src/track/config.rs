@@ -90,6 +90,11 @@ pub enum CentreMethod {
     Ellipse,
     /// The intensity-weighted centroid of the blob.
     Centroid,
+    /// The background-subtracted intensity centroid over the fitted
+    /// ellipse grown by [`super::detect::WINDOW_SCALE`]: linear in the
+    /// pixels, so the least noisy of the three, but pulled by whatever lies
+    /// behind the limb (plate, supports) unless `--refine` takes that off.
+    Window,
 }
 
 impl CentreMethod {
@@ -98,6 +103,7 @@ impl CentreMethod {
         match self {
             CentreMethod::Ellipse => "ellipse",
             CentreMethod::Centroid => "centroid",
+            CentreMethod::Window => "window",
         }
     }
 }
@@ -108,8 +114,9 @@ impl FromStr for CentreMethod {
         match text.trim() {
             "ellipse" => Ok(CentreMethod::Ellipse),
             "centroid" => Ok(CentreMethod::Centroid),
+            "window" => Ok(CentreMethod::Window),
             other => Err(format!(
-                "unknown centre method {other:?}: expected ellipse or centroid"
+                "unknown centre method {other:?}: expected ellipse, centroid or window"
             )),
         }
     }
@@ -464,6 +471,10 @@ mod tests {
         assert_eq!(
             "centroid".parse::<CentreMethod>().unwrap(),
             CentreMethod::Centroid
+        );
+        assert_eq!(
+            "window".parse::<CentreMethod>().unwrap(),
+            CentreMethod::Window
         );
         assert!("middle".parse::<CentreMethod>().is_err());
     }

@@ -111,6 +111,9 @@ pub const EDGE_OUTLIER_SIGMAS: f64 = 4.0;
 /// The centroid weighs the pixels at least this share of the blob's step
 /// above the background (a grey support beside a sphere stays below it).
 pub const CENTROID_FLOOR: f64 = 0.25;
+/// The window of [`Blob::window_centroid_px`]: the fitted ellipse grown
+/// about its centre until its minor semi-axis is this much longer, px.
+pub const WINDOW_MARGIN_PX: f64 = 1.5;
 /// An edge point's six samples must span at least this share of the
 /// blob's step (otherwise the scan runs along a dim stretch of edge).
 pub const MIN_LOCAL_STEP: f64 = 0.5;
@@ -182,6 +185,9 @@ pub struct Blob {
     pub noise: f64,
     /// Intensity-weighted centroid, raw px.
     pub centroid_px: [f64; 2],
+    /// The background-subtracted intensity centroid over the fitted ellipse
+    /// grown by [`WINDOW_SCALE`], raw px.
+    pub window_centroid_px: [f64; 2],
     /// Centre of the fitted ellipse, raw px (the undistorted ellipse centre
     /// mapped through the lens).
     pub ellipse_centre_px: [f64; 2],
@@ -228,6 +234,9 @@ pub struct Blob {
     /// Centroid on the undistorted normalised plane.
     #[serde(skip)]
     pub centroid_normalised: Vector2<f64>,
+    /// Windowed centroid on the undistorted normalised plane.
+    #[serde(skip)]
+    pub window_centroid_normalised: Vector2<f64>,
     /// `1 + b²` of the fitted ellipse (normalised minor semi-axis `b`): an
     /// ellipse centre over it is the projected sphere centre.
     #[serde(skip)]
@@ -1111,6 +1120,55 @@ fn local_outside_level(dark: f64, outer: f64, outer2: f64, noise: f64) -> f64 {
 }
 
 /// Measures component `id` of the window's labels (module docs, step 3).
+/// How [`window_centroid`] reads the frame: a pixel's level, whether it
+/// may count (inside the labelled window and no other component's), and
+/// its undistorted position.
+struct WindowAccess<'a> {
+    value: &'a dyn Fn(usize, usize) -> f64,
+    usable: &'a dyn Fn(usize, usize) -> bool,
+    ideal: &'a dyn Fn(&Vector2<f64>) -> Option<Vector2<f64>>,
+}
+
+/// The windowed centroid of [`Blob::window_centroid_px`], undistorted px:
+/// over the usable pixels inside `ellipse` (undistorted px, about
+/// `raw_centre` in the frame) grown by [`WINDOW_MARGIN_PX`] along its minor
+/// axis, each weighing its level above `background` (none below it),
+/// however far from the half level. `None` when no pixel rises above it.
+fn window_centroid(
+    ellipse: &Ellipse,
+    raw_centre: Vector2<f64>,
+    (width, height): (usize, usize),
+    access: &WindowAccess<'_>,
+    background: f64,
+) -> Option<Vector2<f64>> {
+    let (major, minor, _) = ellipse.axes();
+    let scale = 1.0 + WINDOW_MARGIN_PX / minor;
+    let reach = scale * major + 1.0;
+    let span = |c: f64, size: usize| {
+        let low = (c - reach).floor().max(0.0) as usize;
+        let high = ((c + reach).ceil().max(0.0) as usize).min(size - 1);
+        low..=high
+    };
+    let (mut sum, mut moment) = (0.0, Vector2::zeros());
+    for y in span(raw_centre.y, height) {
+        for x in span(raw_centre.x, width) {
+            let w = (access.value)(x, y) - background;
+            if w <= 0.0 || !(access.usable)(x, y) {
+                continue;
+            }
+            let Some(p) = (access.ideal)(&Vector2::new(x as f64, y as f64)) else {
+                continue;
+            };
+            let d = p - ellipse.centre;
+            if d.dot(&(ellipse.shape * d)) <= scale * scale {
+                sum += w;
+                moment += w * p;
+            }
+        }
+    }
+    (sum > 0.0).then(|| moment / sum)
+}
+
 fn measure(
     context: &Context,
     labels: &[u32],
@@ -1407,6 +1465,22 @@ fn measure(
         .pixel_to_normalised(&centroid_px)
         .map_err(|_| Reason::Shape)?;
     let (major, minor, _) = ellipse.axes();
+    let usable = |x: usize, y: usize| {
+        (window.x0..window.x1).contains(&x) && (window.y0..window.y1).contains(&y) && !foreign(x, y)
+    };
+    let window_ideal = window_centroid(
+        &ellipse,
+        camera.normalised_to_pixel(&(ellipse.centre - principal).component_div(&focal)),
+        (width, height),
+        &WindowAccess {
+            value: &value,
+            usable: &usable,
+            ideal: &ideal,
+        },
+        background,
+    )
+    .ok_or(Reason::Shape)?;
+    let window_centroid_normalised = (window_ideal - principal).component_div(&focal);
     let centre_shrink = 1.0 + sphere.minor_normalised.powi(2);
 
     let mut hidden_because = Vec::new();
@@ -1434,6 +1508,7 @@ fn measure(
         contrast,
         noise: noise / context.full_scale,
         centroid_px: to_array(centroid_px),
+        window_centroid_px: to_array(camera.normalised_to_pixel(&window_centroid_normalised)),
         ellipse_centre_px: to_array(camera.normalised_to_pixel(&normalised.centre)),
         centre_px: to_array(camera.normalised_to_pixel(&sphere.centre_normalised)),
         semi_axes_px: [major, minor],
@@ -1451,6 +1526,7 @@ fn measure(
         bias: None,
         ellipse_centre_normalised: normalised.centre,
         centroid_normalised,
+        window_centroid_normalised,
         centre_shrink,
         ellipse_px: ellipse,
     })

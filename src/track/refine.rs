@@ -18,12 +18,17 @@
 //!    noise, with the appearance and optics given ([`crate::render`]);
 //! 2. reads the render with the frame's own detector and centre method;
 //! 3. takes as each sphere's bias the centre read there minus the exact
-//!    ellipse centre at that pose ([`crate::sphere_image`]);
-//! 4. takes each labelled whole blob's bias off its measured centre and
-//!    locates the marker again: identification, pose and covariance.
+//!    ellipse centre at that pose ([`crate::sphere_image`]), from the
+//!    render's blob nearest that centre, flagged as partly hidden or not:
+//!    a flag is a threshold on a blob's figures, and a blob the frame uses
+//!    may be flagged in the noise-free render (its own cone cutting a
+//!    quarter of the outline at a steep tilt), where a windowed centroid
+//!    left uncorrected errs by 0.3 px;
+//! 4. takes each labelled unflagged blob's bias off its measured centre
+//!    and locates the marker again: identification, pose and covariance.
 //!
-//! A sphere whose blob the render does not show whole (a support hides it
-//! at that pose, or it merges with a neighbour) keeps its measured centre.
+//! A sphere with no blob in the render within its semi-major axis (it
+//! merges with a neighbour there) keeps its measured centre.
 //! The correction is only as good as the render's likeness to the camera:
 //! the appearance, the blur and the part's supports must be the ones the
 //! camera sees. Its render needs no noise, and its supersampling should
@@ -99,7 +104,7 @@ impl Refiner {
     }
 
     /// For each sphere of `config`'s layout, the bias of `config`'s centre
-    /// method at `pose`; `None` where the render shows no whole blob of it.
+    /// method at `pose`; `None` where the render shows no blob of it.
     /// The part is traced only around the frame's `blobs` (their ellipse's
     /// box, grown by the detector's window padding, the blur's reach and
     /// [`REGION_MARGIN_PX`]): a blob's centre depends on no pixel beyond.
@@ -152,7 +157,6 @@ impl Refiner {
                 let blob = detection
                     .blobs
                     .iter()
-                    .filter(|b| !b.hidden())
                     .map(|b| (b, (Vector2::from(b.ellipse_centre_px) - exact_px).norm()))
                     .filter(|(b, distance)| *distance < b.semi_axes_px[0])
                     .min_by(|a, b| a.1.total_cmp(&b.1))?

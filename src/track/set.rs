@@ -5,7 +5,9 @@
 //! pose, covariance and label trust, [`super::analysis`]), and named by its
 //! number in the set (1…N) and its layout's name.
 
-use super::analysis::{locate, max_blobs, measured_normalised, FrameAnalysis, TrackedFrame};
+use super::analysis::{
+    locate, max_blobs, projected_centre_normalised, FrameAnalysis, TrackedFrame,
+};
 use super::config::TrackConfig;
 use super::detect::{detect, Blob, Detection, Rejected};
 use super::frame::GreyFrame;
@@ -104,10 +106,7 @@ pub fn analyse_set(config: &SetTrackConfig, frame: &GreyFrame) -> SetFrameAnalys
         .collect();
     let image: Vec<Vector2<f64>> = usable
         .iter()
-        .map(|&i| {
-            let blob = &detection.blobs[i];
-            measured_normalised(blob, first.centre) / blob.centre_shrink
-        })
+        .map(|&i| projected_centre_normalised(&detection.blobs[i], first.centre))
         .collect();
     let focal = first.camera.fx().min(first.camera.fy());
     let options = UnlabelledOptions::with_gate_px(first.gate_px, focal, 1);

@@ -41,7 +41,11 @@ fn finds_a_disc_to_a_fraction_of_a_pixel_and_flags_the_clipped_one() {
     );
     let whole = &detection.blobs[1];
     assert!(!whole.hidden(), "{whole:?}");
-    for centre in [whole.ellipse_centre_px, whole.centroid_px] {
+    for centre in [
+        whole.ellipse_centre_px,
+        whole.centroid_px,
+        whole.window_centroid_px,
+    ] {
         let error = ((centre[0] - 40.3).powi(2) + (centre[1] - 37.7).powi(2)).sqrt();
         assert!(error < 0.05, "{centre:?}");
     }
