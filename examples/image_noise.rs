@@ -10,16 +10,18 @@
 //! layout (default `layouts/biprism-search.json`) with every sphere whole
 //! (`validate::images::first_whole_view`) is rendered with the default
 //! retroreflective preset and sensor (8 bit, σ 0.5 px blur, full well
-//! 10,000 e⁻, read noise 10 e⁻) and read back `TRIALS` times (default 40).
+//! 10,000 e⁻, read noise 10 e⁻), sub-sampled 16 × 16 as `validate
+//! --images` renders, and read back `TRIALS` times (default 40).
 //! It prints each whole sphere's disc radius and centre σ, the frames lost
 //! or mislabelled, the pose errors, and the fitted law beside the best
 //! law of today's `size` form.
 //!
 //! **Cross-check.** On the same noisy frames (the same seeds), an
-//! independent centroid that shares nothing with `track`: each whole
-//! sphere's intensity-weighted centroid over the pixels within 1.2 disc
-//! radii of its exact ellipse centre, less the median of the ring from 1.4
-//! to 1.8 radii. Its per-axis σ about its mean is printed beside `track`'s
+//! independent centroid that shares nothing with `track`
+//! (`validate::images::independent_centroid`: each whole sphere's
+//! intensity-weighted centroid over the pixels within 1.2 disc radii of its
+//! exact ellipse centre, less the median of the ring from 1.4 to 1.8
+//! radii). Its per-axis σ about its mean is printed beside `track`'s
 //! centre σ, and its per-axis RMS error about the exact ellipse centre (the
 //! centroid of a uniform disc; noise and bias) beside `track`'s RMS error
 //! about the exact projected centre; with `CALIBRATION` (a noise
@@ -27,8 +29,14 @@
 //! law's σ at the same radius:
 //!
 //! ```text
-//! cargo run --release --example image_noise -- LAYOUT TRIALS SEED CALIBRATION
+//! cargo run --release --example image_noise -- LAYOUT TRIALS SEED CALIBRATION [METHOD [refine[:ROUNDS[:SUPERSAMPLING]]]]
 //! ```
+//!
+//! `CALIBRATION` may be `-` (none). `METHOD` is `track`'s centre method
+//! (`ellipse`, the default, `centroid` or `window`), and `refine` reads
+//! every frame as `track --refine` does, the part rendered as the frames
+//! are (`ROUNDS` rounds, 1 by default, at `SUPERSAMPLING` × `SUPERSAMPLING`
+//! sub-samples, 8 by default).
 
 use layout_opt::camera::Camera;
 use layout_opt::layout::Layout;
@@ -37,10 +45,13 @@ use layout_opt::noise::calibrated::CalibrationFile;
 use layout_opt::noise::calibrated::{fit, CentreErrorMeasure};
 use layout_opt::render::{frame_truth, render_radiance};
 use layout_opt::render::{RenderConfig, Scene};
+use layout_opt::track::refine::{Refiner, DEFAULT_SUPERSAMPLING};
+use layout_opt::track::CentreMethod;
 use layout_opt::track::GreyFrame;
 use layout_opt::track::TrackConfig;
 use layout_opt::validate::images::{
-    check_pose, first_whole_view, noisy_frame, sigma_samples, WHOLE_SPHERE_HIDDEN,
+    check_pose, first_whole_view, independent_centroid, noisy_frame, sigma_samples, Reader,
+    WHOLE_SPHERE_HIDDEN,
 };
 use rayon::prelude::*;
 
@@ -53,16 +64,50 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let seed: u64 = args.get(2).map_or(Ok(7), |s| s.parse())?;
     let calibration = args
         .get(3)
+        .filter(|path| *path != "-")
         .map(|path| CalibrationFile::load(std::path::Path::new(path)))
         .transpose()?;
+    let centre: CentreMethod = args
+        .get(4)
+        .map_or(Ok(CentreMethod::Ellipse), |s| s.parse())?;
+    // `refine[:ROUNDS[:SUPERSAMPLING]]`, or nothing.
+    let refine: Option<(u32, u32)> = match args.get(5) {
+        None => None,
+        Some(text) => {
+            let mut parts = text.split(':');
+            if parts.next() != Some("refine") {
+                return Err(
+                    format!("expected refine[:ROUNDS[:SUPERSAMPLING]], got {text:?}").into(),
+                );
+            }
+            let rounds = parts.next().map_or(Ok(1), str::parse)?;
+            let supersampling = parts.next().map_or(Ok(DEFAULT_SUPERSAMPLING), str::parse)?;
+            Some((rounds, supersampling))
+        }
+    };
     let layout = Layout::load(std::path::Path::new(path))?;
     let names: Vec<String> = layout.points.iter().map(|p| p.name.clone()).collect();
     let scene = Scene::from_marker(Marker::design(&layout, &MarkerOptions::default())?);
     let camera = Camera::paper();
     let mut render = RenderConfig::new(camera);
     render.seed = seed;
-    let track = TrackConfig::new(&layout, camera);
+    // Sub-sampled as the image check's frames are.
+    render.optics.supersampling = layout_opt::render::config::MAX_SUPERSAMPLING;
+    let mut track = TrackConfig::new(&layout, camera);
+    track.centre = centre;
     track.validate()?;
+    let refiner = match refine {
+        Some((rounds, supersampling)) => {
+            let mut model = render.clone();
+            model.optics.supersampling = supersampling;
+            Some(Refiner::new(scene.clone(), model, rounds)?)
+        }
+        None => None,
+    };
+    let reader = Reader {
+        track: &track,
+        refiner: refiner.as_ref(),
+    };
     let depths: Vec<f64> = (2..=10).map(|d| 100.0 * d as f64).collect();
     let results: Vec<_> = depths
         .par_iter()
@@ -70,12 +115,18 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .map(|(frame, &depth)| {
             let pose = first_whole_view(&scene, &names, &camera, depth).ok()??;
             let images =
-                check_pose(&scene, &names, &render, &track, &pose, frame as u64, trials).ok()?;
+                check_pose(&scene, &names, &render, reader, &pose, frame as u64, trials).ok()?;
             let centroids = centroid_sigmas(&scene, &names, &render, &pose, frame as u64, trials);
             Some((depth, images, centroids))
         })
         .collect();
-    println!("{path}, {trials} noisy frames per view, seed {seed}, retroreflective preset, default sensor");
+    println!(
+        "{path}, {trials} noisy frames per view, seed {seed}, retroreflective preset, default sensor; track --centre {}{}",
+        centre.name(),
+        refine.map_or(String::new(), |(rounds, n)| format!(
+            " --refine --refine-rounds {rounds} --supersampling {n}"
+        ))
+    );
     println!("depth mm | disc radius px (whole spheres) | centre σ px | lost | mislabelled | rotation RMS °");
     let mut all = Vec::new();
     let mut cross = Vec::new();
@@ -120,29 +171,51 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         all.extend(samples);
     }
     cross.sort_by(|a, b| a.0.total_cmp(&b.0));
-    println!("\ncross-check: whole spheres, track's centre σ beside an independent centroid's σ (same frames){}", if calibration.is_some() { " and the calibration's σ(r)" } else { "" });
+    println!("\ncross-check: whole spheres in disc-radius bins 4 px wide (RMS over the bin's spheres), track's centre beside an independent centroid's (same frames){}", if calibration.is_some() { " and the calibration's σ at the bin's mean radius" } else { "" });
     println!(
-        "radius px | track σ px | centroid σ px | centroid / track | track RMS about truth px | centroid RMS about truth px{}",
+        "radius px | spheres | track σ px | centroid σ px | track RMS about truth px | centroid RMS about truth px | track RMS / centroid σ{}",
         if calibration.is_some() {
-            " | law σ px | law / centroid σ | law / centroid RMS about truth"
+            " | law σ px | law / centroid σ"
         } else {
             ""
         }
     );
-    for (radius, track_sigma, centroid_sigma, track_rms, centroid_rms) in &cross {
+    let mut bins: std::collections::BTreeMap<i64, Vec<[f64; 5]>> = Default::default();
+    for &(radius, track_sigma, centroid_sigma, track_rms, centroid_rms) in &cross {
+        bins.entry((radius / 4.0).floor() as i64)
+            .or_default()
+            .push([radius, track_sigma, centroid_sigma, track_rms, centroid_rms]);
+    }
+    for (bin, members) in &bins {
+        let n = members.len() as f64;
+        let mean = members.iter().map(|m| m[0]).sum::<f64>() / n;
+        let rms = |k: usize| (members.iter().map(|m| m[k] * m[k]).sum::<f64>() / n).sqrt();
         let law = calibration.as_ref().map_or(String::new(), |file| {
-            let sigma = file.sigma().expect("checked on load").sigma(*radius);
-            format!(
-                " | {sigma:.5} | {:.2} | {:.2}",
-                sigma / centroid_sigma,
-                sigma / centroid_rms
-            )
+            let sigma = file.sigma().expect("checked on load").sigma(mean);
+            format!(" | {sigma:.5} | {:.2}", sigma / rms(2))
         });
         println!(
-            "{radius:.1} | {track_sigma:.5} | {centroid_sigma:.5} | {:.2} | {track_rms:.5} | {centroid_rms:.5}{law}",
-            centroid_sigma / track_sigma
+            "{}–{} | {} | {:.5} | {:.5} | {:.5} | {:.5} | {:.2}{law}",
+            4 * bin,
+            4 * (bin + 1),
+            members.len(),
+            rms(1),
+            rms(2),
+            rms(3),
+            rms(4),
+            rms(3) / rms(2)
         );
     }
+    let rotations: Vec<f64> = results
+        .iter()
+        .flatten()
+        .flat_map(|(_, images, _)| images.rotation_error_deg.iter().copied())
+        .collect();
+    println!(
+        "rotation error RMS over the {} posed frames: {:.5}°",
+        rotations.len(),
+        (rotations.iter().map(|e| e * e).sum::<f64>() / rotations.len().max(1) as f64).sqrt()
+    );
     let (law, quality) = fit(&all)?;
     println!(
         "fit over {} spheres: σ = {:.4} / r^{:.3} + {:.4} px; RMS relative residual {:.3} (worst {:.3}); best size law (b = 0.5, c = 0): {:.3}",
@@ -187,7 +260,7 @@ fn centroid_sigmas(
             let radius = 0.5 * (s.semi_axes_px[0] + s.semi_axes_px[1]);
             let centres: Vec<[f64; 2]> = frames
                 .iter()
-                .filter_map(|f| centroid(f, s.ellipse_centre_px, radius))
+                .filter_map(|f| independent_centroid(f, s.ellipse_centre_px, radius))
                 .collect();
             let n = centres.len() as f64;
             if n < 2.0 {
@@ -209,39 +282,4 @@ fn centroid_sigmas(
             ))
         })
         .collect()
-}
-
-/// The background-subtracted intensity-weighted centroid of the disc of
-/// radius 1.2 `radius` about `centre`, the background the median of the
-/// ring from 1.4 to 1.8 `radius`; None off the image.
-fn centroid(frame: &GreyFrame, centre: [f64; 2], radius: f64) -> Option<[f64; 2]> {
-    let reach = (1.8 * radius).ceil() as i64 + 1;
-    let (cx, cy) = (centre[0].round() as i64, centre[1].round() as i64);
-    let (width, height) = (i64::from(frame.width()), i64::from(frame.height()));
-    if cx - reach < 0 || cy - reach < 0 || cx + reach >= width || cy + reach >= height {
-        return None;
-    }
-    let mut ring = Vec::new();
-    let mut disc = Vec::new();
-    for y in cy - reach..=cy + reach {
-        for x in cx - reach..=cx + reach {
-            let d = (x as f64 - centre[0]).hypot(y as f64 - centre[1]) / radius;
-            let v = f64::from(frame.at(x as u32, y as u32));
-            if d <= 1.2 {
-                disc.push((x as f64, y as f64, v));
-            } else if (1.4..=1.8).contains(&d) {
-                ring.push(v);
-            }
-        }
-    }
-    ring.sort_by(f64::total_cmp);
-    let background = *ring.get(ring.len() / 2)?;
-    let (mut sum, mut sx, mut sy) = (0.0, 0.0, 0.0);
-    for (x, y, v) in disc {
-        let w = (v - background).max(0.0);
-        sum += w;
-        sx += w * x;
-        sy += w * y;
-    }
-    (sum > 0.0).then(|| [sx / sum, sy / sum])
 }

@@ -37,8 +37,8 @@
 
 use super::config::Checked;
 use super::images::{
-    check_pose, sample_frame, sigma_samples, sphere_views, PoseImages, SphereView,
-    WHOLE_SPHERE_HIDDEN,
+    check_pose, independent_views, sample_frame, sigma_samples, sphere_views, PoseImages, Reader,
+    SphereView, WHOLE_SPHERE_HIDDEN,
 };
 use crate::camera::Camera;
 use crate::config::ConfigError;
@@ -47,9 +47,11 @@ use crate::montecarlo::ScenarioOutcome;
 use crate::noise::calibrated::{fit, CalibratedSigma, CentreErrorMeasure, FitQuality, SigmaSample};
 use crate::observer::{watch, Observer};
 use crate::pose::{rotation_error_deg, translation_error_mm};
+use crate::render::config::MAX_SUPERSAMPLING;
 use crate::render::{Appearance, Blur, Lighting, Noise, RenderConfig, RenderError, Scene};
 use crate::scenario::Scenario;
-use crate::track::{FrameAnalysis, GreyFrame, Threshold, TrackConfig};
+use crate::track::refine::{Refiner, DEFAULT_SUPERSAMPLING, MAX_ROUNDS};
+use crate::track::{CentreMethod, FrameAnalysis, GreyFrame, Threshold, TrackConfig};
 use crate::visibility::WorkingRange;
 use nalgebra::Vector3;
 use serde::Serialize;
@@ -203,6 +205,85 @@ impl std::str::FromStr for ImagePreset {
     }
 }
 
+/// How `--image-refine` refines each frame: `track --refine
+/// --refine-rounds ROUNDS --supersampling SUPERSAMPLING`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+pub struct ImageRefine {
+    /// Rounds of render-and-compare.
+    pub rounds: u32,
+    /// The render's sub-samples per pixel side.
+    pub supersampling: u32,
+}
+
+impl Default for ImageRefine {
+    /// `track --refine`'s defaults.
+    fn default() -> Self {
+        ImageRefine {
+            rounds: 1,
+            supersampling: DEFAULT_SUPERSAMPLING,
+        }
+    }
+}
+
+impl ImageRefine {
+    /// Refuses rounds outside 1..[`MAX_ROUNDS`] and a supersampling outside
+    /// 1..[`MAX_SUPERSAMPLING`], naming `image_refine`.
+    pub fn check(&self) -> Result<(), ConfigError> {
+        if !(1..=MAX_ROUNDS).contains(&self.rounds) {
+            return Err(ConfigError::new(
+                "image_refine",
+                format!("rounds must lie in 1..{MAX_ROUNDS}, got {}", self.rounds),
+            ));
+        }
+        if !(1..=MAX_SUPERSAMPLING).contains(&self.supersampling) {
+            return Err(ConfigError::new(
+                "image_refine",
+                format!(
+                    "supersampling must lie in 1..{MAX_SUPERSAMPLING}, got {}",
+                    self.supersampling
+                ),
+            ));
+        }
+        Ok(())
+    }
+}
+
+impl std::str::FromStr for ImageRefine {
+    type Err = ConfigError;
+
+    /// `ROUNDS` or `ROUNDS:SUPERSAMPLING`; the supersampling defaults to
+    /// `track --refine`'s.
+    ///
+    /// ```
+    /// use layout_opt::validate::image_check::ImageRefine;
+    /// let r: ImageRefine = "2:16".parse().unwrap();
+    /// assert_eq!((r.rounds, r.supersampling), (2, 16));
+    /// assert_eq!("3".parse::<ImageRefine>().unwrap().rounds, 3);
+    /// assert!("0".parse::<ImageRefine>().is_err() && "2:x".parse::<ImageRefine>().is_err());
+    /// ```
+    fn from_str(text: &str) -> Result<Self, ConfigError> {
+        let bad = || {
+            ConfigError::new(
+                "image_refine",
+                format!("expected ROUNDS or ROUNDS:SUPERSAMPLING, got \"{text}\""),
+            )
+        };
+        let (rounds, supersampling) = match text.split_once(':') {
+            Some((rounds, supersampling)) => (rounds, Some(supersampling)),
+            None => (text, None),
+        };
+        let refine = ImageRefine {
+            rounds: rounds.trim().parse().map_err(|_| bad())?,
+            supersampling: match supersampling {
+                Some(s) => s.trim().parse().map_err(|_| bad())?,
+                None => DEFAULT_SUPERSAMPLING,
+            },
+        };
+        refine.check()?;
+        Ok(refine)
+    }
+}
+
 /// The image check's settings.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct ImageCheck {
@@ -217,6 +298,11 @@ pub struct ImageCheck {
     /// The lens's Gaussian blur σ, px (0: none, the supersampled box filter
     /// alone); `None` keeps the preset's.
     pub blur_sigma_px: Option<f64>,
+    /// The centre the tracker solves from (`track --centre`).
+    pub centre: CentreMethod,
+    /// Refine each frame by render-and-compare (`track --refine`), the part
+    /// drawn as the frames are; `None`: not refined.
+    pub refine: Option<ImageRefine>,
 }
 
 impl Default for ImageCheck {
@@ -226,6 +312,8 @@ impl Default for ImageCheck {
             preset: ImagePreset::Paper,
             spheres_only: false,
             blur_sigma_px: None,
+            centre: CentreMethod::default(),
+            refine: None,
         }
     }
 }
@@ -235,7 +323,7 @@ impl ImageCheck {
     /// part and blur where they depart from it.
     pub fn describe(&self) -> String {
         let mut text = self.preset.describe();
-        let n = crate::render::config::MAX_SUPERSAMPLING;
+        let n = MAX_SUPERSAMPLING;
         text.push_str(&format!("; frames sub-sampled {n} × {n} per edge pixel"));
         if self.spheres_only {
             text.push_str("; the spheres alone, without supports or plate");
@@ -244,6 +332,13 @@ impl ImageCheck {
             Some(sigma) if sigma > 0.0 => text.push_str(&format!("; lens blur σ {sigma} px")),
             Some(_) => text.push_str("; no lens blur"),
             None => {}
+        }
+        text.push_str(&format!("; read by track --centre {}", self.centre.name()));
+        if let Some(refine) = self.refine {
+            text.push_str(&format!(
+                " --refine --refine-rounds {} --supersampling {}",
+                refine.rounds, refine.supersampling
+            ));
         }
         text
     }
@@ -260,6 +355,9 @@ impl ImageCheck {
     pub fn check(&self) -> Result<(), ConfigError> {
         if self.trials == 0 {
             return Err(ConfigError::new("image_trials", "must be at least 1"));
+        }
+        if let Some(refine) = self.refine {
+            refine.check()?;
         }
         if let Some(sigma) = self.blur_sigma_px {
             if !(sigma.is_finite() && (0.0..=MAX_BLUR_SIGMA_PX).contains(&sigma)) {
@@ -306,6 +404,12 @@ pub struct CentreBin {
     pub bias_px: f64,
     /// Pooled per-axis σ about each view's mean, px.
     pub sigma_px: f64,
+    /// The sphere views' mean disc radius, px.
+    pub mean_radius_px: f64,
+    /// Pooled per-axis σ of the same frames' whole spheres by
+    /// [`super::images::independent_centroid`] (noise alone, no tracker),
+    /// px; NaN when none.
+    pub independent_sigma_px: f64,
 }
 
 /// A partly hidden sphere whose centre the hidden part pulled.
@@ -595,6 +699,7 @@ struct Setup {
     scene: Scene,
     render: RenderConfig,
     track: TrackConfig,
+    refiner: Option<Refiner>,
 }
 
 impl Setup {
@@ -640,7 +745,7 @@ impl Setup {
         // which biases a sharp 8 px disc's fitted centre by about 0.009 px,
         // twice the sensor noise's scatter; at 16 × 16 that falls to
         // 0.003 px.
-        render.optics.supersampling = crate::render::config::MAX_SUPERSAMPLING;
+        render.optics.supersampling = MAX_SUPERSAMPLING;
         if let Some(sigma_px) = check.blur_sigma_px {
             render.optics.blur = if sigma_px > 0.0 {
                 Blur::Gaussian { sigma_px }
@@ -650,18 +755,36 @@ impl Setup {
         }
         let mut track = TrackConfig::new(layout, config.camera);
         track.detector.threshold = check.preset.threshold();
+        track.centre = check.centre;
         track.validate().map_err(|e| {
             ConfigError::new(
                 "images",
                 format!("the tracker cannot read {}: {e}", layout.name),
             )
         })?;
+        let refiner = match check.refine {
+            Some(refine) => {
+                let mut model = render.clone();
+                model.optics.supersampling = refine.supersampling;
+                Some(Refiner::new(scene.clone(), model, refine.rounds)?)
+            }
+            None => None,
+        };
         Ok(Setup {
             names,
             scene,
             render,
             track,
+            refiner,
         })
+    }
+
+    /// How every frame is read.
+    fn reader(&self) -> Reader<'_> {
+        Reader {
+            track: &self.track,
+            refiner: self.refiner.as_ref(),
+        }
     }
 
     /// Checks the scenarios `chosen` (indices into `outcomes`) in
@@ -687,7 +810,7 @@ impl Setup {
                     &self.scene,
                     &self.names,
                     &self.render,
-                    &self.track,
+                    self.reader(),
                     &scenario.pose(),
                     scenario.index as u64,
                     check.trials,
@@ -795,7 +918,7 @@ impl Setup {
             let (frame, analysis) = sample_frame(
                 &self.scene,
                 &self.render,
-                &self.track,
+                self.reader(),
                 &pose,
                 scenario.index as u64,
                 trial,
@@ -891,8 +1014,10 @@ fn summarise(
         per_scenario: Vec::new(),
         samples: Vec::new(),
     };
-    // (radius, depth, view) of every whole sphere view.
+    // (radius, depth, view) of every whole sphere view, by the tracker and
+    // by the independent centroid.
     let mut whole: Vec<(f64, f64, SphereView)> = Vec::new();
+    let mut independent: Vec<(f64, f64, SphereView)> = Vec::new();
     let mut samples: Vec<SigmaSample> = Vec::new();
     let mut scatter_samples: Vec<SigmaSample> = Vec::new();
     let mut pose_rows: Vec<PoseRow> = Vec::new();
@@ -1003,6 +1128,11 @@ fn summarise(
                 .filter(|v| v.hidden < WHOLE_SPHERE_HIDDEN)
                 .map(|v| (v.radius_px, scenario.depth_mm, v)),
         );
+        independent.extend(
+            independent_views(images)
+                .into_iter()
+                .map(|v| (v.radius_px, scenario.depth_mm, v)),
+        );
     }
     summary.biased_count = summary.biased.len();
     summary.biased.sort_by(|a, b| {
@@ -1011,36 +1141,44 @@ fn summarise(
             .then(a.scenario.index.cmp(&b.scenario.index))
     });
     summary.biased.truncate(MAX_BIASED_LISTED);
-    summary.by_radius = bins(&whole, RADIUS_BIN_PX, |(radius, _, _)| *radius);
-    summary.by_depth = bins(&whole, DEPTH_BIN_MM, |(_, depth, _)| *depth);
+    let views = [whole.as_slice(), independent.as_slice()];
+    summary.by_radius = bins(views, RADIUS_BIN_PX, |(radius, _, _)| *radius);
+    summary.by_depth = bins(views, DEPTH_BIN_MM, |(_, depth, _)| *depth);
     summary.pose = pose_comparison(&pose_rows, &whole);
     summary.noise_law = noise_law(&rms_by_radius(&samples, LAW_BIN_PX));
     summary.scatter_law = noise_law(&scatter_samples);
     summary
 }
 
-/// Sphere views binned by `key` in bins `width` wide, lowest first.
+/// Sphere views binned by `key` in bins `width` wide, lowest first: the
+/// tracker's (`views[0]`), each bin with the independent centroid's
+/// (`views[1]`) σ in it.
 fn bins(
-    views: &[(f64, f64, SphereView)],
+    views: [&[(f64, f64, SphereView)]; 2],
     width: f64,
     key: impl Fn(&(f64, f64, SphereView)) -> f64,
 ) -> Vec<CentreBin> {
-    let mut by_bin: BTreeMap<i64, Vec<&SphereView>> = BTreeMap::new();
-    for item in views {
-        by_bin
-            .entry((key(item) / width).floor() as i64)
-            .or_default()
-            .push(&item.2);
+    let mut by_bin: BTreeMap<i64, [Vec<&SphereView>; 2]> = BTreeMap::new();
+    for (which, list) in views.iter().enumerate() {
+        for item in list.iter() {
+            by_bin
+                .entry((key(item) / width).floor() as i64)
+                .or_default()[which]
+                .push(&item.2);
+        }
     }
     by_bin
         .into_iter()
-        .map(|(bin, members)| CentreBin {
+        .filter(|(_, [tracked, _])| !tracked.is_empty())
+        .map(|(bin, [tracked, independent])| CentreBin {
             from: bin as f64 * width,
             to: (bin + 1) as f64 * width,
-            sphere_views: members.len(),
-            centres: members.iter().map(|v| v.centres).sum(),
-            bias_px: rms(members.iter().map(|v| v.bias_px())),
-            sigma_px: pooled_sigma(members.iter().copied()),
+            sphere_views: tracked.len(),
+            centres: tracked.iter().map(|v| v.centres).sum(),
+            bias_px: rms(tracked.iter().map(|v| v.bias_px())),
+            sigma_px: pooled_sigma(tracked.iter().copied()),
+            mean_radius_px: tracked.iter().map(|v| v.radius_px).sum::<f64>() / tracked.len() as f64,
+            independent_sigma_px: pooled_sigma(independent.iter().copied()),
         })
         .collect()
 }
@@ -1183,6 +1321,7 @@ mod tests {
                 .iter()
                 .map(|&error_px| super::super::images::CentreError { sphere, error_px })
                 .collect(),
+            independent: vec![],
             rotation_error_deg: vec![],
             translation_error_mm: vec![],
             mislabelled_frames: 0,

@@ -4,6 +4,7 @@
 //! Computes nothing new.
 
 use super::image_check::{CentreBin, ImageSummary, NoiseLaw, BIAS_SIGMAS, LAW_BIN_PX};
+use super::images::{INDEPENDENT_RING, INDEPENDENT_WINDOW};
 use crate::noise::calibrated::CentreErrorMeasure;
 use crate::report::{significant, Table};
 use std::collections::BTreeMap;
@@ -32,22 +33,40 @@ fn counts(reasons: &BTreeMap<String, usize>) -> String {
         .join("; ")
 }
 
-fn bin_table(label: &str, bins: &[CentreBin]) -> Table {
-    let mut table = Table::new([
+fn bin_table(label: &str, bins: &[CentreBin], law: Option<&NoiseLaw>) -> Table {
+    let mut header = vec![
         label,
         "sphere views",
         "centres",
         "bias RMS (px)",
         "σ per axis (px)",
-    ]);
+        "independent centroid σ (px)",
+    ];
+    let law = match law {
+        Some(NoiseLaw::Fitted { law, .. }) => Some(law),
+        _ => None,
+    };
+    if law.is_some() {
+        header.extend(["noise law at the mean radius (px)", "law / independent σ"]);
+    }
+    let mut table = Table::new(header);
     for bin in bins {
-        table.row([
+        let mut row = vec![
             format!("{}–{}", number(bin.from), number(bin.to)),
             bin.sphere_views.to_string(),
             bin.centres.to_string(),
             number(bin.bias_px),
             number(bin.sigma_px),
-        ]);
+            number(bin.independent_sigma_px),
+        ];
+        if let Some(law) = law {
+            let sigma = law.sigma(bin.mean_radius_px);
+            row.extend([
+                number(sigma),
+                format!("{:.2}", sigma / bin.independent_sigma_px),
+            ]);
+        }
+        table.row(row);
     }
     table
 }
@@ -120,9 +139,14 @@ pub fn markdown(images: &ImageSummary) -> String {
         out,
         "### Centre error of whole spheres against disc radius\n"
     );
-    out.push_str(&bin_table("radius (px)", &images.by_radius).markdown());
+    out.push_str(&bin_table("radius (px)", &images.by_radius, Some(&images.noise_law)).markdown());
+    let _ = writeln!(
+        out,
+        "\nThe independent centroid shares nothing with `track`: on the same frames, each whole sphere's intensity-weighted centroid within {INDEPENDENT_WINDOW} disc radii of its exact centre, less the median of the ring {}–{} radii out; its window is fixed by the truth, so its σ is the sensor noise's alone. The noise law (section \"Noise law\") is the tracked centres' error about the truth, noise and bias.",
+        INDEPENDENT_RING.0, INDEPENDENT_RING.1
+    );
     let _ = writeln!(out, "\n### Centre error of whole spheres against depth\n");
-    out.push_str(&bin_table("depth (mm)", &images.by_depth).markdown());
+    out.push_str(&bin_table("depth (mm)", &images.by_depth, None).markdown());
     let _ = writeln!(
         out,
         "\n### Pose from the images against the first-order model\n"
@@ -199,7 +223,7 @@ pub fn markdown(images: &ImageSummary) -> String {
     }
     let _ = writeln!(
         out,
-        "### Noise law\n\nOf the centre {}, per axis, over every sphere view the tracker labelled (a sphere whose notch it cut away included), as the RMS in radius bins {LAW_BIN_PX} px wide (what `--write-noise-model` writes, and what `--noise-model calibrated:FILE` then assumes): {}\n\nOf the whole spheres' {}: {}\n",
+        "### Noise law\n\nOf the centre {}, per axis, over every sphere view the pose was solved from (a sphere whose notch the tracker cut away included), as the RMS in radius bins {LAW_BIN_PX} px wide (what `--write-noise-model` writes, and what `--noise-model calibrated:FILE` then assumes): {}\n\nOf the whole spheres' {}: {}\n",
         CentreErrorMeasure::AboutTruth.describe(),
         law_line(&images.noise_law, "radius bins"),
         CentreErrorMeasure::Scatter.describe(),

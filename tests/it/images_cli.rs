@@ -145,6 +145,44 @@ fn images_report_their_figures_and_write_a_noise_law_that_a_second_run_reads() {
     );
 }
 
+/// `--image-centre window --image-refine` reads the frames as `track
+/// --centre window --refine` does, and the report and the law say so.
+#[test]
+fn a_refined_window_reading_is_named_in_the_report_and_the_law() {
+    let dir = tempfile::tempdir().unwrap();
+    let law = dir.path().join("noise.json");
+    let out = stdout(validate(
+        &dir.path().join("images"),
+        &[
+            "--images",
+            "--image-trials",
+            "2",
+            "--image-centre",
+            "window",
+            "--image-refine",
+            "--write-noise-model",
+            law.to_str().unwrap(),
+        ],
+    ));
+    assert!(
+        out.contains("images: 4 visible scenarios × 2 frames"),
+        "{out}"
+    );
+    let reading = "read by track --centre window --refine";
+    let markdown = std::fs::read_to_string(dir.path().join("images").join("report.md")).unwrap();
+    assert!(markdown.contains(reading), "{markdown}");
+    let file = CalibrationFile::load(&law).unwrap();
+    assert!(file.source.contains(reading), "{file:?}");
+    let json: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(dir.path().join("images").join("images.json")).unwrap(),
+    )
+    .unwrap();
+    assert_eq!(json["frames"], 8, "{json}");
+    assert_eq!(json["check"]["centre"], "window", "{json}");
+    assert_eq!(json["check"]["refine"]["rounds"], 1, "{json}");
+    assert_eq!(json["check"]["refine"]["supersampling"], 8, "{json}");
+}
+
 #[test]
 fn bad_image_flags_are_refused_by_name() {
     let dir = tempfile::tempdir().unwrap();
@@ -180,6 +218,38 @@ fn bad_image_flags_are_refused_by_name() {
     .failure();
     let stderr = String::from_utf8_lossy(&clash.get_output().stderr).to_string();
     assert!(stderr.contains("brings its own camera"), "{stderr}");
+    // The image check's companions need it.
+    for flag in [
+        &["--image-refine"][..],
+        &["--image-centre", "window"],
+        &["--image-blur", "0.3"],
+    ] {
+        let alone = validate(dir.path(), flag).failure();
+        let stderr = String::from_utf8_lossy(&alone.get_output().stderr).to_string();
+        assert!(stderr.contains("--images"), "{flag:?}: {stderr}");
+    }
+    let centre = validate(dir.path(), &["--images", "--image-centre", "middle"]).failure();
+    let stderr = String::from_utf8_lossy(&centre.get_output().stderr).to_string();
+    assert!(
+        stderr.contains("--image-centre") && stderr.contains("ellipse, centroid or window"),
+        "{stderr}"
+    );
+    for (refine, says) in [
+        ("9", "rounds must lie in 1..5"),
+        ("2:32", "supersampling must lie in 1..16"),
+        ("two", "expected ROUNDS or ROUNDS:SUPERSAMPLING"),
+    ] {
+        let bad = validate(
+            dir.path(),
+            &["--images", &format!("--image-refine={refine}")],
+        )
+        .failure();
+        let stderr = String::from_utf8_lossy(&bad.get_output().stderr).to_string();
+        assert!(
+            stderr.contains("--image-refine") && stderr.contains(says),
+            "{refine}: {stderr}"
+        );
+    }
     for blur in ["-1", "NaN", "9"] {
         let bad = validate(dir.path(), &["--images", &format!("--image-blur={blur}")]).failure();
         let stderr = String::from_utf8_lossy(&bad.get_output().stderr).to_string();
