@@ -240,9 +240,9 @@ pub(super) fn measured_normalised(blob: &Blob, method: CentreMethod) -> Vector2<
 }
 
 /// The projected sphere centre of a blob on the undistorted normalised
-/// plane: its measured centre ([`measured_normalised`]) over `1 + b²`
-/// ([`Blob::centre_shrink`]), what identification and the centre solvers
-/// fit.
+/// plane: its centre by `method`, less the refinement's bias where there
+/// is one, over `1 + b²` ([`Blob::centre_shrink`]); what identification
+/// and the centre solvers fit.
 pub fn projected_centre_normalised(blob: &Blob, method: CentreMethod) -> Vector2<f64> {
     measured_normalised(blob, method) / blob.centre_shrink
 }

@@ -91,7 +91,7 @@ pub enum CentreMethod {
     /// The intensity-weighted centroid of the blob.
     Centroid,
     /// The background-subtracted intensity centroid over the fitted
-    /// ellipse grown by [`super::detect::WINDOW_SCALE`]: linear in the
+    /// ellipse grown by [`super::detect::WINDOW_MARGIN_PX`]: linear in the
     /// pixels, so the least noisy of the three, but pulled by whatever lies
     /// behind the limb (plate, supports) unless `--refine` takes that off.
     Window,

@@ -186,7 +186,7 @@ pub struct Blob {
     /// Intensity-weighted centroid, raw px.
     pub centroid_px: [f64; 2],
     /// The background-subtracted intensity centroid over the fitted ellipse
-    /// grown by [`WINDOW_SCALE`], raw px.
+    /// grown by [`WINDOW_MARGIN_PX`] ([`super::config::CentreMethod::Window`]), raw px.
     pub window_centroid_px: [f64; 2],
     /// Centre of the fitted ellipse, raw px (the undistorted ellipse centre
     /// mapped through the lens).
@@ -1119,7 +1119,6 @@ fn local_outside_level(dark: f64, outer: f64, outer2: f64, noise: f64) -> f64 {
     }
 }
 
-/// Measures component `id` of the window's labels (module docs, step 3).
 /// How [`window_centroid`] reads the frame: a pixel's level, whether it
 /// may count (inside the labelled window and no other component's), and
 /// its undistorted position.
@@ -1169,6 +1168,7 @@ fn window_centroid(
     (sum > 0.0).then(|| moment / sum)
 }
 
+/// Measures component `id` of the window's labels (module docs, step 3).
 fn measure(
     context: &Context,
     labels: &[u32],

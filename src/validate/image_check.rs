@@ -215,16 +215,6 @@ pub struct ImageRefine {
     pub supersampling: u32,
 }
 
-impl Default for ImageRefine {
-    /// `track --refine`'s defaults.
-    fn default() -> Self {
-        ImageRefine {
-            rounds: 1,
-            supersampling: DEFAULT_SUPERSAMPLING,
-        }
-    }
-}
-
 impl ImageRefine {
     /// Refuses rounds outside 1..[`MAX_ROUNDS`] and a supersampling outside
     /// 1..[`MAX_SUPERSAMPLING`], naming `image_refine`.

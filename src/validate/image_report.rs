@@ -61,9 +61,14 @@ fn bin_table(label: &str, bins: &[CentreBin], law: Option<&NoiseLaw>) -> Table {
         ];
         if let Some(law) = law {
             let sigma = law.sigma(bin.mean_radius_px);
+            let ratio = sigma / bin.independent_sigma_px;
             row.extend([
                 number(sigma),
-                format!("{:.2}", sigma / bin.independent_sigma_px),
+                if ratio.is_finite() {
+                    format!("{ratio:.2}")
+                } else {
+                    "—".to_string()
+                },
             ]);
         }
         table.row(row);

@@ -8,11 +8,12 @@
 //! and quantisation noise ([`expose`], realisation `0..trials` of frame
 //! `frame`), and tracks each frame ([`Reader`]: [`analyse`], refined by
 //! render-and-compare when asked). For every sphere the pose was solved
-//! from, the centre error is its blob's projected sphere centre by
-//! the tracker's centre method, less the refinement's bias where there is
-//! one (what the pose is solved from,
-//! [`projected_centre_normalised`]; for the default ellipse method unrefined, the
-//! blob's `centre_px`), minus the exact projected centre. A label is
+//! from, the centre error is its blob's projected sphere centre by the
+//! tracker's centre method, less the refinement's bias where there is one
+//! ([`projected_centre_normalised`], what the pose is solved from; unrefined
+//! by the default ellipse method, the blob's `centre_px`), minus the exact
+//! projected centre. Every whole sphere is also measured by
+//! [`independent_centroid`], the noise's yardstick. A label is
 //! wrong when the blob lies nearer another sphere's exact centre than its
 //! own (every labelled blob is checked, the ones flagged as partly hidden
 //! and labelled after the pose too). A frame with no pose counts as lost,
@@ -212,11 +213,11 @@ pub fn check_pose(
             pose,
             (reader.track, &analysis),
         );
-        for (sphere, truth) in truth.spheres.iter().enumerate() {
+        for (sphere, exact_sphere) in truth.spheres.iter().enumerate() {
             if outcome.hidden[sphere] >= WHOLE_SPHERE_HIDDEN {
                 continue;
             }
-            let centre = truth.ellipse_centre_px;
+            let centre = exact_sphere.ellipse_centre_px;
             if let Some(c) = independent_centroid(&image, centre, outcome.radius_px[sphere]) {
                 outcome.independent.push(CentreError {
                     sphere,
