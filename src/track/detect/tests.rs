@@ -1,6 +1,8 @@
 //! Tests of the parent module.
 
 use super::*;
+use crate::track::conic::fit_ellipse;
+use std::f64::consts::TAU;
 
 /// Whether `(x, y)` lies inside the disc `(cx, cy, r)`.
 fn within((cx, cy, r): (f64, f64, f64), x: f64, y: f64) -> bool {
