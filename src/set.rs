@@ -47,6 +47,8 @@
 // `!(x > 0.0)` is deliberate: it is true for NaN as well.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
+pub mod dips;
+
 use crate::camera::Camera;
 use crate::identifiability::{
     clean_view, normal_upper_tail, wrong_probability, IdentifiabilitySettings, MIN_TRIAL_GATE_PX,
@@ -857,7 +859,7 @@ pub fn set_trials(
         .collect();
     let results: Vec<Option<ScenarioTrials>> = jobs
         .par_iter()
-        .map(|&(i, s)| trial_scenario(&targets[i], i, &objects, s, settings))
+        .map(|&(i, s)| trial_scenario(&targets[i], i, &objects, (s, None), settings))
         .collect();
     let mut counts = vec![SetTrialCounts::default(); n_markers];
     let mut named = vec![vec![0usize; n_markers]; n_markers];
@@ -893,13 +895,41 @@ pub fn set_trials(
 /// no marker fitted), wrong-label trials.
 type ScenarioTrials = (usize, Vec<Option<usize>>, usize);
 
-/// One marker's trials in one scenario; None when the marker is not
+/// Seeded trials of marker `index` of a set in `scenario` with blob
+/// `missing` left out of every frame, each identified against the whole
+/// set with one missing blob allowed: how often a confusion predicted at a
+/// dip ([`dips`]) happens. Returns the trials run and those that named
+/// another marker; None when the marker is not visible there.
+pub fn missing_blob_trials(
+    targets: &[Target],
+    index: usize,
+    scenario: &Scenario,
+    missing: usize,
+    settings: &IdentifiabilitySettings,
+) -> Option<(usize, usize)> {
+    let objects: Vec<Vec<Vector3<f64>>> = targets.iter().map(|t| t.object.to_vec()).collect();
+    let (trials, named, _) = trial_scenario(
+        &targets[index],
+        index,
+        &objects,
+        (scenario, Some(missing)),
+        settings,
+    )?;
+    let wrong = named
+        .iter()
+        .filter(|m| m.is_some_and(|j| j != index))
+        .count();
+    Some((trials, wrong))
+}
+
+/// One marker's trials in one scenario, blob `missing` left out of every
+/// frame (and one missing blob then allowed); None when the marker is not
 /// visible.
 fn trial_scenario(
     target: &Target,
     index: usize,
     objects: &[Vec<Vector3<f64>>],
-    scenario: &Scenario,
+    (scenario, missing): (&Scenario, Option<usize>),
     settings: &IdentifiabilitySettings,
 ) -> Option<ScenarioTrials> {
     let camera = target.camera;
@@ -918,11 +948,15 @@ fn trial_scenario(
     let options = UnlabelledOptions::with_gate_px(
         (TRIAL_GATE_SIGMAS * sigma).max(MIN_TRIAL_GATE_PX),
         focal,
-        0,
+        usize::from(missing.is_some()),
     );
     let n = pixels.len();
-    let stream = CROSS_STREAM + ((index as u64) << 32) + scenario.index as u64;
-    let mut order: Vec<usize> = (0..n).collect();
+    // Trials with a blob left out draw from streams of their own.
+    let stream = CROSS_STREAM
+        + ((index as u64) << 32)
+        + scenario.index as u64
+        + missing.map_or(0, |k| (k as u64 + 1) << 40);
+    let mut order: Vec<usize> = (0..n).filter(|&k| Some(k) != missing).collect();
     let mut named = Vec::with_capacity(settings.trials);
     let mut wrong_labels = 0;
     for trial in 0..settings.trials {
@@ -942,6 +976,7 @@ fn trial_scenario(
         let mut shuffle = stream_rng(settings.seed, stream ^ (1 << 62), trial as u64);
         order.shuffle(&mut shuffle);
         let shuffled: Vec<Vector2<f64>> = order.iter().map(|&k| noisy[k]).collect();
+        // (`order` holds the kept blobs' object indices: the true labels.)
         match identify_in_set(objects, &shuffled, &options) {
             Ok(found) => {
                 if found.marker == index && found.best.labels != order {

@@ -337,6 +337,76 @@ impl WorkingVolume {
         }
     }
 
+    /// The viewpoint at the unit-cube point `u` (depth, placement ×2,
+    /// orientation ×3, noise; each clamped to 0…1), named `index`: the
+    /// sampled volume's own mapping (module docs), or for a grid each axis
+    /// spanned from its smallest to its largest value. A search between the
+    /// samples moves `u` continuously.
+    pub fn scenario_at(&self, index: usize, camera: &Camera, u: [f64; 7]) -> Scenario {
+        let u = u.map(|v| if v.is_nan() { 0.5 } else { v.clamp(0.0, 1.0) });
+        match self {
+            WorkingVolume::Sampled(volume) => volume.scenario(index, camera, u),
+            WorkingVolume::Grid(grid) => {
+                let span = |range: &Range, u: f64| {
+                    let low = range.values.iter().copied().fold(f64::INFINITY, f64::min);
+                    let high = range
+                        .values
+                        .iter()
+                        .copied()
+                        .fold(f64::NEG_INFINITY, f64::max);
+                    low + u * (high - low)
+                };
+                Scenario {
+                    index,
+                    depth_mm: span(&grid.depth_mm, u[0]),
+                    offset_x_mm: span(&grid.offset_x_mm, u[1]),
+                    offset_y_mm: span(&grid.offset_y_mm, u[2]),
+                    tilt_deg: span(&grid.tilt_deg, u[3]),
+                    pan_deg: span(&grid.pan_deg, u[4]),
+                    roll_deg: span(&grid.roll_deg, u[5]),
+                    sigma_px: span(&grid.sigma_px, u[6]),
+                }
+            }
+        }
+    }
+
+    /// Each viewpoint's point in the unit cube, in [`Self::scenarios`]'
+    /// order: [`Self::scenario_at`] of it is the viewpoint (a grid axis of
+    /// one value maps to 0).
+    pub fn unit_points(&self) -> Vec<[f64; 7]> {
+        match self {
+            WorkingVolume::Sampled(volume) => {
+                let seed = volume.sobol_seed();
+                (0..volume.samples)
+                    .map(|index| {
+                        std::array::from_fn(|dimension| {
+                            f64::from(sobol_burley::sample(index as u32, dimension as u32, seed))
+                        })
+                    })
+                    .collect()
+            }
+            WorkingVolume::Grid(grid) => {
+                let ranges = grid.named_ranges();
+                grid.scenarios()
+                    .iter()
+                    .map(|s| {
+                        std::array::from_fn(|axis| {
+                            let values = &ranges[axis].1.values;
+                            let low = values.iter().copied().fold(f64::INFINITY, f64::min);
+                            let high = values.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+                            let value = axis_value(s, ranges[axis].0);
+                            if high > low {
+                                (value - low) / (high - low)
+                            } else {
+                                0.0
+                            }
+                        })
+                    })
+                    .collect()
+            }
+        }
+    }
+
     /// A volume of the same extent that shares no viewpoint with this one:
     /// the grid's midpoints between neighbouring values, or the same
     /// sampled volume scrambled with another seed.
@@ -711,7 +781,7 @@ impl SampledVolume {
 
     /// The samples (module docs give the mapping).
     fn scenarios(&self, camera: &Camera) -> Vec<Scenario> {
-        let seed = (self.seed as u32) ^ ((self.seed >> 32) as u32);
+        let seed = self.sobol_seed();
         (0..self.samples)
             .map(|index| {
                 let u =
@@ -719,6 +789,11 @@ impl SampledVolume {
                 self.scenario(index, camera, [u(0), u(1), u(2), u(3), u(4), u(5), u(6)])
             })
             .collect()
+    }
+
+    /// The Sobol scrambling seed of `seed`.
+    fn sobol_seed(&self) -> u32 {
+        (self.seed as u32) ^ ((self.seed >> 32) as u32)
     }
 
     /// The scenario at the unit-cube point `u` (depth, placement ×2,
