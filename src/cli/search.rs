@@ -186,6 +186,10 @@ pub fn run(args: SearchArgs, global: &GlobalOptions) -> anyhow::Result<()> {
                 args.min_cross_identifiability.0,
                 args.set_tries,
             )
+            .map(|settings| SetSearchSettings {
+                between_samples: !args.samples_only,
+                ..settings
+            })
             .map_err(|e| {
                 let flag = match e.field {
                     "markers" => "--set",

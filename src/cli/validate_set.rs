@@ -25,7 +25,7 @@ pub fn run(
     let out_dir = out.unwrap_or_else(|| PathBuf::from("reports").join(&set.name));
     layout_opt::files::check_writable_dir(&out_dir)
         .with_context(|| format!("cannot write into {}; nothing was run", out_dir.display()))?;
-    let validation = validate_set(&set, camera, &volume.scenarios(camera), settings);
+    let validation = validate_set(&set, camera, volume, settings);
     let report_path = validation
         .write(&out_dir, &command_line())
         .with_context(|| format!("cannot write the set's report into {}", out_dir.display()))?;

@@ -10,10 +10,13 @@
 //! floors) and the cross matrix between it and every marker kept before
 //! meets the cross floor in both directions (over every
 //! [`SetSearchSettings::cross_thinning`]th scenario of the working
-//! volume). An admissible winner that fails only the cross floor is
-//! first repaired ([`repair`]: the confusions found are held fixed and
+//! volume, and at the dips between the scenarios where a pair comes near
+//! the floor, [`crate::set::dips`], unless
+//! [`SetSearchSettings::between_samples`] is off). An admissible winner
+//! that fails only the cross floor is first repaired ([`repair`]: the confusions found are held fixed and
 //! priced while Nelder–Mead moves the marker away from them, for a few
-//! rounds). A single-marker search lands in the same basin from most
+//! rounds; each round's layout has its own dips searched and checked).
+//! A single-marker search lands in the same basin from most
 //! seeds, so new tries alone rarely get clear of the earlier markers.
 //! Otherwise the next try runs from another seed; after
 //! [`SetSearchSettings::tries`] tries the set is refused with the reason.
@@ -38,6 +41,7 @@ use crate::layout::Layout;
 use crate::montecarlo::Target;
 use crate::report::number::share_percent;
 use crate::scenario::Scenario;
+use crate::set::dips::find_dips;
 use crate::set::{all_pairs, cross_pairs, CrossMatrix, MAX_MARKERS, MIN_MARKERS};
 use nalgebra::Vector3;
 use repair::{repair_cross, CrossRule};
@@ -112,6 +116,7 @@ impl SetSearchSettings {
             min_cross,
             tries,
             cross_thinning: DEFAULT_CROSS_THINNING,
+            between_samples: true,
         })
     }
 }
@@ -131,6 +136,9 @@ pub struct SetSearchSettings {
     pub tries: usize,
     /// Every this many scenarios join the tries' cross check.
     pub cross_thinning: usize,
+    /// Whether the dips between the volume's viewpoints join every cross
+    /// check ([`crate::set::dips`]; `search --samples-only` turns it off).
+    pub between_samples: bool,
 }
 
 /// One marker of a designed set.
@@ -170,6 +178,9 @@ pub struct SetSearchOutcome {
     pub matrix: CrossMatrix,
     /// Scenarios in the working volume.
     pub scenarios: usize,
+    /// Viewpoints between them (the dips near the floor) that the kept
+    /// markers' cross checks added.
+    pub dips: usize,
     /// Seconds of the whole design.
     pub seconds: f64,
 }
@@ -291,10 +302,21 @@ pub fn design_set(
             None => Ok((outcome, None)),
         }
     };
+    // The volume's samples with their unit-cube points: where the dips
+    // between them are searched from (`crate::set::dips`).
+    let samples: Vec<(Scenario, [f64; 7])> = scenarios
+        .iter()
+        .copied()
+        .zip(config.volume.unit_points())
+        .collect();
+    let between = |pairs: &[SeenOffered], first_index: usize| {
+        dips_between(config, &samples, &cross_settings, pairs, first_index)
+    };
     let mut markers: Vec<SetMarker> = Vec::with_capacity(set.markers);
     // The pairs of each kept marker with the markers before it, as its
     // try checked them.
     let mut checked_pairs = Vec::new();
+    let mut dips = 0;
     for k in 0..set.markers {
         let mut best_share: Option<f64> = None;
         let mut last = TryVerdict::Kept;
@@ -344,7 +366,20 @@ pub fn design_set(
                         &pairs,
                     )
                 };
-                let mut matrix = check(&family.points(&outcome.best.params), &thinned);
+                let points = family.points(&outcome.best.params);
+                let probe = |points: &[Vector3<f64>], first_index: usize| {
+                    if !set.between_samples {
+                        return Vec::new();
+                    }
+                    let pairs: Vec<SeenOffered> = rivals
+                        .iter()
+                        .flat_map(|r| [(points, &r[..]), (&r[..], points)])
+                        .collect();
+                    between(&pairs, first_index)
+                };
+                let mut checked = thinned.clone();
+                checked.extend(probe(&points, scenarios.len()));
+                let mut matrix = check(&points, &checked);
                 if !matrix.meets_floor() {
                     let rule = CrossRule {
                         camera: config.camera,
@@ -361,10 +396,11 @@ pub fn design_set(
                         &settings,
                         rule,
                         (outcome, matrix),
-                        (&check, &thinned),
+                        (&check, &probe, checked),
                         stop,
                     )?;
                     (outcome, matrix, rounds) = (repair.outcome, repair.matrix, repair.rounds);
+                    checked = repair.scenarios;
                     // The repair moved it: checked as printed again.
                     (outcome, books) = printed(outcome, &settings, RepairBudget::CHECK_ONLY)?;
                 }
@@ -379,6 +415,7 @@ pub fn design_set(
                     TryVerdict::NotAsPrinted
                 } else {
                     checked_pairs.extend(matrix.pairs);
+                    dips += checked.len() - thinned.len();
                     TryVerdict::Kept
                 };
             }
@@ -454,11 +491,20 @@ pub fn design_set(
         }
     } else {
         let pairs = all_pairs(objects.len());
+        let mut checked = scenarios.clone();
+        if set.between_samples {
+            let seen: Vec<SeenOffered> = pairs
+                .iter()
+                .map(|&(i, j)| (&objects[i][..], &objects[j][..]))
+                .collect();
+            checked.extend(between(&seen, scenarios.len()));
+            dips = checked.len() - scenarios.len();
+        }
         matrix_of(
             config,
             &objects,
             diameter,
-            &scenarios,
+            &checked,
             &cross_settings,
             &pairs,
         )
@@ -476,8 +522,47 @@ pub fn design_set(
         markers,
         matrix,
         scenarios: scenarios.len(),
+        dips,
         seconds: started.elapsed().as_secs_f64(),
     })
+}
+
+/// A pair of markers' points: the one seen, the one offered as the model.
+type SeenOffered<'a> = (&'a [Vector3<f64>], &'a [Vector3<f64>]);
+
+/// The viewpoints between the volume's `samples` where a pair (seen,
+/// offered) of `pairs` comes near the cross floor: the floors of the dips
+/// ([`crate::set::dips::find_dips`]) whose predicted confusion exceeds
+/// [`crate::set::NEAR_SHARE`] of the criterion, numbered from
+/// `first_index`.
+fn dips_between(
+    config: &SearchConfig,
+    samples: &[(Scenario, [f64; 7])],
+    settings: &IdentifiabilitySettings,
+    pairs: &[SeenOffered],
+    first_index: usize,
+) -> Vec<Scenario> {
+    let near = crate::set::NEAR_SHARE * settings.max_wrong();
+    let mut found: Vec<Scenario> = Vec::new();
+    for &(seen, offered) in pairs {
+        let sigmas = vec![None; seen.len()];
+        let target = Target {
+            camera: &config.camera,
+            object: seen,
+            sphere_diameter_mm: config.constraints.sphere_diameter_mm,
+            point_sigma_px: &sigmas,
+        };
+        let dips = find_dips(&target, offered, &config.volume, samples, settings, 0);
+        found.extend(
+            dips.into_iter()
+                .filter(|d| d.confusion_probability > near)
+                .map(|d| d.scenario),
+        );
+    }
+    for (k, scenario) in found.iter_mut().enumerate() {
+        scenario.index = first_index + k;
+    }
+    found
 }
 
 /// The cross matrix of `objects` (one sphere diameter, no per-point σ).
@@ -513,10 +598,18 @@ pub fn set_report(outcome: &SetSearchOutcome, command: &str) -> String {
     let sig = |v: f64, digits: usize| crate::report::number::significant(Some(v), digits);
     let n = outcome.markers.len();
     let mut text = format!(
-        "# Marker set: {} markers\n\n`{command}`\n\nDesigned in {:.1} s over {} scenarios. Objective ({}): {}. Cross floor: a viewpoint counts when the predicted confusion probability is at most {}; every pair meets the floor: {}.\n\n",
+        "# Marker set: {} markers\n\n`{command}`\n\nDesigned in {:.1} s over {} scenarios{}. Objective ({}): {}. Cross floor: a viewpoint counts when the predicted confusion probability is at most {}; every pair meets the floor: {}.\n\n",
         n,
         outcome.seconds,
         outcome.scenarios,
+        if outcome.settings.between_samples {
+            format!(
+                " and {} viewpoints between them where a pair came near the floor (the dips' floors, docs/formats.md \"Between the viewpoints\"; the matrices count them)",
+                outcome.dips
+            )
+        } else {
+            " (their viewpoints only: --samples-only)".to_string()
+        },
         match outcome.settings.objective {
             SetObjective::Worst => "the worst marker's accuracy",
             SetObjective::Mean => "the mean accuracy",

@@ -572,8 +572,10 @@ fn search_set_writes_the_markers_the_set_file_and_the_cross_matrix() {
         "{text}"
     );
     assert!(text.contains("Smallest cross margin, px"), "{text}");
+    assert!(text.contains("viewpoints between them"), "{text}");
     let summary: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(report.join("set.json")).unwrap()).unwrap();
+    assert!(summary["dips"].as_u64().is_some(), "{summary}");
     let pairs = summary["matrix"]["pairs"].as_array().unwrap();
     assert_eq!(pairs.len(), 2);
     for pair in pairs {
@@ -619,8 +621,21 @@ fn validate_set_reports_each_marker_and_refuses_two_copies() {
     assert!(report.contains("| 1 (pair-1) | pair-1.json |"), "{report}");
     assert!(report.contains("| 2 (pair-2) | pair-2.json |"), "{report}");
     assert!(report.contains("Smallest cross margin, px"), "{report}");
+    assert!(report.contains("## Between the viewpoints"), "{report}");
     let summary: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("set.json")).unwrap()).unwrap();
+    // Both ordered pairs searched between the grid's viewpoints; trials
+    // run at every failing dip only.
+    let between = summary["between"].as_array().unwrap();
+    assert_eq!(between.len(), 2);
+    for pair in between {
+        let (near, failing) = (
+            pair["near"].as_u64().unwrap(),
+            pair["failing"].as_u64().unwrap(),
+        );
+        assert!(failing <= near, "{pair}");
+        assert_eq!(pair["trials"].as_u64().unwrap(), 2 * failing, "{pair}");
+    }
     let trials = summary["trials"].as_array().unwrap();
     assert_eq!(trials.len(), 2);
     for counts in trials {

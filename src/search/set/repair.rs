@@ -36,7 +36,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
 /// Rounds of the cross repair at most.
-pub const CROSS_ROUNDS: usize = 4;
+pub const CROSS_ROUNDS: usize = 6;
 /// Nelder–Mead iterations of one round of the cross repair.
 pub const CROSS_ROUND_ITERATIONS: u64 = 400;
 /// Cost per decade by which a held confusion's predicted probability
@@ -252,10 +252,16 @@ pub struct CrossRepair {
     pub rounds: usize,
     /// Confusions held in the end.
     pub held: usize,
+    /// The viewpoints checked in the end: those given, and the dips
+    /// between them found for the rounds' layouts.
+    pub scenarios: Vec<Scenario>,
 }
 
 /// A cross check of candidate points over some scenarios.
 pub type CrossCheck<'a> = &'a dyn Fn(&[Vector3<f64>], &[Scenario]) -> CrossMatrix;
+/// The viewpoints between the samples where candidate points come near the
+/// cross floor against the earlier markers, numbered from the index given.
+pub type CrossProbe<'a> = &'a dyn Fn(&[Vector3<f64>], usize) -> Vec<Scenario>;
 
 /// Repairs `outcome`'s winner against the earlier markers that `rule`
 /// holds (module docs). `matrix` is its cross matrix over `scenarios`,
@@ -266,7 +272,10 @@ pub type CrossCheck<'a> = &'a dyn Fn(&[Vector3<f64>], &[Scenario]) -> CrossMatri
 /// and only when those pass on every scenario; whatever either check
 /// finds failing or near is held from then on. The first layout that
 /// meets every single-marker floor over the whole grid and the cross
-/// floor on every scenario is the repair's result.
+/// floor on every scenario is the repair's result. Before that full
+/// check, `probe` adds the round's layout's own dips between the
+/// viewpoints (none when the set checks its viewpoints only), which stay
+/// checked in later rounds.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn repair_cross(
     family: &Family,
@@ -275,7 +284,7 @@ pub(crate) fn repair_cross(
     settings: &SearchSettings,
     mut rule: CrossRule,
     (outcome, matrix): (OptimiseOutcome, CrossMatrix),
-    (check, scenarios): (CrossCheck, &[Scenario]),
+    (check, probe, mut scenarios): (CrossCheck, CrossProbe, Vec<Scenario>),
     stop: &AtomicBool,
 ) -> Result<CrossRepair, SearchError> {
     let point_sigma = family.layout("", &family.initial()).point_sigmas();
@@ -290,13 +299,14 @@ pub(crate) fn repair_cross(
     // winner's margins against itself are rarely what a move away from
     // the other markers loses.
     let mut guard_identity = false;
-    rule.hold(&family.points(&outcome.best.params), &matrix, scenarios);
+    rule.hold(&family.points(&outcome.best.params), &matrix, &scenarios);
     let mut from = outcome.best.params.clone();
     let mut repair = CrossRepair {
         outcome,
         matrix,
         rounds: 0,
         held: 0,
+        scenarios: Vec::new(),
     };
     while repair.rounds < CROSS_ROUNDS && !stop.load(Ordering::Relaxed) {
         repair.rounds += 1;
@@ -330,8 +340,11 @@ pub(crate) fn repair_cross(
         if !quick.meets_floor() {
             continue;
         }
-        let matrix = check(&points, scenarios);
-        rule.hold(&points, &matrix, scenarios);
+        // The moved marker's own dips join the viewpoints checked.
+        let next = scenarios.iter().map(|s| s.index + 1).max().unwrap_or(0);
+        scenarios.extend(probe(&points, next));
+        let matrix = check(&points, &scenarios);
+        rule.hold(&points, &matrix, &scenarios);
         if matrix.meets_floor() {
             repair.outcome.best = Candidate {
                 params: repaired.best.params,
@@ -343,6 +356,7 @@ pub(crate) fn repair_cross(
         }
     }
     repair.held = rule.confusions.len();
+    repair.scenarios = scenarios;
     Ok(repair)
 }
 
@@ -552,7 +566,11 @@ mod repair_tests {
             &search,
             rule,
             (outcome, matrix),
-            (&check, &scenarios),
+            (
+                &check,
+                &|_: &[Vector3<f64>], _| Vec::new(),
+                scenarios.clone(),
+            ),
             &AtomicBool::new(false),
         )
         .unwrap();

@@ -6,7 +6,14 @@ use crate::camera::Camera;
 use crate::identifiability::{self, IdentifiabilitySettings};
 use crate::montecarlo::Target;
 use crate::scenario::Scenario;
-use crate::set::{cross_matrix, set_trials, CrossMatrix, MarkerSet, SetTrialCounts};
+use crate::set::dips::find_dips;
+use crate::set::{
+    all_pairs, cross_matrix, missing_blob_trials, set_trials, CrossMatrix, MarkerSet,
+    SetTrialCounts, NEAR_SHARE,
+};
+use crate::volume::WorkingVolume;
+use rayon::prelude::*;
+use serde::Serialize;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::AtomicBool;
 use std::time::Instant;
@@ -29,6 +36,9 @@ pub struct SetValidation {
     pub counts: Vec<SetTrialCounts>,
     /// `named[i][j]`: trials of marker i that named marker j.
     pub named: Vec<Vec<usize>>,
+    /// Per ordered pair, the dips between the volume's viewpoints
+    /// ([`crate::set::dips`]) and the trials at those that fail the floor.
+    pub between: Vec<PairDips>,
     /// Scenarios of the working volume.
     pub scenarios: usize,
     /// The settings the trials ran with.
@@ -37,13 +47,54 @@ pub struct SetValidation {
     pub seconds: f64,
 }
 
-/// Validates `set` seen by `camera` over `scenarios` (module docs).
+/// One ordered pair's dips between the viewpoints.
+#[derive(Debug, Clone, Serialize)]
+pub struct PairDips {
+    /// The marker whose blobs are seen.
+    pub marker: usize,
+    /// The marker offered as the model.
+    pub rival: usize,
+    /// Dips whose predicted confusion exceeds [`NEAR_SHARE`] of the
+    /// criterion.
+    pub near: usize,
+    /// Dips that fail the floor.
+    pub failing: usize,
+    /// The worst dip: its viewpoint, blob left out, margin (px) and
+    /// predicted confusion probability.
+    pub worst: Option<DipFigures>,
+    /// Trials at the failing dips, each frame without the dip's blob.
+    pub trials: usize,
+    /// Those trials that named another marker.
+    pub wrong_marker: usize,
+    /// The failing dips' predicted confusion probabilities, summed over
+    /// their trials (the expected count of `wrong_marker`).
+    pub expected_wrong: f64,
+}
+
+/// A dip's figures.
+#[derive(Debug, Clone, Serialize)]
+pub struct DipFigures {
+    /// Its viewpoint.
+    pub scenario: Scenario,
+    /// The blob left out (None: every blob seen).
+    pub missing: Option<usize>,
+    /// The rival's labels of the blobs kept.
+    pub labels: Vec<usize>,
+    /// Margin, px.
+    pub margin_px: f64,
+    /// Predicted confusion probability.
+    pub confusion_probability: f64,
+}
+
+/// Validates `set` seen by `camera` over `volume`'s viewpoints and
+/// between them (module docs).
 pub fn validate_set(
     set: &MarkerSet,
     camera: &Camera,
-    scenarios: &[Scenario],
+    volume: &WorkingVolume,
     settings: &IdentifiabilitySettings,
 ) -> SetValidation {
+    let scenarios = &volume.scenarios(camera)[..];
     let objects = set.objects();
     let sigmas: Vec<Vec<Option<f64>>> = set
         .members
@@ -90,6 +141,15 @@ pub fn validate_set(
         .collect();
     let matrix = cross_matrix(&targets, &set.names(), scenarios, settings);
     let (counts, named) = set_trials(&targets, scenarios, settings);
+    let samples: Vec<(Scenario, [f64; 7])> = scenarios
+        .iter()
+        .copied()
+        .zip(volume.unit_points())
+        .collect();
+    let between = all_pairs(targets.len())
+        .into_iter()
+        .map(|(i, j)| pair_dips(&targets, (i, j), volume, &samples, settings))
+        .collect();
     SetValidation {
         set: set.name.clone(),
         markers: set.names(),
@@ -98,11 +158,69 @@ pub fn validate_set(
         matrix,
         counts,
         named,
+        between,
         scenarios: scenarios.len(),
         settings: *settings,
         seconds: started.elapsed().as_secs_f64(),
     }
 }
+
+/// The dips of marker `i`'s blobs explained by marker `j` over `volume`,
+/// and `settings.trials` trials at each failing dip, the dip's blob left
+/// out of every frame, identified against the whole set.
+fn pair_dips(
+    targets: &[Target],
+    (i, j): (usize, usize),
+    volume: &WorkingVolume,
+    samples: &[(Scenario, [f64; 7])],
+    settings: &IdentifiabilitySettings,
+) -> PairDips {
+    let first = samples.len() + (i * targets.len() + j) * DIP_INDEX_STRIDE;
+    let dips = find_dips(
+        &targets[i],
+        targets[j].object,
+        volume,
+        samples,
+        settings,
+        first,
+    );
+    let max_wrong = settings.max_wrong();
+    let failing: Vec<_> = dips
+        .iter()
+        .filter(|d| d.confusion_probability > max_wrong)
+        .collect();
+    let runs: Vec<(usize, usize, f64)> = failing
+        .par_iter()
+        .filter_map(|d| {
+            let missing = d.missing?;
+            let (trials, wrong) = missing_blob_trials(targets, i, &d.scenario, missing, settings)?;
+            Some((trials, wrong, trials as f64 * d.confusion_probability))
+        })
+        .collect();
+    PairDips {
+        marker: i,
+        rival: j,
+        near: dips
+            .iter()
+            .filter(|d| d.confusion_probability > NEAR_SHARE * max_wrong)
+            .count(),
+        failing: failing.len(),
+        worst: dips.first().map(|d| DipFigures {
+            scenario: d.scenario,
+            missing: d.missing,
+            labels: d.labels.clone(),
+            margin_px: d.margin_px,
+            confusion_probability: d.confusion_probability,
+        }),
+        trials: runs.iter().map(|r| r.0).sum(),
+        wrong_marker: runs.iter().map(|r| r.1).sum(),
+        expected_wrong: runs.iter().map(|r| r.2).sum(),
+    }
+}
+
+/// Index stride between the pairs' dips (so that every dip's trials draw
+/// their own streams).
+const DIP_INDEX_STRIDE: usize = 1 << 16;
 
 impl SetValidation {
     /// The report, headed by `command`.
@@ -136,7 +254,56 @@ impl SetValidation {
             ));
         }
         report.push_str(&super::matrix_markdown(&self.matrix));
+        report.push_str(&self.between_markdown());
         report
+    }
+
+    /// The table of the dips between the viewpoints.
+    fn between_markdown(&self) -> String {
+        let sig = |v: f64, digits: usize| crate::report::number::significant(Some(v), digits);
+        let mut text = format!(
+            "\n## Between the viewpoints\n\nThe floors of the dips of every labelling that an affine camera nearly confuses (docs/formats.md, \"Between the viewpoints\"), searched over the volume from its viewpoints. Failing: predicted confusion above {}; near: above {}. At each failing dip, {} seeded trials with the dip's blob left out of every frame, identified against the whole set with one missing blob allowed.\n\n| seen | offered | near | failing | worst: confusion | margin, px | blob left out | depth, mm | tilt, pan, roll ° | X, Y mm | trials at failing dips | named the offered marker or another | expected |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+            sig(self.settings.max_wrong(), 2),
+            sig(NEAR_SHARE * self.settings.max_wrong(), 2),
+            self.settings.trials,
+        );
+        for p in &self.between {
+            let worst =
+                p.worst
+                    .as_ref()
+                    .map_or("— | — | — | — | — | —".to_string(), |w| {
+                        let s = &w.scenario;
+                        format!(
+                            "{} | {} | {} | {:.0} | {:.1}, {:.1}, {:.1} | {:.1}, {:.1}",
+                            sig(w.confusion_probability, 2),
+                            sig(w.margin_px, 3),
+                            w.missing
+                                .map_or("none".to_string(), |k| format!("P{}", k + 1)),
+                            s.depth_mm,
+                            s.tilt_deg,
+                            s.pan_deg,
+                            s.roll_deg,
+                            s.offset_x_mm,
+                            s.offset_y_mm
+                        )
+                    });
+            text.push_str(&format!(
+                "| {} | {} | {} | {} | {worst} | {} | {} | {} |\n",
+                p.marker + 1,
+                p.rival + 1,
+                p.near,
+                p.failing,
+                p.trials,
+                p.wrong_marker,
+                sig(p.expected_wrong, 3)
+            ));
+        }
+        text
+    }
+
+    /// Dips between the viewpoints that fail the floor, over every pair.
+    pub fn failing_between(&self) -> usize {
+        self.between.iter().map(|p| p.failing).sum()
     }
 
     /// The figures as JSON (`set.json`).
@@ -152,6 +319,7 @@ impl SetValidation {
             "matrix": self.matrix,
             "trials": self.counts,
             "named": self.named,
+            "between": self.between,
             "seconds": self.seconds,
         })
     }
@@ -167,7 +335,7 @@ impl SetValidation {
         let confused: usize = self.counts.iter().map(|c| c.wrong_marker).sum();
         let trials: usize = self.counts.iter().map(|c| c.trials).sum();
         format!(
-            "set {}: {} markers over {} scenarios; smallest cross margin {}; cross floor met: {}; {confused} of {trials} trials named another marker",
+            "set {}: {} markers over {} scenarios; smallest cross margin {}; cross floor met: {}; {confused} of {trials} trials named another marker; between the viewpoints {} dips fail the floor",
             self.set,
             self.markers.len(),
             self.scenarios,
@@ -175,6 +343,7 @@ impl SetValidation {
                 .smallest_margin_px()
                 .map_or("above the gate everywhere".to_string(), |m| format!("{m:.2} px")),
             if self.matrix.meets_floor() { "yes" } else { "no" },
+            self.failing_between(),
         )
     }
 }
