@@ -126,6 +126,18 @@ impl Interval {
         Self::new(first, last)
     }
 
+    /// From the smallest to the largest value of a range (the box a grid
+    /// axis spans, whatever its order).
+    pub fn spanned(range: &Range) -> Self {
+        let low = range.values.iter().copied().fold(f64::INFINITY, f64::min);
+        let high = range
+            .values
+            .iter()
+            .copied()
+            .fold(f64::NEG_INFINITY, f64::max);
+        Self::new(low, high)
+    }
+
     /// The point a fraction `u` ∈ [0, 1] along it.
     pub fn at(&self, u: f64) -> f64 {
         self.min + u * (self.max - self.min)
@@ -347,15 +359,7 @@ impl WorkingVolume {
         match self {
             WorkingVolume::Sampled(volume) => volume.scenario(index, camera, u),
             WorkingVolume::Grid(grid) => {
-                let span = |range: &Range, u: f64| {
-                    let low = range.values.iter().copied().fold(f64::INFINITY, f64::min);
-                    let high = range
-                        .values
-                        .iter()
-                        .copied()
-                        .fold(f64::NEG_INFINITY, f64::max);
-                    low + u * (high - low)
-                };
+                let span = |range: &Range, u: f64| Interval::spanned(range).at(u);
                 Scenario {
                     index,
                     depth_mm: span(&grid.depth_mm, u[0]),
@@ -391,12 +395,10 @@ impl WorkingVolume {
                     .iter()
                     .map(|s| {
                         std::array::from_fn(|axis| {
-                            let values = &ranges[axis].1.values;
-                            let low = values.iter().copied().fold(f64::INFINITY, f64::min);
-                            let high = values.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+                            let span = Interval::spanned(ranges[axis].1);
                             let value = axis_value(s, ranges[axis].0);
-                            if high > low {
-                                (value - low) / (high - low)
+                            if span.max > span.min {
+                                (value - span.min) / (span.max - span.min)
                             } else {
                                 0.0
                             }

@@ -169,15 +169,7 @@ impl VolumeArgs {
 
 /// The box a grid spans, as a sampled volume of the default size.
 fn sampled_extent(grid: &ScenarioGrid) -> SampledVolume {
-    let span = |range: &Range| {
-        let low = range.values.iter().copied().fold(f64::INFINITY, f64::min);
-        let high = range
-            .values
-            .iter()
-            .copied()
-            .fold(f64::NEG_INFINITY, f64::max);
-        Interval::new(low, high)
-    };
+    let span = Interval::spanned;
     SampledVolume {
         depth_mm: span(&grid.depth_mm),
         placement: Placement::Offsets {

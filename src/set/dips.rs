@@ -55,11 +55,13 @@ use argmin::core::{CostFunction, Error, Executor};
 use argmin::solver::neldermead::NelderMead;
 use nalgebra::{Matrix3, Matrix3x4, Matrix4, SymmetricEigen, Vector2, Vector3, Vector4};
 use rayon::prelude::*;
+use serde::Serialize;
 use std::cell::Cell;
 
-/// Most blobs of a labelling left free (not matched in 3D).
 /// The affine screen's allowance for perspective: a labelling is followed
-/// when its affine floor is within this many times the near margin.
+/// when its affine floor is within this many times the near margin (on a
+/// measured set perspective brought margins down to 0.84 times the affine
+/// floor, 1 / 0.84 = 1.19).
 pub const PERSPECTIVE_SLACK: f64 = 1.25;
 /// Nelder–Mead starts per labelling: its best samples.
 pub const STARTS: usize = 2;
@@ -85,7 +87,7 @@ pub struct AffineLabelling {
 }
 
 /// The floor of one labelling's dip.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Dip {
     /// The viewpoint (named by the caller's index).
     pub scenario: Scenario,
@@ -239,7 +241,7 @@ impl Assignment<'_> {
 
 /// The affine floor below which [`find_dips`] follows a labelling, px:
 /// the margin whose confusion probability is [`super::NEAR_SHARE`] of the
-/// criterion at noise `sigma_px`, plus [`PERSPECTIVE_SLACK`].
+/// criterion at noise `sigma_px`, times [`PERSPECTIVE_SLACK`].
 pub fn screen_px(settings: &IdentifiabilitySettings, sigma_px: f64) -> f64 {
     let near = super::NEAR_SHARE * settings.max_wrong();
     PERSPECTIVE_SLACK * 2.0 * sigma_px * normal_upper_quantile(near)
@@ -264,7 +266,7 @@ pub fn find_dips(
 ) -> Vec<Dip> {
     // The samples where the marker is seen, with the line of sight in its
     // frame.
-    let views: Vec<(&[f64; 7], &Scenario, f64, Vector3<f64>)> = samples
+    let views: Vec<View> = samples
         .iter()
         .filter_map(|(s, u)| {
             let (_, sigmas) = seen_view(target, s, settings)?;

@@ -6,7 +6,7 @@ use crate::camera::Camera;
 use crate::identifiability::{self, IdentifiabilitySettings};
 use crate::montecarlo::Target;
 use crate::scenario::Scenario;
-use crate::set::dips::find_dips;
+use crate::set::dips::{find_dips, Dip};
 use crate::set::{
     all_pairs, cross_matrix, missing_blob_trials, set_trials, CrossMatrix, MarkerSet,
     SetTrialCounts, NEAR_SHARE,
@@ -59,9 +59,8 @@ pub struct PairDips {
     pub near: usize,
     /// Dips that fail the floor.
     pub failing: usize,
-    /// The worst dip: its viewpoint, blob left out, margin (px) and
-    /// predicted confusion probability.
-    pub worst: Option<DipFigures>,
+    /// The worst dip.
+    pub worst: Option<Dip>,
     /// Trials at the failing dips, each frame without the dip's blob.
     pub trials: usize,
     /// Those trials that named another marker.
@@ -69,21 +68,6 @@ pub struct PairDips {
     /// The failing dips' predicted confusion probabilities, summed over
     /// their trials (the expected count of `wrong_marker`).
     pub expected_wrong: f64,
-}
-
-/// A dip's figures.
-#[derive(Debug, Clone, Serialize)]
-pub struct DipFigures {
-    /// Its viewpoint.
-    pub scenario: Scenario,
-    /// The blob left out (None: every blob seen).
-    pub missing: Option<usize>,
-    /// The rival's labels of the blobs kept.
-    pub labels: Vec<usize>,
-    /// Margin, px.
-    pub margin_px: f64,
-    /// Predicted confusion probability.
-    pub confusion_probability: f64,
 }
 
 /// Validates `set` seen by `camera` over `volume`'s viewpoints and
@@ -205,13 +189,7 @@ fn pair_dips(
             .filter(|d| d.confusion_probability > NEAR_SHARE * max_wrong)
             .count(),
         failing: failing.len(),
-        worst: dips.first().map(|d| DipFigures {
-            scenario: d.scenario,
-            missing: d.missing,
-            labels: d.labels.clone(),
-            margin_px: d.margin_px,
-            confusion_probability: d.confusion_probability,
-        }),
+        worst: dips.first().cloned(),
         trials: runs.iter().map(|r| r.0).sum(),
         wrong_marker: runs.iter().map(|r| r.1).sum(),
         expected_wrong: runs.iter().map(|r| r.2).sum(),
