@@ -896,15 +896,16 @@ pub fn set_trials(
 type ScenarioTrials = (usize, Vec<Option<usize>>, usize);
 
 /// Seeded trials of marker `index` of a set in `scenario` with blob
-/// `missing` left out of every frame, each identified against the whole
-/// set with one missing blob allowed: how often a confusion predicted at a
-/// dip ([`dips`]) happens. Returns the trials run and those that named
-/// another marker; None when the marker is not visible there.
+/// `missing` left out of every frame (None: every blob seen), each
+/// identified against the whole set with that blob allowed missing: how
+/// often a confusion predicted at a dip ([`dips`]) happens. Returns the
+/// trials run and those that named another marker; None when the marker
+/// is not visible there.
 pub fn missing_blob_trials(
     targets: &[Target],
     index: usize,
     scenario: &Scenario,
-    missing: usize,
+    missing: Option<usize>,
     settings: &IdentifiabilitySettings,
 ) -> Option<(usize, usize)> {
     let objects: Vec<Vec<Vector3<f64>>> = targets.iter().map(|t| t.object.to_vec()).collect();
@@ -912,7 +913,7 @@ pub fn missing_blob_trials(
         &targets[index],
         index,
         &objects,
-        (scenario, Some(missing)),
+        (scenario, missing),
         settings,
     )?;
     let wrong = named

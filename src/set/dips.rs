@@ -640,7 +640,7 @@ mod tests {
             trials: 40,
             ..settings
         };
-        let missing = worst.missing.unwrap_or(0);
+        let missing = worst.missing;
         let (run, wrong) =
             crate::set::missing_blob_trials(&targets, 0, &worst.scenario, missing, &trials)
                 .unwrap();

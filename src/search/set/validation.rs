@@ -176,8 +176,8 @@ fn pair_dips(
     let runs: Vec<(usize, usize, f64)> = failing
         .par_iter()
         .filter_map(|d| {
-            let missing = d.missing?;
-            let (trials, wrong) = missing_blob_trials(targets, i, &d.scenario, missing, settings)?;
+            let (trials, wrong) =
+                missing_blob_trials(targets, i, &d.scenario, d.missing, settings)?;
             Some((trials, wrong, trials as f64 * d.confusion_probability))
         })
         .collect();
