@@ -209,3 +209,22 @@ impl StructureArgs {
         }
     }
 }
+
+/// A share given as `0.999`, `99.9%` or `none`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct IdentifiabilityShare(pub Option<f64>);
+
+impl std::str::FromStr for IdentifiabilityShare {
+    type Err = String;
+    fn from_str(text: &str) -> Result<Self, Self::Err> {
+        let text = text.trim();
+        if text == "none" {
+            return Ok(Self(None));
+        }
+        layout_opt::config::parse_share(text)
+            .map(|share| Self(Some(share)))
+            .ok_or_else(|| {
+                format!("'{text}' is not a share between 0 and 1 (0.999, 99.9% or none)")
+            })
+    }
+}

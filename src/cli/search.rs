@@ -20,7 +20,6 @@ use layout_opt::search::config::{
     checkpoint_dir_beside, default_grid, default_polish_iterations, default_volume,
     report_dir_beside,
 };
-use layout_opt::search::set::SetSearchSettings;
 use layout_opt::search::{
     estimate, workflow, FrontOutput, FrontSettings, IdentifiabilityFloor, MeshExport,
     ObjectiveSettings, SearchConfig, SearchSettings,
@@ -177,29 +176,7 @@ fn flag_error(error: ConfigError) -> anyhow::Error {
 }
 
 pub fn run(args: SearchArgs, global: &GlobalOptions) -> anyhow::Result<()> {
-    let set = args
-        .set
-        .map(|markers| {
-            SetSearchSettings::new(
-                markers,
-                args.set_objective,
-                args.min_cross_identifiability.0,
-                args.set_tries,
-            )
-            .map(|settings| SetSearchSettings {
-                between_samples: !args.samples_only,
-                ..settings
-            })
-            .map_err(|e| {
-                let flag = match e.field {
-                    "markers" => "--set",
-                    "min_cross" => "--min-cross-identifiability",
-                    _ => "--set-tries",
-                };
-                anyhow::anyhow!("{flag} {}", e.reason)
-            })
-        })
-        .transpose()?;
+    let set = args.set.settings()?;
     let config = config(args, global)?;
     config.check().map_err(flag_error)?;
     if let Some(set) = set {

@@ -1,6 +1,6 @@
 //! The flags of `layout-opt search`, with their help text.
 
-use super::super::common::{CameraArgs, GridArgs};
+use super::super::common::{CameraArgs, GridArgs, IdentifiabilityShare};
 use super::super::volume::VolumeArgs;
 use clap::{Args, ValueEnum};
 use layout_opt::family::Envelope;
@@ -200,58 +200,7 @@ pub struct SearchArgs {
     /// Availability levels of the front's sweep above the unconstrained one.
     #[arg(long, default_value_t = 8, value_name = "N", requires = "front")]
     pub(super) front_levels: usize,
-    /// Design a set of N markers (2–8) that one camera tells apart, over
-    /// this working range and envelope: <name>-1.json … <name>-N.json and
-    /// <name>.set.json beside the layout, set-report.md and set.json in the
-    /// report directory. Markers are searched in turn, each kept when no
-    /// earlier marker is confusable with it (docs/commands.md).
-    #[arg(long, value_name = "N")]
-    pub(super) set: Option<usize>,
-    /// With --set: score the set by its worst marker's accuracy or the mean.
-    #[arg(
-        long,
-        default_value = "worst",
-        value_name = "worst|mean",
-        requires = "set"
-    )]
-    pub(super) set_objective: layout_opt::search::set::SetObjective,
-    /// With --set: least predicted probability, per viewpoint, that another
-    /// marker is not taken for the one seen; every pair must meet it in a
-    /// 99.9% share of the viewpoints where the marker is visible.
-    #[arg(
-        long,
-        default_value = "99.9%",
-        value_name = "PROBABILITY",
-        requires = "set"
-    )]
-    pub(super) min_cross_identifiability: IdentifiabilityShare,
-    /// With --set: searches per marker before the set is refused.
-    #[arg(long, default_value_t = layout_opt::search::set::DEFAULT_SET_TRIES, value_name = "N", requires = "set")]
-    pub(super) set_tries: usize,
-    /// With --set: check the cross floor on the volume's viewpoints only,
-    /// not also at the dips between them (docs/formats.md, "Between the
-    /// viewpoints"): faster (4 markers: 191.5 s against 497.9 s on 2
-    /// cores), but a confusion a degree or two wide between the viewpoints
-    /// passes unseen.
-    #[arg(long, requires = "set")]
-    pub(super) samples_only: bool,
-}
-
-/// A share given as `0.999`, `99.9%` or `none`.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub(super) struct IdentifiabilityShare(pub(super) Option<f64>);
-
-impl std::str::FromStr for IdentifiabilityShare {
-    type Err = String;
-    fn from_str(text: &str) -> Result<Self, Self::Err> {
-        let text = text.trim();
-        if text == "none" {
-            return Ok(Self(None));
-        }
-        layout_opt::config::parse_share(text)
-            .map(|share| Self(Some(share)))
-            .ok_or_else(|| {
-                format!("'{text}' is not a share between 0 and 1 (0.999, 99.9% or none)")
-            })
-    }
+    /// `--set N` and its companions.
+    #[command(flatten)]
+    pub(super) set: super::set::SetArgs,
 }

@@ -1,13 +1,84 @@
 //! `search --set N`: the set designed ([`layout_opt::search::set`]), its
 //! layouts, set file and report written.
 
+use super::super::common::IdentifiabilityShare;
 use super::super::{progress, GlobalOptions};
 use anyhow::Context;
+use clap::Args;
 use layout_opt::layout::Layout;
 use layout_opt::search::set::{design_set, set_report, SetSearchSettings};
 use layout_opt::search::SearchConfig;
 use layout_opt::set::write_set;
 use std::path::Path;
+
+/// The flags of `search --set N`.
+#[derive(Debug, Args)]
+pub(crate) struct SetArgs {
+    /// Design a set of N markers (2–8) that one camera tells apart, over
+    /// this working range and envelope: <name>-1.json … <name>-N.json and
+    /// <name>.set.json beside the layout, set-report.md and set.json in the
+    /// report directory. Markers are searched in turn, each kept when no
+    /// earlier marker is confusable with it (docs/commands.md).
+    #[arg(long, value_name = "N")]
+    pub(super) set: Option<usize>,
+    /// With --set: score the set by its worst marker's accuracy or the mean.
+    #[arg(
+        long,
+        default_value = "worst",
+        value_name = "worst|mean",
+        requires = "set"
+    )]
+    pub(super) set_objective: layout_opt::search::set::SetObjective,
+    /// With --set: least predicted probability, per viewpoint, that another
+    /// marker is not taken for the one seen; every pair must meet it in a
+    /// 99.9% share of the viewpoints where the marker is visible.
+    #[arg(
+        long,
+        default_value = "99.9%",
+        value_name = "PROBABILITY",
+        requires = "set"
+    )]
+    pub(super) min_cross_identifiability: IdentifiabilityShare,
+    /// With --set: searches per marker before the set is refused.
+    #[arg(long, default_value_t = layout_opt::search::set::DEFAULT_SET_TRIES, value_name = "N", requires = "set")]
+    pub(super) set_tries: usize,
+    /// With --set: check the cross floor on the volume's viewpoints only,
+    /// not also at the dips between them (docs/formats.md, "Between the
+    /// viewpoints"): faster (4 markers: 191.5 s against 497.9 s on 2
+    /// cores), but a confusion a degree or two wide between the viewpoints
+    /// passes unseen.
+    #[arg(long, requires = "set")]
+    pub(super) samples_only: bool,
+}
+
+impl SetArgs {
+    /// The set's settings (None without `--set`), each bad value refused
+    /// with its flag named.
+    pub(super) fn settings(&self) -> anyhow::Result<Option<SetSearchSettings>> {
+        self.set
+            .map(|markers| {
+                SetSearchSettings::new(
+                    markers,
+                    self.set_objective,
+                    self.min_cross_identifiability.0,
+                    self.set_tries,
+                )
+                .map(|settings| SetSearchSettings {
+                    between_samples: !self.samples_only,
+                    ..settings
+                })
+                .map_err(|e| {
+                    let flag = match e.field {
+                        "markers" => "--set",
+                        "min_cross" => "--min-cross-identifiability",
+                        _ => "--set-tries",
+                    };
+                    anyhow::anyhow!("{flag} {}", e.reason)
+                })
+            })
+            .transpose()
+    }
+}
 
 /// `search --set N`: the set designed, its files and report written.
 pub(super) fn run(
