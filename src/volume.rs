@@ -379,16 +379,7 @@ impl WorkingVolume {
     /// one value maps to 0).
     pub fn unit_points(&self) -> Vec<[f64; 7]> {
         match self {
-            WorkingVolume::Sampled(volume) => {
-                let seed = volume.sobol_seed();
-                (0..volume.samples)
-                    .map(|index| {
-                        std::array::from_fn(|dimension| {
-                            f64::from(sobol_burley::sample(index as u32, dimension as u32, seed))
-                        })
-                    })
-                    .collect()
-            }
+            WorkingVolume::Sampled(volume) => volume.unit_points(),
             WorkingVolume::Grid(grid) => {
                 let ranges = grid.named_ranges();
                 grid.scenarios()
@@ -783,19 +774,23 @@ impl SampledVolume {
 
     /// The samples (module docs give the mapping).
     fn scenarios(&self, camera: &Camera) -> Vec<Scenario> {
-        let seed = self.sobol_seed();
-        (0..self.samples)
-            .map(|index| {
-                let u =
-                    |dimension: u32| f64::from(sobol_burley::sample(index as u32, dimension, seed));
-                self.scenario(index, camera, [u(0), u(1), u(2), u(3), u(4), u(5), u(6)])
-            })
+        self.unit_points()
+            .into_iter()
+            .enumerate()
+            .map(|(index, u)| self.scenario(index, camera, u))
             .collect()
     }
 
-    /// The Sobol scrambling seed of `seed`.
-    fn sobol_seed(&self) -> u32 {
-        (self.seed as u32) ^ ((self.seed >> 32) as u32)
+    /// The scrambled Sobol points of the samples, in the unit cube.
+    fn unit_points(&self) -> Vec<[f64; 7]> {
+        let seed = (self.seed as u32) ^ ((self.seed >> 32) as u32);
+        (0..self.samples)
+            .map(|index| {
+                std::array::from_fn(|dimension| {
+                    f64::from(sobol_burley::sample(index as u32, dimension as u32, seed))
+                })
+            })
+            .collect()
     }
 
     /// The scenario at the unit-cube point `u` (depth, placement ×2,
@@ -900,6 +895,48 @@ mod tests {
             tilt_deg: Interval::new(-60.0, 60.0),
             pan_deg: Interval::new(-20.0, 20.0),
             roll_deg: Interval::new(-30.0, 30.0),
+        }
+    }
+
+    /// A viewpoint's unit-cube point maps back onto it, for a sampled
+    /// volume (both orientation forms) and for a grid, whose axes span
+    /// from their smallest to their largest value whatever their order.
+    #[test]
+    fn unit_points_map_back_onto_the_viewpoints() {
+        let camera = Camera::paper();
+        let cone = Orientation::ViewCone {
+            half_angle_deg: 50.0,
+            roll_deg: Interval::new(-10.0, 10.0),
+        };
+        let grid = ScenarioGrid::new(
+            "300,900".parse().unwrap(),
+            "0".parse().unwrap(),
+            "40,-20".parse().unwrap(),
+            "-30..30:15".parse().unwrap(),
+            "5".parse().unwrap(),
+            "0,10".parse().unwrap(),
+            "0.5".parse().unwrap(),
+        )
+        .unwrap();
+        for volume in [
+            WorkingVolume::Sampled(volume(angles(), 64)),
+            WorkingVolume::Sampled(volume(cone, 64)),
+            WorkingVolume::Grid(grid),
+        ] {
+            let scenarios = volume.scenarios(&camera);
+            let units = volume.unit_points();
+            assert_eq!(units.len(), scenarios.len());
+            for (s, u) in scenarios.iter().zip(&units) {
+                assert!(u.iter().all(|v| (0.0..=1.0).contains(v)), "{u:?}");
+                let back = volume.scenario_at(s.index, &camera, *u);
+                for axis in AXES {
+                    assert_relative_eq!(
+                        axis_value(&back, axis),
+                        axis_value(s, axis),
+                        epsilon = 1e-9
+                    );
+                }
+            }
         }
     }
 

@@ -63,7 +63,10 @@ use std::cell::Cell;
 /// measured set perspective brought margins down to 0.84 times the affine
 /// floor, 1 / 0.84 = 1.19).
 pub const PERSPECTIVE_SLACK: f64 = 1.25;
-/// Nelder–Mead starts per labelling: its best samples.
+/// Starts evaluated per labelling: the samples whose line of sight lies
+/// nearest its best affine view.
+pub const NEAREST_SAMPLES: usize = 12;
+/// Nelder–Mead starts per labelling: the best of those samples.
 pub const STARTS: usize = 2;
 /// Nelder–Mead iterations per start.
 pub const DIP_ITERATIONS: u64 = 100;
@@ -247,10 +250,6 @@ pub fn screen_px(settings: &IdentifiabilitySettings, sigma_px: f64) -> f64 {
     PERSPECTIVE_SLACK * 2.0 * sigma_px * normal_upper_quantile(near)
 }
 
-/// Starts evaluated per labelling: the samples whose line of sight lies
-/// nearest its best affine view.
-pub const NEAREST_SAMPLES: usize = 12;
-
 /// The dips of `target`'s blob sets explained by `rival` over `volume`
 /// (module docs): one per labelling of [`affine_labellings`] within the
 /// screen, the most probable confusion first. `samples` are the volume's
@@ -284,19 +283,16 @@ pub fn find_dips(
     let mut dips: Vec<Dip> = labellings
         .par_iter()
         .filter_map(|labelling| {
-            let dip = follow(
+            let affine_px = labelling.floor_mm * focal / far;
+            follow(
                 target,
                 rival,
                 volume,
                 &views,
                 settings,
-                labelling,
+                (labelling, affine_px),
                 first_index,
-            )?;
-            Some(Dip {
-                affine_px: labelling.floor_mm * focal / far,
-                ..dip
-            })
+            )
         })
         .collect();
     dips.sort_by(|a, b| b.confusion_probability.total_cmp(&a.confusion_probability));
@@ -312,14 +308,14 @@ type View<'a> = (&'a [f64; 7], &'a Scenario, f64, Vector3<f64>);
 
 /// One labelling's dip floor (module docs, step 2): the margin at the
 /// samples nearest its affine view, then Nelder–Mead from the best
-/// [`STARTS`]. Its `affine_px` is left at 0 for the caller.
+/// [`STARTS`]; `affine_px` is its affine floor at the farthest depth.
 fn follow(
     target: &Target,
     rival: &[Vector3<f64>],
     volume: &WorkingVolume,
     views: &[View],
     settings: &IdentifiabilitySettings,
-    labelling: &AffineLabelling,
+    (labelling, affine_px): (&AffineLabelling, f64),
     index: usize,
 ) -> Option<Dip> {
     let kept: Vec<usize> = (0..target.object.len())
@@ -407,7 +403,7 @@ fn follow(
         labels: labelling.labels.clone(),
         margin_px: margin,
         confusion_probability: probability,
-        affine_px: 0.0,
+        affine_px,
     })
 }
 
