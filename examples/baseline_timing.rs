@@ -1,5 +1,5 @@
 //! Single-thread timing of the baseline solvers on the paper's 7-point
-//! biprism: `cargo run --release --example baseline_timing`.
+//! biprism: `cargo run --release --features examples --example baseline_timing`.
 //!
 //! For each of 100 seeded problems per setting, the time of one solve is the
 //! fastest of 15 batches of 40 solves (the minimum filters out time stolen by

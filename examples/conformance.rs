@@ -2,9 +2,9 @@
 //! PnP problem space, plus six named regimes.
 //!
 //! ```text
-//! cargo run --release --example conformance                 # full sweep + regimes
-//! cargo run --release --example conformance -- --quick      # 20 problems per cell (300 by default)
-//! cargo run --release --example conformance -- --regimes    # the six regimes only
+//! cargo run --release --features examples --example conformance                 # full sweep + regimes
+//! cargo run --release --features examples --example conformance -- --quick      # 20 problems per cell (300 by default)
+//! cargo run --release --features examples --example conformance -- --regimes    # the six regimes only
 //!   [--seed N] [--problems N] [--regime-problems N] [--threads N] [--out DIR]
 //! ```
 //!
@@ -1273,7 +1273,7 @@ fn command_line() -> String {
         .skip(1)
         .map(|w| if w.contains(' ') { format!("'{w}'") } else { w })
         .collect();
-    let mut command = "cargo run --release --example conformance".to_string();
+    let mut command = "cargo run --release --features examples --example conformance".to_string();
     if !words.is_empty() {
         command.push_str(" -- ");
         command.push_str(&words.join(" "));

@@ -1,6 +1,6 @@
 //! DLS report: candidate counts and single-thread solve times.
 //!
-//! `cargo run --release --example dls_report [PROBLEMS]`
+//! `cargo run --release --features examples --example dls_report [PROBLEMS]`
 //!
 //! Problems are drawn like the integration tests' (random attitude, depth /
 //! size 2–200 log-uniform, off axis up to 40%, σ = 0.5 px on the paper's

@@ -3,7 +3,7 @@
 //! figures of the image-level noise calibration.
 //!
 //! ```text
-//! cargo run --release --example image_noise -- [LAYOUT] [TRIALS] [SEED]
+//! cargo run --release --features examples --example image_noise -- [LAYOUT] [TRIALS] [SEED]
 //! ```
 //!
 //! For each depth of 200…1000 mm in 100 mm steps, the first view of the
@@ -29,7 +29,7 @@
 //! law's σ at the same radius:
 //!
 //! ```text
-//! cargo run --release --example image_noise -- LAYOUT TRIALS SEED CALIBRATION [METHOD [refine[:ROUNDS[:SUPERSAMPLING]]]]
+//! cargo run --release --features examples --example image_noise -- LAYOUT TRIALS SEED CALIBRATION [METHOD [refine[:ROUNDS[:SUPERSAMPLING]]]]
 //! ```
 //!
 //! `CALIBRATION` may be `-` (none). `METHOD` is `track`'s centre method

@@ -3,7 +3,7 @@
 //! through the same workflow as
 //! `layout-opt search`, written into a fresh temporary directory.
 //!
-//! Run: `cargo run --release --example library`
+//! Run: `cargo run --release --features examples --example library`
 
 use layout_opt::camera::Camera;
 use layout_opt::error_model::first_order::pose_covariance_isotropic;
@@ -107,7 +107,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     config.search.iterations = 150;
     config.compare_trials = 20;
     config.validate_solvers = vec![Solver::ParallelWeighted, Solver::Ml];
-    config.command = "cargo run --example library".into();
+    config.command = "cargo run --release --features examples --example library".into();
     println!("search into {}:", dir.display());
     let outcome = workflow::run(&config, &mut Phases::default())?;
     let summary = outcome.summary.as_ref().ok_or("interrupted")?;

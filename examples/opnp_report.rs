@@ -2,8 +2,8 @@
 //! and how long one solve takes next to EPnP.
 //!
 //! ```text
-//! cargo run --release --example opnp_report            # counts and timings
-//! cargo run --release --example opnp_report -- counts  # counts only
+//! cargo run --release --features examples --example opnp_report            # counts and timings
+//! cargo run --release --features examples --example opnp_report -- counts  # counts only
 //! ```
 //!
 //! Problems: the paper's biprism (n = 7) and random cube points (n = 6…100),

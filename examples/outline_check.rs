@@ -6,7 +6,7 @@
 //! scenarios, how many sphere views each measure puts at ≥ 1% and ≥ 10%,
 //! and the outline model's agreement with the truth.
 //!
-//! `cargo run --release --example outline_check [LAYOUT] [INSET_PX]`
+//! `cargo run --release --features examples --example outline_check [LAYOUT] [INSET_PX]`
 
 use layout_opt::camera::Camera;
 use layout_opt::layout::Layout;

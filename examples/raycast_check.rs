@@ -4,7 +4,7 @@
 //! model but the scenario poses and the camera.
 //!
 //! ```text
-//! cargo run --release --example raycast_check -- LAYOUT.json PART.obj \
+//! cargo run --release --features examples --example raycast_check -- LAYOUT.json PART.obj \
 //!     [--depth 400..1000:200] [--offset-x 0..100:50] [--offset-y=-50,0] \
 //!     [--tilt=-60..60:10] [--pan=-20..20:20] [--grid 24] [--max-hidden 0.01]
 //! ```

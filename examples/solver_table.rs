@@ -5,7 +5,7 @@
 //! gross failures (> 10°), RMS rotation / Cramér–Rao limit (per problem) and
 //! median single-thread µs per solve.
 //!
-//! Run: `cargo run --release --example solver_table -- [problems] [seed]`
+//! Run: `cargo run --release --features examples --example solver_table -- [problems] [seed]`
 
 use layout_opt::camera::Camera;
 use layout_opt::error_model::first_order::pose_covariance_isotropic;

@@ -2,14 +2,14 @@
 //! test suite: the figures of the tracker's closing note.
 //!
 //! ```text
-//! cargo run --release --example track_accuracy -- centres
-//! cargo run --release --example track_accuracy -- labels [POSES] [REALISATIONS]
-//! cargo run --release --example track_accuracy -- hidden [POSES]
-//! cargo run --release --example track_accuracy -- speed [RUNS]
-//! cargo run --release --example track_accuracy -- lost [TRIALS] [TILT_STEP]
-//! cargo run --release --example track_accuracy -- bias
-//! cargo run --release --example track_accuracy -- clean [DEPTH_MM [REFINE_SUPERSAMPLING [REFINE_BLUR_PX]]]
-//! cargo run --release --example track_accuracy -- noisy [DEPTH_MM [REALISATIONS [REFINE_SUPERSAMPLING]]]
+//! cargo run --release --features examples --example track_accuracy -- centres
+//! cargo run --release --features examples --example track_accuracy -- labels [POSES] [REALISATIONS]
+//! cargo run --release --features examples --example track_accuracy -- hidden [POSES]
+//! cargo run --release --features examples --example track_accuracy -- speed [RUNS]
+//! cargo run --release --features examples --example track_accuracy -- lost [TRIALS] [TILT_STEP]
+//! cargo run --release --features examples --example track_accuracy -- bias
+//! cargo run --release --features examples --example track_accuracy -- clean [DEPTH_MM [REFINE_SUPERSAMPLING [REFINE_BLUR_PX]]]
+//! cargo run --release --features examples --example track_accuracy -- noisy [DEPTH_MM [REALISATIONS [REFINE_SUPERSAMPLING]]]
 //! ```
 //!
 //! * `centres`: noise-free renders (16 bit, σ 0.5 px blur, 8×8

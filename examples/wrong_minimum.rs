@@ -7,7 +7,7 @@
 //! the one paraperspective start with Gauss–Newton under several weightings,
 //! and gross failures (geodesic error > 5°) are counted per weighting.
 //!
-//! `cargo run --release --example wrong_minimum [problems] [seed]`
+//! `cargo run --release --features examples --example wrong_minimum [problems] [seed]`
 
 use layout_opt::pnp::epnp::{EpnpSystem, PAIRS};
 use layout_opt::pnp::gauss_newton::refine_betas;

@@ -1,5 +1,5 @@
 //! Seeded PnP problems for the solver conformance sweep
-//! (`cargo run --release --example conformance`), shared with its tests.
+//! (`cargo run --release --features examples --example conformance`), shared with its tests.
 //!
 //! A [`Cell`] names one point of the PnP problem space; [`generate`] draws
 //! problem `case` of it from `(seed, cell)` alone, so any problem can be

@@ -102,7 +102,7 @@
 //! than another's 596 times, the refined least cost never (against a dense
 //! 20 000-direction search refined by Newton's method).
 //!
-//! Measured with `cargo run --release --example dls_report 200` (σ = 0.5 px,
+//! Measured with `cargo run --release --features examples --example dls_report 200` (σ = 0.5 px,
 //! depth/size 2–200, n = 4…104): 1.5–1.9 charts on average (median 1–2, max
 //! 4); the median rotation error of the best candidate matches the
 //! four-chart solve's to within ±4% on every n, and no problem fails that

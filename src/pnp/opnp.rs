@@ -52,7 +52,7 @@
 //! algebraic cost; we return every minimum and let the project's common
 //! selection rule decide.)
 //!
-//! **Candidate counts** (`cargo run --release --example opnp_report`, 1000
+//! **Candidate counts** (`cargo run --release --features examples --example opnp_report`, 1000
 //! seeded problems, biprism and random n = 6…100, depth/size 2–200,
 //! σ = 0.5 px): the action matrix had median 4 real eigenvalues (max 8),
 //! giving median 2 real pairs `±q` (max 4), of which OPnP returned median 1

@@ -49,7 +49,7 @@
 //! Gauss–Newton on the six control-point distances then settles in the
 //! minimum nearest that start (the sweep's noise-free misses of
 //! `parallel-weighted` are up to 150° off). `reports/solvers/` measures where (the conformance sweep,
-//! `cargo run --release --example conformance`).
+//! `cargo run --release --features examples --example conformance`).
 
 use super::epnp::{EpnpSystem, PAIRS};
 use super::{gauss_newton, reprojection_error_sq_in_front, Candidates, Method, PnpError};

@@ -69,7 +69,7 @@
 //! uses FOAM whatever the sign of the determinant
 //! ([`crate::pose::nearest_rotation`]), and Ω's eigenpairs come from
 //! [`smallest_eigenpairs`]; together 13.6 → 8.2 µs median
-//! (`cargo run --release --example baseline_timing`).
+//! (`cargo run --release --features examples --example baseline_timing`).
 //!
 //! Equation numbers are not cited: this follows the reference code, read
 //! for understanding, and the paper's description of it.

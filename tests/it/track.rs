@@ -462,7 +462,7 @@ fn predicted_one_sigma_brackets_the_actual_error() {
 /// frame in 300 with a wrong label (with a true rate of 99.9 % that passes
 /// with probability 0.96; at 99 % with probability 0.2), and at least 90 %
 /// of the frames tracked (the rest refused with a reason, not mislabelled).
-/// The large count is `cargo run --release --example track_accuracy --
+/// The large count is `cargo run --release --features examples --example track_accuracy --
 /// labels`.
 #[test]
 fn identifiable_views_are_labelled_correctly() {
