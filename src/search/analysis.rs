@@ -100,6 +100,27 @@ pub fn family_description(family: &Family) -> String {
     }
 }
 
+/// First-order figures of `winner` and the paper's biprism (`paper`) on
+/// the held-out grid of `config`'s volume (midpoints of a grid's values;
+/// a sampled volume scrambled with another seed).
+pub(crate) fn held_out_check(
+    config: &SearchConfig,
+    evaluator: &Evaluator,
+    winner: &Layout,
+    paper: &Layout,
+) -> HeldOutCheck {
+    let volume = config.volume.held_out(held_out_grid);
+    let first_order = evaluator
+        .without_supports(&paper.positions())
+        .on_scenarios(volume.scenarios(&config.camera), &paper.positions())
+        .first_order(&paper.positions());
+    HeldOutCheck::new(
+        &volume,
+        &first_order.evaluate(&winner.positions(), &winner.point_sigmas()),
+        &first_order.evaluate(&paper.positions(), &paper.point_sigmas()),
+    )
+}
+
 /// What the workflow lends the analysis: a listener of the optimisation
 /// (it keeps the best layout so far on disk), the checkpoints the
 /// optimisation resumes from and writes, and a check run once the
@@ -659,20 +680,9 @@ impl Run<'_, '_> {
     }
 
     /// First-order figures of the winner and the paper's biprism on a
-    /// held-out grid (midpoints of the search grid's values).
+    /// held-out grid ([`held_out_check`]).
     fn held_out(&self, winner: &Layout) -> HeldOutCheck {
-        let paper = &self.hand[0];
-        let volume = self.config().volume.held_out(held_out_grid);
-        let first_order = self
-            .evaluator
-            .without_supports(&paper.positions())
-            .on_scenarios(volume.scenarios(&self.config().camera), &paper.positions())
-            .first_order(&paper.positions());
-        HeldOutCheck::new(
-            &volume,
-            &first_order.evaluate(&winner.positions(), &winner.point_sigmas()),
-            &first_order.evaluate(&paper.positions(), &paper.point_sigmas()),
-        )
+        held_out_check(self.config(), &self.evaluator, winner, &self.hand[0])
     }
 
     /// [`Self::held_out`] with the supports `export` would print for the

@@ -30,12 +30,12 @@
 pub mod repair;
 pub mod validation;
 
-use super::analysis::Analysis;
+use super::analysis::{held_out_check, Analysis};
 use super::identify::{enforce_identifiability, Quiet};
 use super::optimise;
 use super::supports::{enforce_supports, RepairBudget};
 use super::SearchError;
-use super::{IdentifiabilityFigures, SearchConfig, SupportsBooks};
+use super::{HeldOutCheck, IdentifiabilityFigures, SearchConfig, SupportsBooks};
 use crate::identifiability::IdentifiabilitySettings;
 use crate::layout::Layout;
 use crate::montecarlo::Target;
@@ -160,6 +160,9 @@ pub struct SetMarker {
     /// It and the paper's biprism as printed, and its repair to the floor
     /// as printed (None: not checked), as in a single search.
     pub printed: Option<SupportsBooks>,
+    /// It and the paper's biprism to first order on the held-out grid, as
+    /// a single search's winner is checked.
+    pub held_out: HeldOutCheck,
 }
 
 /// A designed set.
@@ -433,7 +436,9 @@ pub fn design_set(
                 });
                 layout.provenance = Some(provenance);
                 let evaluation = &outcome.best.evaluation;
+                let held_out = held_out_check(config, &evaluator, &layout, &paper);
                 kept = Some(SetMarker {
+                    held_out,
                     layout,
                     accuracy: evaluation.accuracy,
                     seed,
@@ -618,7 +623,7 @@ pub fn set_report(outcome: &SetSearchOutcome, command: &str) -> String {
         sig(1.0 - outcome.settings.min_cross, 2),
         if outcome.matrix.meets_floor() { "yes" } else { "no" },
     );
-    text.push_str("## Markers\n\nAccuracy: the objective's accuracy term (1 = the paper's biprism scaled to the envelope; lower is better). Alone: what one marker reaches (marker 1, the single-marker search's winner).\n\n| marker | accuracy in the set | alone | price | identifiable | available as printed (spheres alone; the paper's biprism as printed) | tries | cross repair rounds | seed |\n|---|---|---|---|---|---|---|---|---|\n");
+    text.push_str(&format!("## Markers\n\nAccuracy: the objective's accuracy term (1 = the paper's biprism scaled to the envelope; lower is better). Alone: what one marker reaches (marker 1, the single-marker search's winner). Rotation: first-order RMS rotation error of the marker and of the paper's biprism on the held-out grid ({}).\n\n| marker | accuracy in the set | alone | price | rotation against the paper's biprism | identifiable | available as printed (spheres alone; the paper's biprism as printed) | tries | cross repair rounds | seed |\n|---|---|---|---|---|---|---|---|---|---|\n", outcome.markers.first().map_or(String::new(), |m| format!("{} scenarios: {}", m.held_out.scenarios, m.held_out.grid))));
     for (k, m) in outcome.markers.iter().enumerate() {
         let identifiable = m.identifiability.as_ref().map_or("—".to_string(), |f| {
             format!("{} of {}", f.identifiable, f.checked)
@@ -636,8 +641,21 @@ pub fn set_report(outcome: &SetSearchOutcome, command: &str) -> String {
                 }
             )
         });
+        let held = &m.held_out;
+        let rotation = match (
+            held.winner_rotation_rms_deg,
+            held.paper_rotation_rms_deg,
+            held.rotation_reduction_percent,
+        ) {
+            (Some(marker), Some(paper), Some(lower)) => format!(
+                "{} ° vs {} °, {lower:.1}% lower",
+                sig(marker, 4),
+                sig(paper, 4)
+            ),
+            _ => "not measurable".to_string(),
+        };
         text.push_str(&format!(
-            "| {} ({}) | {} | {} | {:+.1}% | {} | {printed} | {} | {} | {} |\n",
+            "| {} ({}) | {} | {} | {:+.1}% | {rotation} | {} | {printed} | {} | {} | {} |\n",
             k + 1,
             m.layout.name,
             sig(m.accuracy, 4),

@@ -590,6 +590,22 @@ fn search_set_writes_the_markers_the_set_file_and_the_cross_matrix() {
         .map(|m| m["accuracy"].as_f64().unwrap())
         .fold(f64::MIN, f64::max);
     assert_eq!(summary["objective"].as_f64().unwrap(), worst);
+    // Each marker against the paper's biprism on the held-out grid, in
+    // the file and in the report's column.
+    for marker in summary["markers"].as_array().unwrap() {
+        let held = &marker["held_out"];
+        let (winner, paper) = (
+            held["winner_rotation_rms_deg"].as_f64().unwrap(),
+            held["paper_rotation_rms_deg"].as_f64().unwrap(),
+        );
+        assert!(winner > 0.0 && paper > 0.0, "{held}");
+        let lower = held["rotation_reduction_percent"].as_f64().unwrap();
+        assert!(
+            (lower - 100.0 * (1.0 - winner / paper)).abs() < 1e-9,
+            "{held}"
+        );
+        assert!(text.contains(&format!("{lower:.1}% lower")), "{text}");
+    }
 }
 
 /// `validate SET.json`: a set of two distinct markers gets the report with

@@ -44,7 +44,7 @@ pub(crate) struct SetArgs {
     pub(super) set_tries: usize,
     /// With --set: check the cross floor on the volume's viewpoints only,
     /// not also at the dips between them (docs/formats.md, "Between the
-    /// viewpoints"): faster (4 markers: 191.5 s against 497.9 s on 2
+    /// viewpoints"): faster (4 markers: 125.0 s against 191.7 s on 2
     /// cores), but a confusion a degree or two wide between the viewpoints
     /// passes unseen.
     #[arg(long, requires = "set")]
@@ -127,8 +127,22 @@ pub(super) fn run(
         .map_or("above the gate everywhere".to_string(), |m| {
             format!("{m:.2} px")
         });
+    let lower: Vec<f64> = outcome
+        .markers
+        .iter()
+        .filter_map(|m| m.held_out.rotation_reduction_percent)
+        .collect();
+    let rotation = match (
+        lower.iter().copied().reduce(f64::min),
+        lower.iter().copied().reduce(f64::max),
+    ) {
+        (Some(low), Some(high)) => format!(
+            "; rotation {low:.1}–{high:.1}% below the paper's biprism (first order, held-out grid)"
+        ),
+        _ => String::new(),
+    };
     println!(
-        "{}: {} markers in {:.1} s; objective {:.4} (alone {:.4}); smallest cross margin {worst_margin}; cross floor met: {}; wrote {} and report {}",
+        "{}: {} markers in {:.1} s; objective {:.4} (alone {:.4}){rotation}; smallest cross margin {worst_margin}; cross floor met: {}; wrote {} and report {}",
         config.name,
         outcome.markers.len(),
         outcome.seconds,
