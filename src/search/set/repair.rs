@@ -281,14 +281,14 @@ pub type CrossProbe<'a> = &'a dyn Fn(&[Vector3<f64>], usize) -> Vec<Scenario>;
 /// `check` computes one for other points, and `floor` is the
 /// identifiability floor the winner must keep. Each round runs
 /// Nelder–Mead from the last admissible round's layout (the first from the
-/// winner), its trust centred there too, checks its layout on the viewpoints of the held confusions,
-/// and only when those pass on every scenario; whatever either check
-/// finds failing or near is held from then on. The first layout that
-/// meets every single-marker floor over the whole grid and the cross
-/// floor on every scenario is the repair's result. Before that full
-/// check, `probe` adds the round's layout's own dips between the
-/// viewpoints (none when the set checks its viewpoints only), which stay
-/// checked in later rounds.
+/// winner), its trust centred there too, checks its layout on the
+/// viewpoints of the held confusions, and only when those pass on every
+/// scenario; whatever either check finds failing or near is held from
+/// then on. The first layout that meets every single-marker floor over
+/// the whole grid and the cross floor on every scenario is the repair's
+/// result. Before that full check, `probe` adds the round's layout's own
+/// dips between the viewpoints (none when the set checks its viewpoints
+/// only), which stay checked in later rounds.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn repair_cross(
     family: &Family,
