@@ -210,7 +210,8 @@ pub enum TryVerdict {
     /// Its winner as printed misses the availability floor.
     NotAsPrinted,
     /// Its winner, repaired, is cross-identifiable with the earlier markers
-    /// in this share of the checked viewpoints only (the worst pair's).
+    /// in this share of the checked viewpoints only (the worst pair's, at
+    /// the best the repair's rounds reached).
     Confusable {
         /// The worst pair's share of viewpoints that meet the floor.
         share: f64,
@@ -383,6 +384,7 @@ pub fn design_set(
                 let mut checked = thinned.clone();
                 checked.extend(probe(&points, scenarios.len()));
                 let mut matrix = check(&points, &checked);
+                let mut share = matrix.worst_share();
                 if !matrix.meets_floor() {
                     let rule = CrossRule {
                         camera: config.camera,
@@ -403,11 +405,15 @@ pub fn design_set(
                         stop,
                     )?;
                     (outcome, matrix, rounds) = (repair.outcome, repair.matrix, repair.rounds);
+                    share = if matrix.meets_floor() {
+                        matrix.worst_share()
+                    } else {
+                        repair.best_share
+                    };
                     checked = repair.scenarios;
                     // The repair moved it: checked as printed again.
                     (outcome, books) = printed(outcome, &settings, RepairBudget::CHECK_ONLY)?;
                 }
-                let share = matrix.worst_share();
                 best_share = Some(best_share.map_or(share, |b: f64| b.max(share)));
                 verdict = if !matrix.meets_floor() {
                     TryVerdict::Confusable {

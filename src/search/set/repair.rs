@@ -261,6 +261,10 @@ pub struct CrossRepair {
     /// Its cross matrix against the earlier markers (the given one when no
     /// round cleared the floor).
     pub matrix: CrossMatrix,
+    /// The worst pair's share of viewpoints meeting the floor at its best:
+    /// the given matrix's, or a round's full check's when higher (what a
+    /// repair that did not clear the floor came to).
+    pub best_share: f64,
     /// Rounds run.
     pub rounds: usize,
     /// Confusions held in the end.
@@ -315,6 +319,7 @@ pub(crate) fn repair_cross(
     rule.hold(&family.points(&outcome.best.params), &matrix, &scenarios);
     let mut from = outcome.best.params.clone();
     let mut repair = CrossRepair {
+        best_share: matrix.worst_share(),
         outcome,
         matrix,
         rounds: 0,
@@ -358,6 +363,7 @@ pub(crate) fn repair_cross(
         let next = scenarios.iter().map(|s| s.index + 1).max().unwrap_or(0);
         scenarios.extend(probe(&points, next));
         let matrix = check(&points, &scenarios);
+        repair.best_share = repair.best_share.max(matrix.worst_share());
         rule.hold(&points, &matrix, &scenarios);
         if matrix.meets_floor() {
             repair.outcome.best = Candidate {
@@ -536,6 +542,7 @@ mod repair_tests {
         };
         let matrix = check(&candidate, &scenarios);
         assert!(!matrix.meets_floor(), "a near copy is confusable");
+        let matrix_share = matrix.worst_share();
         let search = SearchSettings {
             optimiser: Optimiser::NelderMead,
             starts: 1,
@@ -590,6 +597,8 @@ mod repair_tests {
         .unwrap();
         assert!(repair.rounds >= 1 && repair.held > 0);
         assert!(repair.matrix.meets_floor(), "{:?}", repair.matrix);
+        assert!(repair.best_share >= repair.matrix.worst_share());
+        assert!(repair.best_share > matrix_share, "{}", repair.best_share);
         let repaired = family.points(&repair.outcome.best.params);
         assert!(repair.outcome.best.evaluation.admissible());
         assert_eq!(check(&repaired, &scenarios), repair.matrix);
