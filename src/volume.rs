@@ -382,11 +382,13 @@ impl WorkingVolume {
             WorkingVolume::Sampled(volume) => volume.unit_points(),
             WorkingVolume::Grid(grid) => {
                 let ranges = grid.named_ranges();
+                let spans: [Interval; 7] =
+                    std::array::from_fn(|axis| Interval::spanned(ranges[axis].1));
                 grid.scenarios()
                     .iter()
                     .map(|s| {
                         std::array::from_fn(|axis| {
-                            let span = Interval::spanned(ranges[axis].1);
+                            let span = spans[axis];
                             let value = axis_value(s, ranges[axis].0);
                             if span.max > span.min {
                                 (value - span.min) / (span.max - span.min)

@@ -404,12 +404,13 @@ pub fn design_set(
                         (&check, &probe, checked),
                         stop,
                     )?;
-                    (outcome, matrix, rounds) = (repair.outcome, repair.matrix, repair.rounds);
-                    share = if matrix.meets_floor() {
-                        matrix.worst_share()
-                    } else {
-                        repair.best_share
-                    };
+                    // A matrix that meets the floor is the best one seen.
+                    (outcome, matrix, rounds, share) = (
+                        repair.outcome,
+                        repair.matrix,
+                        repair.rounds,
+                        repair.best_share,
+                    );
                     checked = repair.scenarios;
                     // The repair moved it: checked as printed again.
                     (outcome, books) = printed(outcome, &settings, RepairBudget::CHECK_ONLY)?;
