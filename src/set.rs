@@ -428,6 +428,11 @@ pub struct CrossPrediction {
     /// The rival's refitted pose in the worst case.
     #[serde(skip)]
     pub pose: Option<Pose>,
+    /// Every blob set's best labelling within the gate, with its margin
+    /// (px): what a dip search follows from this viewpoint
+    /// ([`dips::find_dips`]).
+    #[serde(skip)]
+    pub fits: Vec<(Option<usize>, Vec<usize>, f64)>,
 }
 
 /// Predicts how well `rival` explains the noise-free view `observed`
@@ -453,6 +458,7 @@ pub fn predict_cross(
         missing: None,
         labels: None,
         pose: None,
+        fits: Vec::new(),
     };
     let dropped = (n > MIN_POINTS).then_some(0..n).into_iter().flatten();
     // The blob sets share most of their image triples: each is solved once.
@@ -475,6 +481,9 @@ pub fn predict_cross(
             &found.best.labels,
             &found.best.pose,
         );
+        worst
+            .fits
+            .push((missing, found.best.labels.clone(), margin));
         // A fit within the gate replaces the gate's bound; among fits, the
         // most probable confusion (then the smaller margin) is kept.
         let worse = worst.margin_px.is_none_or(|w| {
@@ -489,6 +498,7 @@ pub fn predict_cross(
                 missing,
                 labels: Some(found.best.labels.clone()),
                 pose: Some(pose),
+                fits: std::mem::take(&mut worst.fits),
             };
         }
     }
@@ -627,6 +637,54 @@ pub struct CrossPair {
     /// the viewpoints a small change of either marker may make fail.
     #[serde(skip)]
     pub near: Vec<usize>,
+    /// The labellings the check found within the gate, each with the
+    /// viewpoints where it was found: where a dip search follows them from
+    /// ([`dips::find_dips`]).
+    #[serde(skip)]
+    pub found: Vec<FoundLabelling>,
+}
+
+/// A labelling of the seen marker's blobs (blob `missing` left out) by the
+/// rival's points `labels` that a cross check found within the gate.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FoundLabelling {
+    /// The blob left out (None: every blob).
+    pub missing: Option<usize>,
+    /// For each blob kept, in order, the rival point given to it.
+    pub labels: Vec<usize>,
+    /// The viewpoints (scenario index, margin px) where it was found, the
+    /// smallest margins first, at most [`dips::NEAREST_SAMPLES`].
+    pub at: Vec<(usize, f64)>,
+}
+
+/// Notes that labelling (`missing`, `labels`) was found at viewpoint
+/// `index` with margin `margin_px` (px), keeping each labelling's
+/// [`dips::NEAREST_SAMPLES`] smallest margins.
+fn note_found(
+    found: &mut Vec<FoundLabelling>,
+    (missing, labels): (Option<usize>, &[usize]),
+    index: usize,
+    margin_px: f64,
+) {
+    let entry = match found
+        .iter()
+        .position(|f| f.missing == missing && f.labels == labels)
+    {
+        Some(k) => &mut found[k],
+        None => {
+            found.push(FoundLabelling {
+                missing,
+                labels: labels.to_vec(),
+                at: Vec::new(),
+            });
+            found.last_mut().expect("just pushed")
+        }
+    };
+    let at = entry
+        .at
+        .partition_point(|&(i, m)| m.total_cmp(&margin_px).then(i.cmp(&index)).is_lt());
+    entry.at.insert(at, (index, margin_px));
+    entry.at.truncate(dips::NEAREST_SAMPLES);
 }
 
 impl CrossPair {
@@ -678,6 +736,41 @@ impl CrossMatrix {
     /// share the floor asks for.
     pub fn meets_floor(&self) -> bool {
         self.pairs.iter().all(|p| p.share() >= self.min_cross)
+    }
+
+    /// Adds `other`, a check of the same pairs over other scenarios, as if
+    /// both had been one check.
+    pub fn absorb(&mut self, other: CrossMatrix) {
+        for theirs in other.pairs {
+            let Some(ours) = self
+                .pairs
+                .iter_mut()
+                .find(|p| p.marker == theirs.marker && p.rival == theirs.rival)
+            else {
+                self.pairs.push(theirs);
+                continue;
+            };
+            let visible = ours.visible + theirs.visible;
+            if visible > 0 {
+                ours.mean_confusion = (ours.mean_confusion * ours.visible as f64
+                    + theirs.mean_confusion * theirs.visible as f64)
+                    / visible as f64;
+            }
+            ours.visible = visible;
+            ours.smallest_margin_px = match (ours.smallest_margin_px, theirs.smallest_margin_px) {
+                (Some(a), Some(b)) => Some(a.min(b)),
+                (a, b) => a.or(b),
+            };
+            ours.worst_confusion = ours.worst_confusion.max(theirs.worst_confusion);
+            ours.cross_identifiable += theirs.cross_identifiable;
+            ours.failing.extend(theirs.failing);
+            ours.near.extend(theirs.near);
+            for f in theirs.found {
+                for (index, margin) in f.at {
+                    note_found(&mut ours.found, (f.missing, &f.labels), index, margin);
+                }
+            }
+        }
     }
 }
 
@@ -739,6 +832,7 @@ pub fn cross_pairs(
                 cross_identifiable: 0,
                 failing: Vec::new(),
                 near: Vec::new(),
+                found: Vec::new(),
             };
             let mut sum = 0.0;
             for (s, row) in scenarios.iter().zip(&cells) {
@@ -761,6 +855,9 @@ pub fn cross_pairs(
                 }
                 if prediction.confusion_probability > NEAR_SHARE * max_wrong {
                     pair.near.push(s.index);
+                }
+                for (missing, labels, margin) in &prediction.fits {
+                    note_found(&mut pair.found, (*missing, labels), s.index, *margin);
                 }
             }
             if pair.visible > 0 {
@@ -1235,5 +1332,69 @@ mod tests {
         let mut moved = a.clone();
         moved[3].z += 0.5;
         assert!(!same_marker(&a, &moved, IDENTICAL_TOLERANCE_MM));
+    }
+
+    /// A check over two halves of a grid, one absorbed into the other,
+    /// is the check over the whole grid: counts, extremes, the mean, the
+    /// failing and near viewpoints, and every labelling found with its
+    /// smallest margins.
+    #[test]
+    fn a_check_absorbed_into_another_is_one_check_over_both() {
+        use crate::identifiability::IdentifiabilitySettings;
+        use crate::noise::NoiseModel;
+        use crate::scenario::ScenarioGrid;
+        use crate::sphere_image::Observation;
+        let camera = Camera::paper();
+        let a = marker();
+        // A near copy: confused in some viewpoints, not in others.
+        let mut b = a.clone();
+        b[1].x += 3.0;
+        b[4].y -= 4.0;
+        b[2].z += 2.5;
+        let scenarios = ScenarioGrid::new(
+            "300,600,900".parse().unwrap(),
+            "0,40".parse().unwrap(),
+            "0".parse().unwrap(),
+            "-40,-10,20,50".parse().unwrap(),
+            "0".parse().unwrap(),
+            "0".parse().unwrap(),
+            "0.5".parse().unwrap(),
+        )
+        .unwrap()
+        .scenarios();
+        let sigmas = vec![None; a.len()];
+        let objects = [a, b];
+        let targets: Vec<Target> = objects
+            .iter()
+            .map(|object| Target {
+                camera: &camera,
+                object,
+                sphere_diameter_mm: 8.0,
+                point_sigma_px: &sigmas,
+            })
+            .collect();
+        let settings = IdentifiabilitySettings {
+            min_correct: 0.999,
+            trials: 0,
+            seed: 5,
+            observation: Observation::Centre,
+            noise: NoiseModel::default(),
+        };
+        let names = ["a".to_string(), "b".to_string()];
+        let whole = cross_matrix(&targets, &names, &scenarios, &settings);
+        let (first, second) = scenarios.split_at(scenarios.len() / 3);
+        let mut joined = cross_matrix(&targets, &names, first, &settings);
+        joined.absorb(cross_matrix(&targets, &names, second, &settings));
+        assert!(whole.pairs.iter().any(|p| !p.failing.is_empty()));
+        assert!(whole.pairs.iter().any(|p| p.cross_identifiable > 0));
+        for (w, j) in whole.pairs.iter().zip(&joined.pairs) {
+            assert!(!w.found.is_empty());
+            assert!((w.mean_confusion - j.mean_confusion).abs() <= 1e-12 * w.mean_confusion);
+            let mean = CrossPair {
+                mean_confusion: w.mean_confusion,
+                ..j.clone()
+            };
+            assert_eq!(w, &mean);
+        }
     }
 }

@@ -41,7 +41,7 @@ use crate::layout::Layout;
 use crate::montecarlo::Target;
 use crate::report::number::share_percent;
 use crate::scenario::Scenario;
-use crate::set::dips::find_dips;
+use crate::set::dips::{find_dips, Sample};
 use crate::set::{all_pairs, cross_pairs, CrossMatrix, MAX_MARKERS, MIN_MARKERS};
 use nalgebra::Vector3;
 use repair::{repair_cross, CrossRule};
@@ -308,14 +308,12 @@ pub fn design_set(
     };
     // The volume's samples with their unit-cube points: where the dips
     // between them are searched from (`crate::set::dips`).
-    let samples: Vec<(Scenario, [f64; 7])> = scenarios
+    let samples: Vec<Sample> = scenarios
         .iter()
         .copied()
         .zip(config.volume.unit_points())
         .collect();
-    let between = |pairs: &[SeenOffered], first_index: usize| {
-        dips_between(config, &samples, &cross_settings, pairs, first_index)
-    };
+    let between = set.between_samples.then_some(&samples[..]);
     let mut markers: Vec<SetMarker> = Vec::with_capacity(set.markers);
     // The pairs of each kept marker with the markers before it, as its
     // try checked them.
@@ -356,34 +354,23 @@ pub fn design_set(
             if verdict == TryVerdict::Kept && !markers.is_empty() {
                 let rivals: Vec<Vec<Vector3<f64>>> =
                     markers.iter().map(|m| m.layout.positions()).collect();
-                let check = |points: &[Vector3<f64>], scenarios: &[Scenario]| {
+                let pairs: Vec<(usize, usize)> = (0..k).flat_map(|j| [(k, j), (j, k)]).collect();
+                let with = |points: &[Vector3<f64>]| {
                     let mut objects = rivals.clone();
                     objects.push(points.to_vec());
-                    let pairs: Vec<(usize, usize)> =
-                        (0..k).flat_map(|j| [(k, j), (j, k)]).collect();
-                    matrix_of(
-                        config,
-                        &objects,
-                        diameter,
-                        scenarios,
-                        &cross_settings,
-                        &pairs,
-                    )
+                    objects
                 };
-                let points = family.points(&outcome.best.params);
-                let probe = |points: &[Vector3<f64>], first_index: usize| {
-                    if !set.between_samples {
-                        return Vec::new();
-                    }
-                    let pairs: Vec<SeenOffered> = rivals
-                        .iter()
-                        .flat_map(|r| [(points, &r[..]), (&r[..], points)])
-                        .collect();
-                    between(&pairs, first_index)
+                let check = |points: &[Vector3<f64>], scenarios: &[Scenario]| {
+                    let objects = with(points);
+                    matrix_of(config, &objects, scenarios, &cross_settings, &pairs)
+                };
+                let full = |points: &[Vector3<f64>], scenarios: &mut Vec<Scenario>| {
+                    let objects = with(points);
+                    let on = (scenarios, between);
+                    full_matrix(config, &objects, on, &cross_settings, &pairs)
                 };
                 let mut checked = thinned.clone();
-                checked.extend(probe(&points, scenarios.len()));
-                let mut matrix = check(&points, &checked);
+                let mut matrix = full(&family.points(&outcome.best.params), &mut checked);
                 let mut share = matrix.worst_share();
                 if !matrix.meets_floor() {
                     let rule = CrossRule {
@@ -401,7 +388,7 @@ pub fn design_set(
                         &settings,
                         rule,
                         (outcome, matrix),
-                        (&check, &probe, checked),
+                        (&check, &full, checked),
                         stop,
                     )?;
                     // A matrix that meets the floor is the best one seen.
@@ -502,24 +489,17 @@ pub fn design_set(
             pairs: checked_pairs,
         }
     } else {
-        let pairs = all_pairs(objects.len());
         let mut checked = scenarios.clone();
-        if set.between_samples {
-            let seen: Vec<SeenOffered> = pairs
-                .iter()
-                .map(|&(i, j)| (&objects[i][..], &objects[j][..]))
-                .collect();
-            checked.extend(between(&seen, scenarios.len()));
-            dips = checked.len() - scenarios.len();
-        }
-        matrix_of(
+        let pairs = all_pairs(objects.len());
+        let matrix = full_matrix(
             config,
             &objects,
-            diameter,
-            &checked,
+            (&mut checked, between),
             &cross_settings,
             &pairs,
-        )
+        );
+        dips = checked.len() - scenarios.len();
+        matrix
     };
     matrix.markers = markers.iter().map(|m| m.layout.name.clone()).collect();
     let accuracies: Vec<f64> = markers.iter().map(|m| m.accuracy).collect();
@@ -539,49 +519,11 @@ pub fn design_set(
     })
 }
 
-/// A pair of markers' points: the one seen, the one offered as the model.
-type SeenOffered<'a> = (&'a [Vector3<f64>], &'a [Vector3<f64>]);
-
-/// The viewpoints between the volume's `samples` where a pair (seen,
-/// offered) of `pairs` comes near the cross floor: the floors of the dips
-/// ([`crate::set::dips::find_dips`]) whose predicted confusion exceeds
-/// [`crate::set::NEAR_SHARE`] of the criterion, numbered from
-/// `first_index`.
-fn dips_between(
-    config: &SearchConfig,
-    samples: &[(Scenario, [f64; 7])],
-    settings: &IdentifiabilitySettings,
-    pairs: &[SeenOffered],
-    first_index: usize,
-) -> Vec<Scenario> {
-    let near = crate::set::NEAR_SHARE * settings.max_wrong();
-    let mut found: Vec<Scenario> = Vec::new();
-    for &(seen, offered) in pairs {
-        let sigmas = vec![None; seen.len()];
-        let target = Target {
-            camera: &config.camera,
-            object: seen,
-            sphere_diameter_mm: config.constraints.sphere_diameter_mm,
-            point_sigma_px: &sigmas,
-        };
-        let dips = find_dips(&target, offered, &config.volume, samples, settings, 0);
-        found.extend(
-            dips.into_iter()
-                .filter(|d| d.confusion_probability > near)
-                .map(|d| d.scenario),
-        );
-    }
-    for (k, scenario) in found.iter_mut().enumerate() {
-        scenario.index = first_index + k;
-    }
-    found
-}
-
-/// The cross matrix of `objects` (one sphere diameter, no per-point σ).
+/// The cross matrix of `pairs` (seen, offered) of `objects` (one sphere
+/// diameter, no per-point σ) over `scenarios`.
 fn matrix_of(
     config: &SearchConfig,
     objects: &[Vec<Vector3<f64>>],
-    diameter: f64,
     scenarios: &[Scenario],
     settings: &IdentifiabilitySettings,
     pairs: &[(usize, usize)],
@@ -593,7 +535,7 @@ fn matrix_of(
         .map(|(object, sigmas)| Target {
             camera: &config.camera,
             object,
-            sphere_diameter_mm: diameter,
+            sphere_diameter_mm: config.constraints.sphere_diameter_mm,
             point_sigma_px: sigmas,
         })
         .collect();
@@ -601,6 +543,59 @@ fn matrix_of(
         .map(|k| format!("{}-{k}", config.name))
         .collect();
     cross_pairs(&targets, &names, scenarios, settings, pairs)
+}
+
+/// [`matrix_of`] over `scenarios`, then, given the volume's `samples`
+/// (with their unit-cube points), over the dips between them
+/// ([`crate::set::dips::find_dips`], followed from the samples and from
+/// the labellings this check found) whose predicted confusion exceeds
+/// [`crate::set::NEAR_SHARE`] of the criterion; those join `scenarios`,
+/// numbered after them.
+fn full_matrix(
+    config: &SearchConfig,
+    objects: &[Vec<Vector3<f64>>],
+    (scenarios, samples): (&mut Vec<Scenario>, Option<&[Sample]>),
+    settings: &IdentifiabilitySettings,
+    pairs: &[(usize, usize)],
+) -> CrossMatrix {
+    let mut matrix = matrix_of(config, objects, scenarios, settings, pairs);
+    let Some(samples) = samples else {
+        return matrix;
+    };
+    let near = crate::set::NEAR_SHARE * settings.max_wrong();
+    let mut dips: Vec<Scenario> = Vec::new();
+    for &(i, j) in pairs {
+        let sigmas = vec![None; objects[i].len()];
+        let target = Target {
+            camera: &config.camera,
+            object: &objects[i],
+            sphere_diameter_mm: config.constraints.sphere_diameter_mm,
+            point_sigma_px: &sigmas,
+        };
+        let found = matrix.pair(i, j).map_or(&[][..], |p| &p.found[..]);
+        let pair_dips = find_dips(
+            &target,
+            &objects[j],
+            &config.volume,
+            samples,
+            found,
+            settings,
+            0,
+        );
+        dips.extend(
+            pair_dips
+                .into_iter()
+                .filter(|d| d.confusion_probability > near)
+                .map(|d| d.scenario),
+        );
+    }
+    let next = scenarios.iter().map(|s| s.index + 1).max().unwrap_or(0);
+    for (k, scenario) in dips.iter_mut().enumerate() {
+        scenario.index = next + k;
+    }
+    matrix.absorb(matrix_of(config, objects, &dips, settings, pairs));
+    scenarios.extend(dips);
+    matrix
 }
 
 /// The set's report: each marker's accuracy alone and in the set, and the

@@ -638,6 +638,10 @@ fn validate_set_reports_each_marker_and_refuses_two_copies() {
     assert!(report.contains("| 2 (pair-2) | pair-2.json |"), "{report}");
     assert!(report.contains("Smallest cross margin, px"), "{report}");
     assert!(report.contains("## Between the viewpoints"), "{report}");
+    assert!(
+        report.contains("## A blob left out near the floor"),
+        "{report}"
+    );
     let summary: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("set.json")).unwrap()).unwrap();
     // Both ordered pairs searched between the grid's viewpoints; trials
@@ -651,6 +655,11 @@ fn validate_set_reports_each_marker_and_refuses_two_copies() {
         );
         assert!(failing <= near, "{pair}");
         assert_eq!(pair["trials"].as_u64().unwrap(), 2 * failing, "{pair}");
+    }
+    for pair in summary["near"].as_array().unwrap() {
+        let missing = pair["missing"].as_u64().unwrap();
+        assert!(missing <= pair["near"].as_u64().unwrap(), "{pair}");
+        assert_eq!(pair["trials"].as_u64().unwrap(), 2 * missing, "{pair}");
     }
     let trials = summary["trials"].as_array().unwrap();
     assert_eq!(trials.len(), 2);
@@ -684,6 +693,70 @@ fn validate_set_reports_each_marker_and_refuses_two_copies() {
         "{stderr}"
     );
     assert!(!twin_out.exists());
+}
+
+/// `validate SET.json` tries the viewpoints near the floor again with the
+/// worst case's blob left out: for a copy of a marker with one point
+/// moved by 12 mm and two by 0.4 mm, leaving that point's blob out leaves
+/// a fraction of a pixel between the two, and the trials name the other
+/// marker about as often as predicted.
+#[test]
+fn near_viewpoints_are_tried_with_the_worst_cases_blob_left_out() {
+    use layout_opt::search::set::validation::validate_set;
+    use layout_opt::volume::WorkingVolume;
+    let dir = tempfile::tempdir().unwrap();
+    let marker = four_markers()[1].clone();
+    let mut copy = marker.clone();
+    copy[3].z += 12.0;
+    copy[1].x += 0.4;
+    copy[5].y -= 0.4;
+    let path = write_set(
+        dir.path(),
+        "near",
+        &[layout("a", &marker), layout("b", &copy)],
+    )
+    .unwrap();
+    let set = MarkerSet::load(&path).unwrap();
+    let grid = ScenarioGrid::new(
+        "600,900".parse().unwrap(),
+        "0".parse().unwrap(),
+        "0".parse().unwrap(),
+        "-30,0,30".parse().unwrap(),
+        "-10,10".parse().unwrap(),
+        "0".parse().unwrap(),
+        "0.5".parse().unwrap(),
+    )
+    .unwrap();
+    let trials = 30;
+    let validation = validate_set(
+        &set,
+        &Camera::paper(),
+        &WorkingVolume::Grid(grid),
+        &settings(trials),
+    );
+    assert_eq!(validation.near.len(), 2);
+    let (mut wrong, mut expected, mut tried) = (0, 0.0, 0);
+    for pair in &validation.near {
+        assert!(pair.missing > 0 && pair.missing <= pair.near, "{pair:?}");
+        assert_eq!(pair.trials, trials * pair.missing, "{pair:?}");
+        wrong += pair.wrong_marker;
+        expected += pair.expected_wrong;
+        tried += pair.trials;
+    }
+    // Binomial per viewpoint: the count within 4 standard deviations of
+    // the prediction (at most p = 0.5, so sd ≤ √(n/4)).
+    let sd = (tried as f64 / 4.0).sqrt();
+    assert!(expected > 2.0 * sd, "expected {expected} of {tried}");
+    assert!(
+        (wrong as f64 - expected).abs() <= 4.0 * sd,
+        "{wrong} named the other marker, {expected:.1} expected, of {tried}"
+    );
+    let report = validation.markdown("test");
+    assert!(
+        report.contains("## A blob left out near the floor"),
+        "{report}"
+    );
+    assert_eq!(validation.json()["near"].as_array().unwrap().len(), 2);
 }
 
 /// A set file of markers 1 and 2 of [`four_markers`] in `dir`.

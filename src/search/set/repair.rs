@@ -282,13 +282,15 @@ pub struct CrossRepair {
 
 /// A cross check of candidate points over some scenarios.
 pub type CrossCheck<'a> = &'a dyn Fn(&[Vector3<f64>], &[Scenario]) -> CrossMatrix;
-/// The viewpoints between the samples where candidate points come near the
-/// cross floor against the earlier markers, numbered from the index given.
-pub type CrossProbe<'a> = &'a dyn Fn(&[Vector3<f64>], usize) -> Vec<Scenario>;
+/// The full cross check of candidate points: over the scenarios given,
+/// then over the dips between the volume's viewpoints that it finds
+/// (`crate::set::dips`), which join the scenarios.
+pub type CrossFullCheck<'a> = &'a dyn Fn(&[Vector3<f64>], &mut Vec<Scenario>) -> CrossMatrix;
 
 /// Repairs `outcome`'s winner against the earlier markers that `rule`
 /// holds (module docs). `matrix` is its cross matrix over `scenarios`,
-/// `check` computes one for other points, and `floor` is the
+/// `check` computes one for other points (`full_check` with the dips it
+/// finds), and `floor` is the
 /// identifiability floor the winner must keep. Each round runs
 /// Nelder–Mead from the last admissible round's layout (the first from the
 /// winner), its trust centred there too, checks its layout on the
@@ -296,9 +298,9 @@ pub type CrossProbe<'a> = &'a dyn Fn(&[Vector3<f64>], usize) -> Vec<Scenario>;
 /// scenario; whatever either check finds failing or near is held from
 /// then on. The first layout that meets every single-marker floor over
 /// the whole grid and the cross floor on every scenario is the repair's
-/// result. Before that full check, `probe` adds the round's layout's own
-/// dips between the viewpoints (none when the set checks its viewpoints
-/// only), which stay checked in later rounds.
+/// result. That full check adds the round's layout's own dips between the
+/// viewpoints (none when the set checks its viewpoints only), which stay
+/// checked in later rounds.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn repair_cross(
     family: &Family,
@@ -307,7 +309,7 @@ pub(crate) fn repair_cross(
     settings: &SearchSettings,
     mut rule: CrossRule,
     (outcome, matrix): (OptimiseOutcome, CrossMatrix),
-    (check, probe, mut scenarios): (CrossCheck, CrossProbe, Vec<Scenario>),
+    (check, full_check, mut scenarios): (CrossCheck, CrossFullCheck, Vec<Scenario>),
     stop: &AtomicBool,
 ) -> Result<CrossRepair, SearchError> {
     let point_sigma = family.layout("", &family.initial()).point_sigmas();
@@ -366,9 +368,7 @@ pub(crate) fn repair_cross(
             continue;
         }
         // The moved marker's own dips join the viewpoints checked.
-        let next = scenarios.iter().map(|s| s.index + 1).max().unwrap_or(0);
-        scenarios.extend(probe(&points, next));
-        let matrix = check(&points, &scenarios);
+        let matrix = full_check(&points, &mut scenarios);
         repair.best_share = repair.best_share.max(matrix.worst_share());
         rule.hold(&points, &matrix, &scenarios);
         if matrix.meets_floor() {
@@ -595,7 +595,7 @@ mod repair_tests {
             (outcome, matrix),
             (
                 &check,
-                &|_: &[Vector3<f64>], _| Vec::new(),
+                &|points: &[Vector3<f64>], scenarios: &mut Vec<Scenario>| check(points, scenarios),
                 scenarios.clone(),
             ),
             &AtomicBool::new(false),

@@ -6,10 +6,10 @@ use crate::camera::Camera;
 use crate::identifiability::{self, IdentifiabilitySettings};
 use crate::montecarlo::Target;
 use crate::scenario::Scenario;
-use crate::set::dips::{find_dips, Dip};
+use crate::set::dips::{find_dips, Dip, Sample};
 use crate::set::{
-    all_pairs, cross_matrix, missing_blob_trials, set_trials, CrossMatrix, MarkerSet,
-    SetTrialCounts, NEAR_SHARE,
+    all_pairs, cross_matrix, cross_scenario, missing_blob_trials, set_trials, CrossMatrix,
+    FoundLabelling, MarkerSet, SetTrialCounts, NEAR_SHARE,
 };
 use crate::volume::WorkingVolume;
 use rayon::prelude::*;
@@ -39,6 +39,9 @@ pub struct SetValidation {
     /// Per ordered pair, the dips between the volume's viewpoints
     /// ([`crate::set::dips`]) and the trials at those that fail the floor.
     pub between: Vec<PairDips>,
+    /// Per ordered pair, the viewpoints near the floor whose worst case
+    /// leaves a blob out, and the trials there without that blob.
+    pub near: Vec<PairNear>,
     /// Scenarios of the working volume.
     pub scenarios: usize,
     /// The settings the trials ran with.
@@ -67,6 +70,30 @@ pub struct PairDips {
     pub wrong_marker: usize,
     /// The failing dips' predicted confusion probabilities, summed over
     /// their trials (the expected count of `wrong_marker`).
+    pub expected_wrong: f64,
+}
+
+/// One ordered pair's viewpoints near the floor (predicted confusion above
+/// [`NEAR_SHARE`] of the criterion) whose worst case leaves a blob out:
+/// the grid's trials draw every blob, so these are tried again with that
+/// blob left out of every frame, identified against the whole set with
+/// one missing blob allowed.
+#[derive(Debug, Clone, Serialize)]
+pub struct PairNear {
+    /// The marker whose blobs are seen.
+    pub marker: usize,
+    /// The marker offered as the model.
+    pub rival: usize,
+    /// Viewpoints near the floor.
+    pub near: usize,
+    /// Those whose worst case leaves a blob out.
+    pub missing: usize,
+    /// Trials there, each frame without that blob.
+    pub trials: usize,
+    /// Those trials that named another marker.
+    pub wrong_marker: usize,
+    /// The predicted confusion probabilities summed over the trials (the
+    /// expected count of `wrong_marker`).
     pub expected_wrong: f64,
 }
 
@@ -125,16 +152,24 @@ pub fn validate_set(
         .collect();
     let matrix = cross_matrix(&targets, &set.names(), scenarios, settings);
     let (counts, named) = set_trials(&targets, scenarios, settings);
-    let samples: Vec<(Scenario, [f64; 7])> = scenarios
+    let samples: Vec<Sample> = scenarios
         .iter()
         .copied()
         .zip(volume.unit_points())
         .collect();
     let between = all_pairs(targets.len())
         .into_iter()
-        .map(|(i, j)| pair_dips(&targets, (i, j), volume, &samples, settings))
+        .map(|(i, j)| {
+            let found = matrix.pair(i, j).map_or(&[][..], |p| &p.found[..]);
+            pair_dips(&targets, (i, j), volume, (&samples, found), settings)
+        })
+        .collect();
+    let near = all_pairs(targets.len())
+        .into_iter()
+        .map(|(i, j)| near_trials(&targets, (i, j), scenarios, &matrix, settings))
         .collect();
     SetValidation {
+        near,
         set: set.name.clone(),
         markers: set.names(),
         files: set.members.iter().map(|m| m.file.clone()).collect(),
@@ -149,14 +184,15 @@ pub fn validate_set(
     }
 }
 
-/// The dips of marker `i`'s blobs explained by marker `j` over `volume`,
+/// The dips of marker `i`'s blobs explained by marker `j` over `volume`
+/// (followed from its `samples` and from the labellings `found` on them),
 /// and `settings.trials` trials at each failing dip, the dip's blob left
 /// out of every frame, identified against the whole set.
 fn pair_dips(
     targets: &[Target],
     (i, j): (usize, usize),
     volume: &WorkingVolume,
-    samples: &[(Scenario, [f64; 7])],
+    (samples, found): (&[Sample], &[FoundLabelling]),
     settings: &IdentifiabilitySettings,
 ) -> PairDips {
     let first = samples.len() + (i * targets.len() + j) * DIP_INDEX_STRIDE;
@@ -165,6 +201,7 @@ fn pair_dips(
         targets[j].object,
         volume,
         samples,
+        found,
         settings,
         first,
     );
@@ -173,14 +210,11 @@ fn pair_dips(
         .iter()
         .filter(|d| d.confusion_probability > max_wrong)
         .collect();
-    let runs: Vec<(usize, usize, f64)> = failing
-        .par_iter()
-        .filter_map(|d| {
-            let (trials, wrong) =
-                missing_blob_trials(targets, i, &d.scenario, d.missing, settings)?;
-            Some((trials, wrong, trials as f64 * d.confusion_probability))
-        })
+    let cases: Vec<Case> = failing
+        .iter()
+        .map(|d| (d.scenario, d.missing, d.confusion_probability))
         .collect();
+    let (trials, wrong_marker, expected_wrong) = case_trials(targets, i, &cases, settings);
     PairDips {
         marker: i,
         rival: j,
@@ -190,9 +224,69 @@ fn pair_dips(
             .count(),
         failing: failing.len(),
         worst: dips.first().cloned(),
-        trials: runs.iter().map(|r| r.0).sum(),
-        wrong_marker: runs.iter().map(|r| r.1).sum(),
-        expected_wrong: runs.iter().map(|r| r.2).sum(),
+        trials,
+        wrong_marker,
+        expected_wrong,
+    }
+}
+
+/// A viewpoint, the blob left out of every frame there (None: every blob
+/// drawn) and the predicted confusion probability of that case.
+type Case = (Scenario, Option<usize>, f64);
+
+/// `settings.trials` trials of marker `i` at each case, identified against
+/// the whole set: the trials run, those that named another marker, and
+/// the expected count of those (the cases' probabilities summed over
+/// their trials).
+fn case_trials(
+    targets: &[Target],
+    i: usize,
+    cases: &[Case],
+    settings: &IdentifiabilitySettings,
+) -> (usize, usize, f64) {
+    let runs: Vec<(usize, usize, f64)> = cases
+        .par_iter()
+        .filter_map(|(scenario, missing, probability)| {
+            let (trials, wrong) = missing_blob_trials(targets, i, scenario, *missing, settings)?;
+            Some((trials, wrong, trials as f64 * probability))
+        })
+        .collect();
+    (
+        runs.iter().map(|r| r.0).sum(),
+        runs.iter().map(|r| r.1).sum(),
+        runs.iter().map(|r| r.2).sum(),
+    )
+}
+
+/// The viewpoints near the floor of pair (`i` seen, `j` offered) in
+/// `matrix` whose worst case leaves a blob out, and `settings.trials`
+/// trials at each with that blob left out ([`PairNear`]).
+fn near_trials(
+    targets: &[Target],
+    (i, j): (usize, usize),
+    scenarios: &[Scenario],
+    matrix: &CrossMatrix,
+    settings: &IdentifiabilitySettings,
+) -> PairNear {
+    let near = matrix.pair(i, j).map_or(&[][..], |p| &p.near[..]);
+    let cases: Vec<Case> = scenarios
+        .iter()
+        .filter(|s| near.contains(&s.index))
+        .filter_map(|s| {
+            let prediction = cross_scenario(&targets[i], targets[j].object, s, settings)?;
+            let missing = prediction.missing?;
+            Some((*s, Some(missing), prediction.confusion_probability))
+        })
+        .collect();
+    let (trials, wrong_marker, expected_wrong) = case_trials(targets, i, &cases, settings);
+    PairNear {
+        marker: i,
+        rival: j,
+        near: near.len(),
+        missing: cases.len(),
+        trials,
+        wrong_marker,
+        expected_wrong,
     }
 }
 
@@ -232,15 +326,40 @@ impl SetValidation {
             ));
         }
         report.push_str(&super::matrix_markdown(&self.matrix));
+        report.push_str(&self.near_markdown());
         report.push_str(&self.between_markdown());
         report
+    }
+
+    /// The table of the trials at the viewpoints near the floor whose
+    /// worst case leaves a blob out.
+    fn near_markdown(&self) -> String {
+        let sig = |v: f64, digits: usize| crate::report::number::significant(Some(v), digits);
+        let mut text = format!(
+            "\n## A blob left out near the floor\n\nThe trials above draw every blob. At every viewpoint whose predicted confusion is above {} (near the floor) and whose worst case leaves a blob out, {} more seeded trials with that blob left out of every frame, identified against the whole set with one missing blob allowed.\n\n| seen | offered | near viewpoints | worst case with a blob left out | trials | named the offered marker or another | expected |\n|---|---|---|---|---|---|---|\n",
+            sig(NEAR_SHARE * self.settings.max_wrong(), 2),
+            self.settings.trials,
+        );
+        for p in &self.near {
+            text.push_str(&format!(
+                "| {} | {} | {} | {} | {} | {} | {} |\n",
+                p.marker + 1,
+                p.rival + 1,
+                p.near,
+                p.missing,
+                p.trials,
+                p.wrong_marker,
+                sig(p.expected_wrong, 3)
+            ));
+        }
+        text
     }
 
     /// The table of the dips between the viewpoints.
     fn between_markdown(&self) -> String {
         let sig = |v: f64, digits: usize| crate::report::number::significant(Some(v), digits);
         let mut text = format!(
-            "\n## Between the viewpoints\n\nThe floors of the dips of every labelling that an affine camera nearly confuses (docs/formats.md, \"Between the viewpoints\"), searched over the volume from its viewpoints. Failing: predicted confusion above {}; near: above {}. At each failing dip, {} seeded trials with the dip's blob left out of every frame, identified against the whole set with one missing blob allowed.\n\n| seen | offered | near | failing | worst: confusion | margin, px | blob left out | depth, mm | tilt, pan, roll ° | X, Y mm | trials at failing dips | named the offered marker or another | expected |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+            "\n## Between the viewpoints\n\nThe floors of the dips of every labelling that an affine camera nearly confuses or that the cross check found within its gate at a viewpoint (docs/formats.md, \"Between the viewpoints\"), searched over the volume from its viewpoints. Failing: predicted confusion above {}; near: above {}. At each failing dip, {} seeded trials with the dip's blob left out of every frame, identified against the whole set with one missing blob allowed.\n\n| seen | offered | near | failing | worst: confusion | margin, px | blob left out | depth, mm | tilt, pan, roll ° | X, Y mm | trials at failing dips | named the offered marker or another | expected |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
             sig(self.settings.max_wrong(), 2),
             sig(NEAR_SHARE * self.settings.max_wrong(), 2),
             self.settings.trials,
@@ -298,6 +417,7 @@ impl SetValidation {
             "trials": self.counts,
             "named": self.named,
             "between": self.between,
+            "near": self.near,
             "seconds": self.seconds,
         })
     }
@@ -312,8 +432,11 @@ impl SetValidation {
     pub fn summary(&self) -> String {
         let confused: usize = self.counts.iter().map(|c| c.wrong_marker).sum();
         let trials: usize = self.counts.iter().map(|c| c.trials).sum();
+        let near_confused: usize = self.near.iter().map(|p| p.wrong_marker).sum();
+        let near_trials: usize = self.near.iter().map(|p| p.trials).sum();
+        let expected: f64 = self.near.iter().map(|p| p.expected_wrong).sum();
         format!(
-            "set {}: {} markers over {} scenarios; smallest cross margin {}; cross floor met: {}; {confused} of {trials} trials named another marker; between the viewpoints {} dips fail the floor",
+            "set {}: {} markers over {} scenarios; smallest cross margin {}; cross floor met: {}; {confused} of {trials} trials named another marker, and {near_confused} of {near_trials} with a blob left out near the floor (expected {}); between the viewpoints {} dips fail the floor",
             self.set,
             self.markers.len(),
             self.scenarios,
@@ -321,6 +444,7 @@ impl SetValidation {
                 .smallest_margin_px()
                 .map_or("above the gate everywhere".to_string(), |m| format!("{m:.2} px")),
             if self.matrix.meets_floor() { "yes" } else { "no" },
+            crate::report::number::significant(Some(expected), 3),
             self.failing_between(),
         )
     }
