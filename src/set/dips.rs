@@ -777,8 +777,8 @@ mod tests {
         (first, second)
     }
 
-    /// An affine camera is no floor at close range: marker 2's blobs, P0
-    /// left out, given marker 1's points 3, 6, 1, 0, 5, 2, leave 13.8 px
+    /// An affine camera is no floor at close range: marker 2's blobs, the
+    /// first left out, given marker 1's points 3, 6, 1, 0, 5, 2, leave 13.8 px
     /// to the best affine view at 1000 mm, far above the screen, while
     /// perspective fits them within about 2 px near 700 mm. The affine
     /// screen drops the labelling; the cross check on the samples finds it

@@ -44,7 +44,7 @@ pub(crate) struct SetArgs {
     pub(super) set_tries: usize,
     /// With --set: check the cross floor on the volume's viewpoints only,
     /// not also at the dips between them (docs/formats.md, "Between the
-    /// viewpoints"): faster (4 markers: 125.0 s against 191.7 s on 2
+    /// viewpoints"): faster (4 markers: 125.0 s against 233.8 s on 2
     /// cores), but a confusion a degree or two wide between the viewpoints
     /// passes unseen.
     #[arg(long, requires = "set")]
