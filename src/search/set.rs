@@ -598,6 +598,21 @@ fn full_matrix(
     matrix
 }
 
+/// The legend of the set report's table of markers, up to the held-out
+/// grid it names.
+const MARKERS_LEGEND: &str = concat!(
+    "Accuracy: the objective's accuracy term (1 = the paper's biprism scaled to the envelope; lower is better). ",
+    "Alone: what one marker reaches (marker 1, the single-marker search's winner). ",
+    "Rotation: first-order RMS rotation error of the marker and of the paper's biprism on the held-out grid",
+);
+
+/// The head of the set report's table of markers.
+const MARKERS_HEAD: &str = concat!(
+    "| marker | accuracy in the set | alone | price | rotation against the paper's biprism | identifiable ",
+    "| available as printed (spheres alone; the paper's biprism as printed) | tries | cross repair rounds | seed |\n",
+    "|---|---|---|---|---|---|---|---|---|---|\n",
+);
+
 /// The set's report: each marker's accuracy alone and in the set, and the
 /// N×N matrix of the smallest cross margin (px) and the predicted
 /// confusion rate (Markdown).
@@ -625,7 +640,12 @@ pub fn set_report(outcome: &SetSearchOutcome, command: &str) -> String {
         sig(1.0 - outcome.settings.min_cross, 2),
         if outcome.matrix.meets_floor() { "yes" } else { "no" },
     );
-    text.push_str(&format!("## Markers\n\nAccuracy: the objective's accuracy term (1 = the paper's biprism scaled to the envelope; lower is better). Alone: what one marker reaches (marker 1, the single-marker search's winner). Rotation: first-order RMS rotation error of the marker and of the paper's biprism on the held-out grid ({}).\n\n| marker | accuracy in the set | alone | price | rotation against the paper's biprism | identifiable | available as printed (spheres alone; the paper's biprism as printed) | tries | cross repair rounds | seed |\n|---|---|---|---|---|---|---|---|---|---|\n", outcome.markers.first().map_or(String::new(), |m| format!("{} scenarios: {}", m.held_out.scenarios, m.held_out.grid))));
+    let held_out = outcome.markers.first().map_or(String::new(), |m| {
+        format!("{} scenarios: {}", m.held_out.scenarios, m.held_out.grid)
+    });
+    text.push_str(&format!(
+        "## Markers\n\n{MARKERS_LEGEND} ({held_out}).\n\n{MARKERS_HEAD}"
+    ));
     for (k, m) in outcome.markers.iter().enumerate() {
         let identifiable = m.identifiability.as_ref().map_or("—".to_string(), |f| {
             format!("{} of {}", f.identifiable, f.checked)

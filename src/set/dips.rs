@@ -40,7 +40,8 @@
 //! 2. *Each labelling's floor* ([`find_dips`]): its margin, the rival's
 //!    pose fitted by SQPnP and Levenberg–Marquardt, is a smooth function
 //!    of the viewpoint. It is evaluated at its starts (up to
-//!    [`NEAREST_SAMPLES`] from each source), and Nelder–Mead minimises margin over σ over the volume's unit cube
+//!    [`NEAREST_SAMPLES`] from each source), and Nelder–Mead minimises
+//!    margin over σ over the volume's unit cube
 //!    ([`crate::volume::WorkingVolume::scenario_at`]) from the [`STARTS`]
 //!    best, for [`DIP_ITERATIONS`] iterations.
 //! 3. The floors are the dips: viewpoints between the samples with the
@@ -49,9 +50,9 @@
 //!    (`search --set`), and `validate SET.json` reports them with trials.
 //!
 //! It is a search, not a bound: a labelling neither source gives, or a
-//! dip whose floor lies far from every start, may be missed. The labellings are followed in parallel, each
-//! serially and with no random stream, so the dips do not depend on the
-//! thread count.
+//! dip whose floor lies far from every start, may be missed. The
+//! labellings are followed in parallel, each serially and with no random
+//! stream, so the dips do not depend on the thread count.
 
 use super::{fit_labelling, seen_view, FoundLabelling};
 use crate::identifiability::{normal_upper_quantile, IdentifiabilitySettings};
@@ -347,10 +348,10 @@ pub fn find_dips(
             }
             None => {
                 let starts: Vec<usize> = at.collect();
-                if let (false, Some(affine)) = (
-                    starts.is_empty(),
-                    affine_labelling(target.object, rival, labelling.missing, &labelling.labels),
-                ) {
+                let (missing, labels) = (labelling.missing, &labelling.labels);
+                if let Some(affine) = affine_labelling(target.object, rival, missing, labels)
+                    .filter(|_| !starts.is_empty())
+                {
                     followed.push((affine, starts));
                 }
             }
