@@ -19,7 +19,11 @@
 //! checked again (`repair_cross`), alone (every single-marker floor over
 //! the whole grid) and against the earlier markers (the cross matrix);
 //! confusions it brings up are held in the next round, for at most
-//! [`CROSS_ROUNDS`] rounds.
+//! [`CROSS_ROUNDS`] rounds. A round whose layout misses a single-marker
+//! floor changes nothing for the next, which would repeat it exactly (one
+//! Nelder–Mead run, seeded, from the same layout under the same held
+//! confusions), so the repair ends there, unless the miss was the
+//! marker's own identifiability and the rounds did not guard it yet.
 
 use super::super::optimise::{self, Candidate, OptimiseOutcome, SearchSettings};
 use super::super::{
@@ -352,7 +356,13 @@ pub(crate) fn repair_cross(
         let points = family.points(&repaired.best.params);
         let evaluation = full.evaluate(&points, &point_sigma);
         if !evaluation.admissible() {
-            guard_identity |= !evaluation.meets_identifiability_floor();
+            // The next round starts from the same layout under the same
+            // held confusions and seed: unless it now guards the marker's
+            // identifiability, it would repeat this one exactly.
+            if guard_identity || evaluation.meets_identifiability_floor() {
+                break;
+            }
+            guard_identity = true;
             continue;
         }
         let watched: Vec<Scenario> = scenarios
@@ -489,11 +499,12 @@ mod repair_tests {
     use crate::search::optimise::Quiet;
     use crate::sphere_image::Observation;
 
-    /// A near copy of the earlier marker is confused with it; the repair
-    /// moves it until the cross floor holds in every viewpoint, and the
-    /// repaired marker stays admissible.
-    #[test]
-    fn the_repair_clears_a_copy_of_an_earlier_marker() {
+    /// The cross repair of a near copy of an earlier marker (a free shape
+    /// of 6 points, each parameter 1% of its range away) under the
+    /// identifiability floor `floor`: the repair, the share of the copy's
+    /// matrix before it, how far it moved the copy (mm), and whether its
+    /// matrix is the check of the repaired layout.
+    fn repair_near_copy(floor: Option<IdentifiabilityFloor>) -> (CrossRepair, f64, f64, bool) {
         // A free shape: a copy scaled (a biprism of another size) looks
         // the same from farther away, and no repair separates them.
         let (_, evaluator) = setup();
@@ -589,7 +600,7 @@ mod repair_tests {
         let repair = repair_cross(
             &family,
             &evaluator,
-            None,
+            floor,
             &search,
             rule,
             (outcome, matrix),
@@ -601,19 +612,45 @@ mod repair_tests {
             &AtomicBool::new(false),
         )
         .unwrap();
-        assert!(repair.rounds >= 1 && repair.held > 0);
-        assert!(repair.matrix.meets_floor(), "{:?}", repair.matrix);
-        // A cleared repair's best share is its matrix's (design_set relies on it).
-        assert_eq!(repair.best_share, repair.matrix.worst_share());
-        assert!(repair.best_share > matrix_share, "{}", repair.best_share);
         let repaired = family.points(&repair.outcome.best.params);
-        assert!(repair.outcome.best.evaluation.admissible());
-        assert_eq!(check(&repaired, &scenarios), repair.matrix);
+        let rechecked = check(&repaired, &scenarios) == repair.matrix;
         let moved = repaired
             .iter()
             .zip(&candidate)
             .map(|(p, a)| (p - a).norm())
             .fold(0.0, f64::max);
+        (repair, matrix_share, moved, rechecked)
+    }
+
+    /// A near copy of the earlier marker is confused with it; the repair
+    /// moves it until the cross floor holds in every viewpoint, and the
+    /// repaired marker stays admissible.
+    #[test]
+    fn the_repair_clears_a_copy_of_an_earlier_marker() {
+        let (repair, matrix_share, moved, rechecked) = repair_near_copy(None);
+        assert!(repair.rounds >= 1 && repair.held > 0);
+        assert!(repair.matrix.meets_floor(), "{:?}", repair.matrix);
+        // A cleared repair's best share is its matrix's (design_set relies on it).
+        assert_eq!(repair.best_share, repair.matrix.worst_share());
+        assert!(repair.best_share > matrix_share, "{}", repair.best_share);
+        assert!(repair.outcome.best.evaluation.admissible());
+        assert!(rechecked);
         assert!(moved > 0.1, "moved {moved} mm");
+    }
+
+    /// Under an identifiability floor no layout meets (every viewpoint
+    /// labelled right with probability 1 − 1e-15), the first round misses
+    /// it, the second guards it and misses it too, and the repair ends
+    /// there: a third round would repeat the second exactly.
+    #[test]
+    fn a_round_that_would_repeat_the_last_ends_the_repair() {
+        let floor = IdentifiabilityFloor {
+            min_share: 1.0,
+            min_correct: 1.0 - 1e-15,
+        };
+        let (repair, matrix_share, _, _) = repair_near_copy(Some(floor));
+        assert_eq!(repair.rounds, 2);
+        assert!(!repair.matrix.meets_floor());
+        assert_eq!(repair.best_share, matrix_share);
     }
 }
