@@ -528,21 +528,30 @@ fn matrix_of(
     settings: &IdentifiabilitySettings,
     pairs: &[(usize, usize)],
 ) -> CrossMatrix {
-    let sigmas: Vec<Vec<Option<f64>>> = objects.iter().map(|o| vec![None; o.len()]).collect();
+    let none = vec![None; objects.iter().map(Vec::len).max().unwrap_or(0)];
     let targets: Vec<Target> = objects
         .iter()
-        .zip(&sigmas)
-        .map(|(object, sigmas)| Target {
-            camera: &config.camera,
-            object,
-            sphere_diameter_mm: config.constraints.sphere_diameter_mm,
-            point_sigma_px: sigmas,
-        })
+        .map(|object| target(config, object, &none))
         .collect();
     let names: Vec<String> = (1..=objects.len())
         .map(|k| format!("{}-{k}", config.name))
         .collect();
     cross_pairs(&targets, &names, scenarios, settings, pairs)
+}
+
+/// `object` seen by `config`'s camera, spheres of its diameter, no
+/// per-point σ (`none` holds a None for each point at least).
+fn target<'a>(
+    config: &'a SearchConfig,
+    object: &'a [Vector3<f64>],
+    none: &'a [Option<f64>],
+) -> Target<'a> {
+    Target {
+        camera: &config.camera,
+        object,
+        sphere_diameter_mm: config.constraints.sphere_diameter_mm,
+        point_sigma_px: &none[..object.len()],
+    }
 }
 
 /// [`matrix_of`] over `scenarios`, then, given the volume's `samples`
@@ -563,18 +572,12 @@ fn full_matrix(
         return matrix;
     };
     let near = crate::set::NEAR_SHARE * settings.max_wrong();
+    let none = vec![None; objects.iter().map(Vec::len).max().unwrap_or(0)];
     let mut dips: Vec<Scenario> = Vec::new();
     for &(i, j) in pairs {
-        let sigmas = vec![None; objects[i].len()];
-        let target = Target {
-            camera: &config.camera,
-            object: &objects[i],
-            sphere_diameter_mm: config.constraints.sphere_diameter_mm,
-            point_sigma_px: &sigmas,
-        };
         let found = matrix.pair(i, j).map_or(&[][..], |p| &p.found[..]);
         let pair_dips = find_dips(
-            &target,
+            &target(config, &objects[i], &none),
             &objects[j],
             &config.volume,
             samples,
