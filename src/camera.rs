@@ -417,8 +417,8 @@ impl Camera {
             .filter(|line| !line.trim_start().starts_with("%YAML"))
             .collect::<Vec<_>>()
             .join("\n");
-        let calibration: OpenCvCalibration =
-            serde_saphyr::from_str(&body).map_err(|e| parse_error(e.to_string()))?;
+        let calibration: OpenCvCalibration = serde_saphyr::from_str(&body)
+            .map_err(|e| parse_error(crate::config::one_line(&e.to_string())))?;
         let k = &calibration.camera_matrix;
         if k.rows != 3 || k.cols != 3 || k.data.len() != 9 {
             return Err(parse_error(format!(

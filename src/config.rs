@@ -74,6 +74,20 @@ impl ConfigError {
     }
 }
 
+/// A YAML parser's error as one line: its first line (where and what),
+/// without the source excerpt drawn below it and without a leading
+/// `error: `.
+///
+/// ```
+/// use layout_opt::config::one_line;
+/// let text = "error: line 2 column 6: bad ':'\n --> <input>:2:6\n  |";
+/// assert_eq!(one_line(text), "line 2 column 6: bad ':'");
+/// ```
+pub fn one_line(error: &str) -> String {
+    let first = error.lines().next().unwrap_or_default().trim();
+    first.strip_prefix("error: ").unwrap_or(first).to_string()
+}
+
 /// A share in [0, 1] written as a fraction (`0.999`) or a percentage
 /// (`99.9%`); `None` for anything else.
 pub fn parse_share(text: &str) -> Option<f64> {

@@ -30,7 +30,7 @@ pub const LOCK_SUFFIX: &str = ".lock";
 static NEXT_TEMPORARY: AtomicU64 = AtomicU64::new(0);
 
 /// The directory `path` lives in (`.` for a bare file name).
-fn directory_of(path: &Path) -> PathBuf {
+pub fn directory_of(path: &Path) -> PathBuf {
     match path.parent() {
         Some(dir) if !dir.as_os_str().is_empty() => dir.to_path_buf(),
         _ => PathBuf::from("."),
@@ -56,6 +56,20 @@ fn temporary_prefix(file_name: &OsString) -> String {
 /// The directory must exist. On failure the temporary is removed and `path`
 /// is left as it was.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    let temporary = write_temporary(path, bytes)?;
+    let result = std::fs::rename(&temporary, path).map(|()| sync_directory(&directory_of(path)));
+    if result.is_err() {
+        let _ = std::fs::remove_file(&temporary);
+    }
+    result
+}
+
+/// Writes `bytes` to a new temporary file beside `path` (named as
+/// [`write_atomic`] names its temporaries, so that
+/// [`remove_stale_temporaries`] finds it), flushed to disk, and returns its
+/// path; `path` itself is not touched. The caller renames the temporary
+/// over `path` or removes it. On failure nothing is left.
+pub fn write_temporary(path: &Path, bytes: &[u8]) -> std::io::Result<PathBuf> {
     let dir = directory_of(path);
     let prefix = temporary_prefix(&file_name_of(path)?);
     let (temporary, mut file) = loop {
@@ -75,18 +89,15 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
             Err(e) => return Err(e),
         }
     };
-    let result = (|| {
-        file.write_all(bytes)?;
-        file.sync_all()?;
-        drop(file);
-        std::fs::rename(&temporary, path)?;
-        sync_directory(&dir);
-        Ok(())
-    })();
-    if result.is_err() {
-        let _ = std::fs::remove_file(&temporary);
+    let result = file.write_all(bytes).and_then(|()| file.sync_all());
+    drop(file);
+    match result {
+        Ok(()) => Ok(temporary),
+        Err(e) => {
+            let _ = std::fs::remove_file(&temporary);
+            Err(e)
+        }
     }
-    result
 }
 
 /// Writes `text` atomically, creating its directory first.
@@ -97,7 +108,7 @@ pub fn write_text_atomic(path: &Path, text: &str) -> std::io::Result<()> {
 
 /// Makes a rename in `dir` durable where directories can be synced (not on
 /// every platform: an error is ignored).
-fn sync_directory(dir: &Path) {
+pub fn sync_directory(dir: &Path) {
     if let Ok(handle) = File::open(dir) {
         let _ = handle.sync_all();
     }

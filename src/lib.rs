@@ -20,6 +20,7 @@ pub mod error_model;
 pub mod family;
 pub mod files;
 pub mod identifiability;
+pub mod kernel;
 pub mod layout;
 pub mod linalg;
 pub mod mesh;

@@ -4,11 +4,36 @@
 
 mod cli;
 
+use layout_opt::kernel::{Interrupted, StopRequest};
+
+/// Exit status of a run stopped by Ctrl-C (128 + SIGINT, as shells report).
+const EXIT_INTERRUPTED: i32 = 130;
+
 fn main() {
+    catch_ctrl_c();
     if let Err(error) = cli::run() {
+        if let Some(stopped) = error.chain().find_map(|c| c.downcast_ref::<Interrupted>()) {
+            eprintln!("{stopped}");
+            std::process::exit(EXIT_INTERRUPTED);
+        }
         eprintln!("Error: {}", error_text(&error));
         std::process::exit(1);
     }
+}
+
+/// Turns the first Ctrl-C into the process's stop request, which a
+/// command's observer polls and its run answers with [`Interrupted`]. A
+/// second Ctrl-C, or one while nothing polls the request (a command with no
+/// observer, whose outputs are written atomically at its end), ends the
+/// process at once, with status 130.
+fn catch_ctrl_c() {
+    // Without a handler (none could be installed) Ctrl-C ends the process
+    // as the system does by default, which is still status 130.
+    let _ = ctrlc::set_handler(|| {
+        if StopRequest::request() || !StopRequest::watched() {
+            std::process::exit(EXIT_INTERRUPTED);
+        }
+    });
 }
 
 /// The error and its causes joined by ": ", each said once: a cause whose

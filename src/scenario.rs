@@ -34,6 +34,14 @@ use nalgebra::{Rotation3, Vector2, Vector3};
 use serde::Serialize;
 use std::str::FromStr;
 
+/// Farthest depth a scenario may have, mm: 100 m, a hundred times the
+/// farthest working range of a close-range marker. Beyond it a sphere's
+/// image is far below a pixel, and depths such as 1e308 mm overflow the
+/// projection.
+pub const MAX_DEPTH_MM: f64 = 1e5;
+/// [`MAX_DEPTH_MM`] as a requirement, for errors.
+pub const MAX_DEPTH_TEXT: &str = "at most 100000 mm (100 m)";
+
 /// Values a range `A..B` without a step expands to.
 pub const DEFAULT_STEP_COUNT: usize = 5;
 /// Largest number of values one range may expand to.
@@ -57,7 +65,7 @@ pub enum ScenarioError {
         reason: String,
     },
     /// A quantity is outside what it can physically be.
-    #[error("{quantity} must be {requirement}, got {value}")]
+    #[error("{quantity} must be {requirement}, got {}", short_number(*value))]
     OutOfDomain {
         /// Which quantity.
         quantity: &'static str,
@@ -66,6 +74,18 @@ pub enum ScenarioError {
         /// The offending value.
         value: f64,
     },
+}
+
+/// `value` as written, or in exponent form when that is shorter (1e308
+/// rather than its 309 digits).
+fn short_number(value: f64) -> String {
+    let plain = value.to_string();
+    let exponent = format!("{value:e}");
+    if exponent.len() < plain.len() {
+        exponent
+    } else {
+        plain
+    }
 }
 
 /// A list of values from a CLI range: `A..B` ([`DEFAULT_STEP_COUNT`] values),
@@ -228,7 +248,8 @@ pub struct ScenarioGrid {
 }
 
 impl ScenarioGrid {
-    /// Builds a grid, checking every range is non-empty, depths are positive,
+    /// Builds a grid, checking every range is non-empty, depths are positive
+    /// and at most [`MAX_DEPTH_MM`],
     /// angles lie within ±[`MAX_ANGLE_DEG`] and noise levels are
     /// non-negative.
     pub fn new(
@@ -261,6 +282,13 @@ impl ScenarioGrid {
             return Err(ScenarioError::OutOfDomain {
                 quantity: "depth",
                 requirement: "positive (mm in front of the camera)",
+                value: depth,
+            });
+        }
+        if let Some(&depth) = grid.depth_mm.values.iter().find(|&&d| d > MAX_DEPTH_MM) {
+            return Err(ScenarioError::OutOfDomain {
+                quantity: "depth",
+                requirement: MAX_DEPTH_TEXT,
                 value: depth,
             });
         }

@@ -537,7 +537,7 @@ impl WorkingVolume {
             Some("yaml" | "yml")
         );
         let parsed: Result<SampledVolume, String> = if yaml {
-            serde_saphyr::from_str(&text).map_err(|e| e.to_string())
+            serde_saphyr::from_str(&text).map_err(|e| crate::config::one_line(&e.to_string()))
         } else {
             serde_json::from_str(&text).map_err(|e| e.to_string())
         };
@@ -664,6 +664,16 @@ impl SampledVolume {
                 format!(
                     "must be positive (mm in front of the camera), got {}",
                     self.depth_mm.min
+                ),
+            ));
+        }
+        if self.depth_mm.max > crate::scenario::MAX_DEPTH_MM {
+            return Err(ConfigError::new(
+                "depth",
+                format!(
+                    "must be {}, got {}",
+                    crate::scenario::MAX_DEPTH_TEXT,
+                    self.depth_mm.max
                 ),
             ));
         }

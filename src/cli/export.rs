@@ -199,13 +199,12 @@ pub fn run(args: ExportArgs, global: &GlobalOptions) -> anyhow::Result<()> {
         options,
         out_dir: args.out.clone(),
     };
-    progress::catch_ctrl_c();
     let mut bars = progress::Bars::new(global.quiet);
     let result = workflow::run(&config, &mut bars);
     bars.finish();
     if let Err(ExportError::Interrupted) = result {
-        eprintln!("interrupted: none of the export's files were written");
-        std::process::exit(progress::EXIT_INTERRUPTED);
+        let kept = "interrupted: none of the export's files were written";
+        return Err(layout_opt::kernel::Interrupted::keeping(kept).into());
     }
     let report = result.with_context(|| format!("cannot export {source}"))?;
 

@@ -36,13 +36,12 @@ pub fn run(
     out: &Path,
     global: &GlobalOptions,
 ) -> anyhow::Result<()> {
-    progress::catch_ctrl_c();
     let mut bars = progress::Bars::new(global.quiet);
     let result = export_set(set, options, out, &mut bars);
     bars.finish();
     if let Err(ExportError::Interrupted) = result {
-        eprintln!("interrupted: none of the set's files were written");
-        std::process::exit(progress::EXIT_INTERRUPTED);
+        let kept = "interrupted: none of the set's files were written";
+        return Err(layout_opt::kernel::Interrupted::keeping(kept).into());
     }
     let report = result.with_context(|| format!("cannot export the set {}", set.path.display()))?;
     for part in &report.parts {

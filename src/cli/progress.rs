@@ -1,10 +1,11 @@
 //! Progress bars: drawn on stderr only when it is a terminal and `--quiet`
-//! was not given.
+//! was not given. Ctrl-C reaches the observer as the process's stop request
+//! ([`StopRequest`]), which `main` sets.
 
 use indicatif::{ProgressBar, ProgressStyle};
+use layout_opt::kernel::StopRequest;
 use layout_opt::observer::Observer;
 use std::io::IsTerminal;
-use std::sync::atomic::{AtomicBool, Ordering};
 
 /// A progress bar of `total` steps, hidden when not on a terminal or quiet.
 pub fn bar(total: u64, message: &str, quiet: bool) -> ProgressBar {
@@ -27,6 +28,10 @@ fn unit(phase: &str) -> &'static str {
     match phase {
         PHASE_SEARCH => "iterations",
         PHASE_COMPARE | PHASE_VALIDATE | layout_opt::validate::image_check::PHASE => "scenarios",
+        layout_opt::render::workflow::PHASE_CHECK => "poses",
+        layout_opt::render::workflow::PHASE_RENDER | layout_opt::track::workflow::PHASE_TRACK => {
+            "frames"
+        }
         _ => "steps",
     }
 }
@@ -49,24 +54,6 @@ fn phase_bar(phase: &str, total: u64, quiet: bool) -> ProgressBar {
         .with_message(unit(phase))
 }
 
-/// Exit status of a run stopped by Ctrl-C (128 + SIGINT, as shells report).
-pub const EXIT_INTERRUPTED: i32 = 130;
-
-/// Set by Ctrl-C once [`catch_ctrl_c`] ran.
-static STOP: AtomicBool = AtomicBool::new(false);
-
-/// Turns Ctrl-C into [`Bars::interrupted`] instead of ending the process;
-/// a second Ctrl-C ends it at once, with status 130.
-pub fn catch_ctrl_c() {
-    // A second handler cannot be installed in the same process; that only
-    // matters to tests that call run twice, and they never press Ctrl-C.
-    let _ = ctrlc::set_handler(|| {
-        if STOP.swap(true, Ordering::SeqCst) {
-            std::process::exit(EXIT_INTERRUPTED);
-        }
-    });
-}
-
 /// The terminal's observer: one progress bar per phase, log lines on
 /// stderr, Ctrl-C as interruption.
 pub struct Bars {
@@ -76,8 +63,10 @@ pub struct Bars {
 }
 
 impl Bars {
-    /// No bar yet; `quiet` hides them all.
+    /// No bar yet; `quiet` hides them all. From now on Ctrl-C asks the run
+    /// to stop rather than ending the process.
     pub fn new(quiet: bool) -> Self {
+        StopRequest::watch();
         Self {
             quiet,
             phase: String::new(),
@@ -106,7 +95,7 @@ impl Observer for Bars {
     }
 
     fn interrupted(&self) -> bool {
-        STOP.load(Ordering::SeqCst)
+        StopRequest::requested()
     }
 
     fn log(&mut self, line: &str) {

@@ -121,7 +121,12 @@ pub fn run(args: RenderArgs, global: &GlobalOptions) -> anyhow::Result<()> {
         Some(path) => naming_file(Layout::load(path), "layout", path)?,
         None => Layout::paper_biprism(),
     };
+    let sources = [("LAYOUT", &args.layout), ("--poses", &args.poses)]
+        .into_iter()
+        .filter_map(|(what, path)| Some((what.to_string(), path.clone()?)))
+        .collect();
     let job = RenderJob {
+        sources,
         // The part export prints (supports routed as it routes them).
         marker: routed_as_recorded(&layout, args.structure.marker_options())?,
         poses: poses(&args)?,
@@ -129,13 +134,12 @@ pub fn run(args: RenderArgs, global: &GlobalOptions) -> anyhow::Result<()> {
         out_dir: args.out.clone(),
         layout,
     };
-    progress::catch_ctrl_c();
     let mut bars = progress::Bars::new(global.quiet);
     let result = workflow::run(&job, &mut bars);
     bars.finish();
     if let Err(RenderError::Interrupted) = result {
-        eprintln!("interrupted: none of the render's files were written");
-        std::process::exit(super::progress::EXIT_INTERRUPTED);
+        let kept = "interrupted: none of the render's files were written";
+        return Err(layout_opt::kernel::Interrupted::keeping(kept).into());
     }
     let report = result.with_context(|| format!("cannot render {}", job.layout.name))?;
     for frame in &report.frames {

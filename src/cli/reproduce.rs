@@ -66,16 +66,15 @@ pub fn run(args: ReproduceArgs, global: &GlobalOptions) -> anyhow::Result<()> {
         command: command_line(),
         out_dir,
     };
-    progress::catch_ctrl_c();
     let mut bars = progress::Bars::new(global.quiet);
     let result = workflow::run(&config, &mut bars);
     bars.finish();
     if let Err(reproduce::ReproduceError::Interrupted) = result {
-        eprintln!(
+        let kept = format!(
             "interrupted: no report written ({} untouched)",
             config.out_dir.display()
         );
-        std::process::exit(progress::EXIT_INTERRUPTED);
+        return Err(layout_opt::kernel::Interrupted::keeping(kept).into());
     }
     let ReproduceOutcome {
         reproduction,

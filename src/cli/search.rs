@@ -193,7 +193,6 @@ pub fn run(args: SearchArgs, global: &GlobalOptions) -> anyhow::Result<()> {
             );
         }
     }
-    progress::catch_ctrl_c();
     let mut bars = progress::Bars::new(global.quiet);
     let result = workflow::run(&config, &mut bars);
     bars.finish();
@@ -201,8 +200,8 @@ pub fn run(args: SearchArgs, global: &GlobalOptions) -> anyhow::Result<()> {
     match outcome.finished_text(&config) {
         Some(text) => print!("{text}"),
         None => {
-            eprintln!("{}", outcome.interrupted_text(&config.layout_path));
-            std::process::exit(progress::EXIT_INTERRUPTED);
+            let kept = outcome.interrupted_text(&config.layout_path);
+            return Err(layout_opt::kernel::Interrupted::keeping(kept).into());
         }
     }
     Ok(())

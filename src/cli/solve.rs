@@ -7,6 +7,7 @@ use layout_opt::batch::{
     demo_batch_json, Batch, ProblemResult, SetBatch, SetProblemResult, UnlabelledConfig,
     DEFAULT_GATE_PX,
 };
+use layout_opt::kernel::{OutputPlan, Outputs};
 use layout_opt::pnp::Solver;
 use layout_opt::set::MarkerSet;
 use layout_opt::track::uncertainty::solve_figures;
@@ -65,6 +66,14 @@ pub fn run(args: SolveArgs, global: &GlobalOptions) -> anyhow::Result<()> {
         }
         return Ok(());
     }
+    // The output is checked against the inputs and locked before any work.
+    let mut plan = OutputPlan::new();
+    plan.inputs("--problems", &args.problems)
+        .inputs("--set", &args.set);
+    if let Some(path) = &args.output {
+        plan.file("--output", path);
+    }
+    let files = plan.open()?;
     let (text, source) = match &args.problems {
         Some(path) => (
             std::fs::read_to_string(path)
@@ -101,7 +110,7 @@ pub fn run(args: SolveArgs, global: &GlobalOptions) -> anyhow::Result<()> {
         );
     }
     if let Some(set) = &args.set {
-        return run_set(&args, set, &text, &source, solver, global);
+        return run_set(&args, files, set, &text, &source, solver, global);
     }
     let batch = Batch::from_json(&text).with_context(|| format!("in {source}"))?;
     let bar = progress::bar(batch.problems.len() as u64, "solving", global.quiet);
@@ -168,15 +177,15 @@ pub fn run(args: SolveArgs, global: &GlobalOptions) -> anyhow::Result<()> {
             String::new()
         }
     );
-    emit(&args, json, &summary)
+    emit(&args, files, json, &summary)
 }
 
 /// Writes the output document where `--output` says, or to stdout.
-fn emit(args: &SolveArgs, json: String, summary: &str) -> anyhow::Result<()> {
+fn emit(args: &SolveArgs, files: Outputs, json: String, summary: &str) -> anyhow::Result<()> {
     match &args.output {
         Some(path) => {
-            layout_opt::files::write_atomic(path, (json + "\n").as_bytes())
-                .with_context(|| format!("cannot write {}", path.display()))?;
+            files.stage(path, (json + "\n").as_bytes())?;
+            files.commit()?;
             println!("{summary}; wrote {}", path.display());
         }
         None => {
@@ -190,6 +199,7 @@ fn emit(args: &SolveArgs, json: String, summary: &str) -> anyhow::Result<()> {
 /// `solve --unlabelled --set SET.json`: the set's markers in every frame.
 fn run_set(
     args: &SolveArgs,
+    files: Outputs,
     set_path: &std::path::Path,
     text: &str,
     source: &str,
@@ -230,5 +240,5 @@ fn run_set(
             String::new()
         }
     );
-    emit(args, json, &summary)
+    emit(args, files, json, &summary)
 }

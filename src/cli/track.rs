@@ -6,6 +6,7 @@ use super::look::{flag, LookArgs};
 use super::{progress, GlobalOptions};
 use anyhow::Context;
 use clap::Args;
+use layout_opt::kernel::Interrupted;
 use layout_opt::layout::Layout;
 use layout_opt::mesh::{routed_as_recorded, Marker};
 use layout_opt::pnp::Solver;
@@ -102,9 +103,6 @@ pub struct TrackArgs {
     look: LookArgs,
 }
 
-/// Exit status of a run stopped by Ctrl-C.
-const EXIT_INTERRUPTED: i32 = 130;
-
 /// The flag of a config field, for error messages.
 fn flag_of(field: &str) -> &str {
     match field {
@@ -143,20 +141,17 @@ pub fn run(args: TrackArgs, global: &GlobalOptions) -> anyhow::Result<()> {
     let config = configure(&args, &layout)?;
     let refiner = refiner(&args, &layout, &config)?;
     let outputs = TrackOutputs {
+        sources: vec![("LAYOUT".into(), layout_path.clone())],
         json_lines: args.output.clone(),
         csv: args.csv.clone(),
         overlay_dir: args.overlay.clone(),
     };
-    progress::catch_ctrl_c();
     let mut bars = progress::Bars::new(global.quiet);
     let result = run_track(&config, refiner.as_ref(), &args.images, &outputs, &mut bars);
     bars.finish();
     let run = match result {
         Ok(run) => run,
-        Err(WorkflowError::Interrupted) => {
-            eprintln!("interrupted; no output written");
-            std::process::exit(EXIT_INTERRUPTED);
-        }
+        Err(WorkflowError::Interrupted) => return Err(Interrupted::nothing_written().into()),
         Err(error) => return Err(error).context("track"),
     };
     for (name, analysis) in &run.frames {

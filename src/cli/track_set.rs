@@ -4,6 +4,7 @@
 
 use super::{progress, GlobalOptions};
 use anyhow::Context;
+use layout_opt::kernel::Interrupted;
 use layout_opt::layout::Layout;
 use layout_opt::set::MarkerSet;
 use layout_opt::track::refine::Refiner;
@@ -38,19 +39,16 @@ pub fn run(
         .collect::<anyhow::Result<Option<Vec<Refiner>>>>()?;
     let config = SetTrackConfig { markers, refiners };
     let outputs = TrackOutputs {
+        sources: vec![("--set".into(), set_path.to_path_buf())],
         json_lines: output.map(Path::to_path_buf),
         ..Default::default()
     };
-    progress::catch_ctrl_c();
     let mut bars = progress::Bars::new(global.quiet);
     let result = run_set(&config, frames, &outputs, &mut bars);
     bars.finish();
     let run = match result {
         Ok(run) => run,
-        Err(WorkflowError::Interrupted) => {
-            eprintln!("interrupted; no output written");
-            std::process::exit(progress::EXIT_INTERRUPTED);
-        }
+        Err(WorkflowError::Interrupted) => return Err(Interrupted::nothing_written().into()),
         Err(error) => return Err(error).context("track --set"),
     };
     let mut found = 0;

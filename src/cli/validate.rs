@@ -23,6 +23,9 @@ use layout_opt::validate::{
 use layout_opt::volume::WorkingVolume;
 use std::path::PathBuf;
 
+/// Monte-Carlo trials per scenario unless `--trials` says otherwise.
+const DEFAULT_TRIALS: usize = 200;
+
 /// Flags of `validate`.
 #[derive(Debug, Args)]
 pub struct ValidateArgs {
@@ -38,7 +41,7 @@ pub struct ValidateArgs {
     #[arg(long, default_value = "all")]
     solvers: String,
     /// Monte-Carlo trials per scenario.
-    #[arg(long, default_value_t = 200)]
+    #[arg(long, default_value_t = DEFAULT_TRIALS)]
     trials: usize,
     /// Noise model: isotropic, per-point, size[:REF_PX] or calibrated:FILE (σ from images, docs/formats.md), each optionally +outliers:RATE[:PX].
     #[arg(long, default_value = "isotropic")]
@@ -92,6 +95,29 @@ fn parse_probability(text: &str) -> anyhow::Result<f64> {
         })
 }
 
+/// The flags of a single layout's validation that were given (that differ
+/// from their defaults): a set's validation has no use for them.
+fn single_layout_flags(args: &ValidateArgs) -> Vec<&'static str> {
+    [
+        ("--solvers", args.solvers != "all"),
+        ("--trials", args.trials != DEFAULT_TRIALS),
+        (
+            "--gross-threshold",
+            args.gross_threshold != DEFAULT_GROSS_THRESHOLD_DEG,
+        ),
+        ("--fabrication-sigma", args.fabrication_sigma != 0.0),
+        (
+            "--max-hidden",
+            args.max_hidden != layout_opt::visibility::DEFAULT_MAX_HIDDEN,
+        ),
+        ("--no-supports", args.no_supports),
+        ("--images", args.images.check().is_some()),
+    ]
+    .into_iter()
+    .filter_map(|(flag, given)| given.then_some(flag))
+    .collect()
+}
+
 pub fn run(args: ValidateArgs, global: &GlobalOptions) -> anyhow::Result<()> {
     if let Some(path) = args
         .layout
@@ -113,6 +139,8 @@ pub fn run(args: ValidateArgs, global: &GlobalOptions) -> anyhow::Result<()> {
             &volume,
             &settings,
             args.out.clone(),
+            &single_layout_flags(&args),
+            global,
         );
     }
     let layout = match &args.layout {
@@ -184,13 +212,11 @@ pub fn run(args: ValidateArgs, global: &GlobalOptions) -> anyhow::Result<()> {
     if let Some(note) = &config.grid_note {
         println!("note: {note}");
     }
-    progress::catch_ctrl_c();
     let mut bars = progress::Bars::new(global.quiet);
     let result = validate::workflow::run(&config, &mut bars);
     bars.finish();
     if let Some(message) = result.as_ref().err().and_then(WorkflowError::interrupted) {
-        eprintln!("{message}");
-        std::process::exit(super::progress::EXIT_INTERRUPTED);
+        return Err(layout_opt::kernel::Interrupted::keeping(message).into());
     }
     let outcome = result?;
     print!("{}", console(&outcome.summary, &config.out_dir));

@@ -12,6 +12,7 @@
 use super::analysis::{analyse_numbered, Analysis, ExportReport};
 use super::workflow::write_analysis;
 use super::{file_stem, write_file, ExportError, ExportOptions};
+use crate::kernel::stop::abandon_on_stop;
 use crate::observer::Observer;
 use crate::set::MarkerSet;
 use std::fmt::Write as _;
@@ -78,16 +79,17 @@ pub fn export_set(
     observer.progress(PHASE_SET_EXPORT, done, total);
     let mut analyses: Vec<Analysis> = Vec::with_capacity(set.members.len());
     for (k, member) in set.members.iter().enumerate() {
-        if observer.interrupted() {
-            return Err(ExportError::Interrupted);
-        }
         let number = k + 1;
-        let analysis = analyse_numbered(&member.layout, options, Some(&number.to_string()))
-            .map_err(|source| ExportError::SetPart {
-                number,
-                file: member.file.clone(),
-                source: Box::new(source),
-            })?;
+        let (layout, part_options) = (member.layout.clone(), options.clone());
+        let analysis = abandon_on_stop(observer, move || {
+            analyse_numbered(&layout, &part_options, Some(&number.to_string()))
+        })
+        .map_err(|_| ExportError::Interrupted)?
+        .map_err(|source| ExportError::SetPart {
+            number,
+            file: member.file.clone(),
+            source: Box::new(source),
+        })?;
         analyses.push(analysis);
         done += 1;
         observer.progress(PHASE_SET_EXPORT, done, total);

@@ -6,6 +6,7 @@
 use super::analysis::{analyse, Analysis, ExportReport, WrittenFile};
 use super::{gltf, obj, sheet, stl, threemf, write_file};
 use super::{ExportError, ExportOptions, Format, MeshWriter};
+use crate::kernel::stop::abandon_on_stop;
 use crate::layout::Layout;
 use crate::observer::Observer;
 use std::path::{Path, PathBuf};
@@ -26,18 +27,19 @@ pub struct ExportConfig {
 }
 
 /// Builds and writes the part. An observer that asks to stop gets
-/// [`ExportError::Interrupted`]: before the work starts, or between the
-/// design and each file, and then none of the export's files are left.
+/// [`ExportError::Interrupted`]: within 20 ms while the part is built and
+/// checked (the build is abandoned: it writes nothing), or between the
+/// files, and then none of the export's files are left.
 pub fn run(
     config: &ExportConfig,
     observer: &mut impl Observer,
 ) -> Result<ExportReport, ExportError> {
-    if observer.interrupted() {
-        return Err(ExportError::Interrupted);
-    }
     observer.progress(PHASE_EXPORT, 0, 1);
+    let (layout, options) = (config.layout.clone(), config.options.clone());
+    let analysis = abandon_on_stop(observer, move || analyse(&layout, &options))
+        .map_err(|_| ExportError::Interrupted)??;
     let observer_ref = &*observer;
-    let report = export_observed(&config.layout, &config.options, &config.out_dir, &|| {
+    let report = write_analysis(analysis, &config.options, &config.out_dir, &|| {
         observer_ref.interrupted()
     })?;
     observer.progress(PHASE_EXPORT, 1, 1);

@@ -79,6 +79,7 @@ pub fn render_radiance_within(
     regions: Option<&[(usize, usize, usize, usize)]>,
 ) -> Result<Radiance, RenderError> {
     let camera = &config.camera;
+    let sigma_px = blur_at(config, pose, 0)?;
     let appearance = &config.appearance;
     let (width, height) = (camera.width() as usize, camera.height() as usize);
     let background = (appearance.background_radiance * appearance.exposure) as f32;
@@ -126,11 +127,27 @@ pub fn render_radiance_within(
             Some((a, b, c, d)) => (a.min(x0), b.min(y0), c.max(x1), d.max(y1)),
         });
     }
-    let sigma_px = config.optics.blur.sigma_px(camera.fx(), pose.translation.z);
     if let Some(region) = active {
         gaussian_blur(&mut image, sigma_px, region);
     }
     Ok(image)
+}
+
+/// The blur of a render at `pose`, px (σ), or [`RenderError::TooBlurred`]
+/// for frame `frame` when the defocus there exceeds what a render draws.
+pub fn blur_at(config: &RenderConfig, pose: &Pose, frame: usize) -> Result<f64, RenderError> {
+    let depth_mm = pose.translation.z;
+    let sigma_px = config.optics.blur.sigma_px(config.camera.fx(), depth_mm);
+    let max = super::config::MAX_BLUR_SIGMA_PX;
+    if sigma_px.is_nan() || sigma_px > max {
+        return Err(RenderError::TooBlurred {
+            frame,
+            sigma_px,
+            depth_mm,
+            max,
+        });
+    }
+    Ok(sigma_px)
 }
 
 /// For each tile, row-major, the primitives whose bounding balls' outlines

@@ -17,6 +17,11 @@ pub const MIN_SUPERSAMPLING: u32 = 4;
 pub const MAX_SUPERSAMPLING: u32 = 16;
 /// Default Gaussian blur of the lens, px.
 pub const DEFAULT_BLUR_SIGMA_PX: f64 = 0.5;
+/// Widest blur a render draws, px (σ): its kernel spans 6σ + 1 = 121 px,
+/// more than the largest sphere's image at the nearest working depth, so
+/// no blob is left to track beyond it, and a wider kernel only costs time
+/// and memory (σ = 1e9 px asked for a 48 GB kernel).
+pub const MAX_BLUR_SIGMA_PX: f64 = 20.0;
 /// Default full-well capacity: electrons at full scale.
 pub const DEFAULT_FULL_WELL_ELECTRONS: f64 = 10_000.0;
 /// Default read noise, electrons RMS.
@@ -302,7 +307,9 @@ impl RenderConfig {
         }
         match self.optics.blur {
             Blur::None => {}
-            Blur::Gaussian { sigma_px } => ConfigError::non_negative("blur_sigma_px", sigma_px)?,
+            Blur::Gaussian { sigma_px } => {
+                ConfigError::within("blur_sigma_px", sigma_px, 0.0, MAX_BLUR_SIGMA_PX)?
+            }
             Blur::Defocus {
                 aperture_mm,
                 focus_mm,

@@ -100,16 +100,43 @@ pub enum RenderError {
     /// The caller asked to stop; nothing was written.
     #[error("interrupted; no image was written")]
     Interrupted,
+    /// The outputs were refused (one is an input, or taken by another
+    /// run) or could not be written.
+    #[error(transparent)]
+    Output(#[from] crate::kernel::OutputError),
+    /// The lens's defocus blurs a frame beyond what a render draws.
+    #[error("frame {frame}: the defocus blurs the marker {sigma_px:.3e} px (σ) at {depth_mm:.1} mm, more than the {max} px a render draws; bring --focus nearer the marker or --aperture down")]
+    TooBlurred {
+        /// The frame.
+        frame: usize,
+        /// Its blur, px.
+        sigma_px: f64,
+        /// The marker origin's depth, mm.
+        depth_mm: f64,
+        /// [`config::MAX_BLUR_SIGMA_PX`].
+        max: f64,
+    },
 }
 
 impl RenderError {
     /// The same error, naming frame `frame` where it names one.
-    fn in_frame(self, frame: usize) -> Self {
+    pub(crate) fn in_frame(self, frame: usize) -> Self {
         match self {
             RenderError::BehindCamera { sphere, source, .. } => RenderError::BehindCamera {
                 frame,
                 sphere,
                 source,
+            },
+            RenderError::TooBlurred {
+                frame: _,
+                sigma_px,
+                depth_mm,
+                max,
+            } => RenderError::TooBlurred {
+                frame,
+                sigma_px,
+                depth_mm,
+                max,
             },
             other => other,
         }

@@ -5,13 +5,14 @@
 //! or is interrupted part-way leaves none of its files (and removes the
 //! output directory if it made it).
 
-use super::analysis::render_radiance;
+use super::analysis::{blur_at, render_radiance};
 use super::config::RenderConfig;
 use super::scene::Scene;
 use super::sensor::{expose, Digital};
 use super::truth::{frame_truth, FrameTruth};
 use super::RenderError;
 use crate::camera::Camera;
+use crate::kernel::{OutputPlan, Outputs};
 use crate::layout::Layout;
 use crate::mesh::{file_stem, Marker, MarkerOptions};
 use crate::observer::{watch, Observer};
@@ -23,6 +24,8 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::Instant;
 
+/// Progress phase: every frame's pose checked and its truth computed.
+pub const PHASE_CHECK: &str = "check poses";
 /// Progress phase: frames rendered and written.
 pub const PHASE_RENDER: &str = "render";
 /// The part must stay this far in front of the camera's plane, mm.
@@ -51,6 +54,9 @@ pub struct RenderJob {
     pub config: RenderConfig,
     /// Directory the images go into (created if missing).
     pub out_dir: PathBuf,
+    /// The files the job was read from, each with the argument that named
+    /// it (the layout, the poses): no output may be one of them.
+    pub sources: Vec<(String, PathBuf)>,
 }
 
 /// The files of one frame.
@@ -109,8 +115,9 @@ pub struct Checked {
 
 /// Checks the configuration, builds the part and the truth of every
 /// frame: a pose behind the camera or a part outside the image is an
-/// error here, before any file is written.
-pub fn check(job: &RenderJob) -> Result<Checked, RenderError> {
+/// error here, before any file is written. The frames' truths are
+/// reported as [`PHASE_CHECK`] through `observer`, which may ask to stop.
+pub fn check(job: &RenderJob, observer: &mut impl Observer) -> Result<Checked, RenderError> {
     job.config.validate()?;
     if job.poses.is_empty() {
         return Err(RenderError::NoPoses);
@@ -118,36 +125,53 @@ pub fn check(job: &RenderJob) -> Result<Checked, RenderError> {
     let scene = Scene::from_marker(Marker::design(&job.layout, &job.marker)?);
     let names: Vec<String> = job.layout.points.iter().map(|p| p.name.clone()).collect();
     let camera = &job.config.camera;
-    let truths = job
-        .poses
-        .par_iter()
-        .enumerate()
-        .map(|(frame, frame_pose)| {
-            let pose = &frame_pose.pose;
-            let nearest = scene
-                .bounding_corners()
-                .iter()
-                .map(|p| pose.transform(p).z)
-                .fold(f64::INFINITY, f64::min);
-            if nearest.is_nan() || nearest <= MIN_DEPTH_MM {
-                return Err(RenderError::PartBehindCamera {
-                    frame,
-                    depth_mm: nearest,
-                });
-            }
-            let truth = frame_truth(&scene, &names, pose, camera).map_err(|e| e.in_frame(frame))?;
-            if truth.spheres.iter().all(|s| s.hidden.outside_image >= 1.0) {
-                let t = pose.translation;
-                return Err(RenderError::OutsideImage {
-                    frame,
-                    x: t.x,
-                    y: t.y,
-                    z: t.z,
-                });
-            }
-            Ok(truth)
-        })
-        .collect::<Result<Vec<_>, _>>()?;
+    let stop = AtomicBool::new(false);
+    let done = AtomicU64::new(0);
+    let total = job.poses.len() as u64;
+    let check_frame = |frame: usize, frame_pose: &FramePose| {
+        if stop.load(Ordering::Relaxed) {
+            return Err(RenderError::Interrupted);
+        }
+        let pose = &frame_pose.pose;
+        let nearest = scene
+            .bounding_corners()
+            .iter()
+            .map(|p| pose.transform(p).z)
+            .fold(f64::INFINITY, f64::min);
+        if nearest.is_nan() || nearest <= MIN_DEPTH_MM {
+            return Err(RenderError::PartBehindCamera {
+                frame,
+                depth_mm: nearest,
+            });
+        }
+        blur_at(&job.config, pose, frame)?;
+        let truth = frame_truth(&scene, &names, pose, camera).map_err(|e| e.in_frame(frame))?;
+        if truth.spheres.iter().all(|s| s.hidden.outside_image >= 1.0) {
+            let t = pose.translation;
+            return Err(RenderError::OutsideImage {
+                frame,
+                x: t.x,
+                y: t.y,
+                z: t.z,
+            });
+        }
+        done.fetch_add(1, Ordering::Relaxed);
+        Ok(truth)
+    };
+    let truths = watch(
+        observer,
+        PHASE_CHECK,
+        total,
+        || done.load(Ordering::Relaxed),
+        Some(&stop),
+        || {
+            job.poses
+                .par_iter()
+                .enumerate()
+                .map(|(frame, frame_pose)| check_frame(frame, frame_pose))
+                .collect::<Result<Vec<_>, _>>()
+        },
+    )?;
     Ok(Checked { scene, truths })
 }
 
@@ -158,9 +182,9 @@ pub fn run(job: &RenderJob, observer: &mut impl Observer) -> Result<RenderReport
     if observer.interrupted() {
         return Err(RenderError::Interrupted);
     }
-    let checked = check(job)?;
-    let staging = Staging::new(&job.out_dir)?;
+    let checked = check(job, observer)?;
     let stem = file_stem(&job.layout.name);
+    let files = open_outputs(job, &stem)?;
     let stop = AtomicBool::new(false);
     let done = AtomicU64::new(0);
     let total = job.poses.len() as u64;
@@ -177,7 +201,7 @@ pub fn run(job: &RenderJob, observer: &mut impl Observer) -> Result<RenderReport
                     if stop.load(Ordering::SeqCst) {
                         return Err(RenderError::Interrupted);
                     }
-                    let files = write_frame(job, &checked, &staging.dir, &stem, frame)?;
+                    let files = write_frame(job, &checked, &files, &stem, frame)?;
                     done.fetch_add(1, Ordering::Relaxed);
                     Ok(files)
                 })
@@ -187,15 +211,7 @@ pub fn run(job: &RenderJob, observer: &mut impl Observer) -> Result<RenderReport
     if stop.load(Ordering::SeqCst) || observer.interrupted() {
         return Err(RenderError::Interrupted);
     }
-    staging.commit()?;
-    let frames = frames
-        .into_iter()
-        .map(|mut f| {
-            f.images = f.images.iter().map(|p| moved(&job.out_dir, p)).collect();
-            f.record = moved(&job.out_dir, &f.record);
-            f
-        })
-        .collect();
+    files.commit()?;
     Ok(RenderReport {
         name: job.layout.name.clone(),
         frames,
@@ -203,30 +219,51 @@ pub fn run(job: &RenderJob, observer: &mut impl Observer) -> Result<RenderReport
     })
 }
 
-/// Where a staged file lands.
-fn moved(out_dir: &Path, staged: &Path) -> PathBuf {
-    out_dir.join(staged.file_name().unwrap_or_default())
+/// The names of frame `frame`'s images (one per realisation) and of its
+/// record.
+fn frame_names(stem: &str, frame: usize, realisations: u32) -> (Vec<String>, String) {
+    let images = (0..realisations)
+        .map(|realisation| match realisations {
+            1 => format!("{stem}-{frame:03}.png"),
+            _ => format!("{stem}-{frame:03}-{realisation:02}.png"),
+        })
+        .collect();
+    (images, format!("{stem}-{frame:03}.json"))
 }
 
-/// Renders frame `frame` once, exposes every realisation, and writes its
-/// PNGs and record into `dir`.
+/// The run's outputs, checked against its sources and locked before any
+/// frame is rendered ([`crate::kernel::outputs`]).
+fn open_outputs(job: &RenderJob, stem: &str) -> Result<Outputs, RenderError> {
+    let mut plan = OutputPlan::new();
+    for (what, path) in &job.sources {
+        plan.input(what.as_str(), path);
+    }
+    plan.dir("--out", &job.out_dir);
+    for frame in 0..job.poses.len() {
+        let (images, record) = frame_names(stem, frame, job.config.realisations);
+        for name in images.iter().chain([&record]) {
+            plan.file_in_dir("--out", job.out_dir.join(name));
+        }
+    }
+    Ok(plan.open()?)
+}
+
+/// Renders frame `frame` once, exposes every realisation, and stages its
+/// PNGs and record in the output directory.
 fn write_frame(
     job: &RenderJob,
     checked: &Checked,
-    dir: &Path,
+    files: &Outputs,
     stem: &str,
     frame: usize,
 ) -> Result<FrameFiles, RenderError> {
+    let dir = &job.out_dir;
+    let (names, record_name) = frame_names(stem, frame, job.config.realisations);
     let config = &job.config;
     let pose = &job.poses[frame].pose;
-    let radiance = render_radiance(&checked.scene, pose, config)?;
+    let radiance = render_radiance(&checked.scene, pose, config).map_err(|e| e.in_frame(frame))?;
     let mut images = Vec::new();
-    for realisation in 0..config.realisations {
-        let name = if config.realisations == 1 {
-            format!("{stem}-{frame:03}.png")
-        } else {
-            format!("{stem}-{frame:03}-{realisation:02}.png")
-        };
+    for (realisation, name) in (0..config.realisations).zip(names) {
         let digital = expose(
             &radiance,
             &config.sensor,
@@ -235,7 +272,7 @@ fn write_frame(
             u64::from(realisation),
         );
         let path = dir.join(name);
-        write_png(&path, &digital)?;
+        files.stage(&path, &encode_png(&path, &digital)?)?;
         images.push(path);
     }
     let truth = &checked.truths[frame];
@@ -267,12 +304,9 @@ fn write_frame(
         optics: &config.optics,
         sensor: &config.sensor,
     };
-    let record_path = dir.join(format!("{stem}-{frame:03}.json"));
+    let record_path = dir.join(record_name);
     let text = serde_json::to_string_pretty(&record).expect("a record serialises") + "\n";
-    std::fs::write(&record_path, text).map_err(|source| RenderError::Io {
-        path: record_path.clone(),
-        source,
-    })?;
+    files.stage(&record_path, text.as_bytes())?;
     Ok(FrameFiles {
         frame,
         images,
@@ -305,86 +339,6 @@ pub fn encode_png(path: &Path, image: &Digital) -> Result<Vec<u8>, RenderError> 
     Ok(bytes.into_inner())
 }
 
-fn write_png(path: &Path, image: &Digital) -> Result<(), RenderError> {
-    let bytes = encode_png(path, image)?;
-    std::fs::write(path, bytes).map_err(|source| RenderError::Io {
-        path: path.to_path_buf(),
-        source,
-    })
-}
-
-/// A staging directory inside the output directory: files are written
-/// there and renamed into place together by [`Staging::commit`]; dropped
-/// uncommitted, it removes them (and the output directory if it made it).
-struct Staging {
-    out_dir: PathBuf,
-    dir: PathBuf,
-    made_out_dir: bool,
-    moved: Vec<PathBuf>,
-    committed: bool,
-}
-
-impl Staging {
-    fn new(out_dir: &Path) -> Result<Staging, RenderError> {
-        static NEXT: AtomicU64 = AtomicU64::new(0);
-        let io = |path: &Path| {
-            let path = path.to_path_buf();
-            move |source| RenderError::Io { path, source }
-        };
-        let made_out_dir = !out_dir.exists();
-        crate::files::check_writable_dir(out_dir).map_err(io(out_dir))?;
-        let dir = out_dir.join(format!(
-            ".render.{}.{}.tmp",
-            std::process::id(),
-            NEXT.fetch_add(1, Ordering::Relaxed)
-        ));
-        let staging = Staging {
-            out_dir: out_dir.to_path_buf(),
-            dir,
-            made_out_dir,
-            moved: Vec::new(),
-            committed: false,
-        };
-        std::fs::create_dir(&staging.dir).map_err(io(&staging.dir))?;
-        Ok(staging)
-    }
-
-    fn commit(mut self) -> Result<(), RenderError> {
-        let io = |path: &Path| {
-            let path = path.to_path_buf();
-            move |source| RenderError::Io { path, source }
-        };
-        let mut staged: Vec<PathBuf> = std::fs::read_dir(&self.dir)
-            .map_err(io(&self.dir))?
-            .map(|entry| entry.map(|e| e.path()))
-            .collect::<Result<_, _>>()
-            .map_err(io(&self.dir))?;
-        staged.sort();
-        for from in staged {
-            let to = moved(&self.out_dir, &from);
-            std::fs::rename(&from, &to).map_err(io(&to))?;
-            self.moved.push(to);
-        }
-        self.committed = true;
-        let _ = std::fs::remove_dir(&self.dir);
-        Ok(())
-    }
-}
-
-impl Drop for Staging {
-    fn drop(&mut self) {
-        if !self.committed {
-            for path in &self.moved {
-                let _ = std::fs::remove_file(path);
-            }
-            let _ = std::fs::remove_dir_all(&self.dir);
-            if self.made_out_dir {
-                let _ = std::fs::remove_dir(&self.out_dir);
-            }
-        }
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -399,6 +353,7 @@ mod tests {
 
     fn job(out_dir: PathBuf, depth_mm: f64) -> RenderJob {
         RenderJob {
+            sources: Vec::new(),
             layout: Layout::paper_biprism(),
             marker: MarkerOptions::default(),
             poses: vec![FramePose {

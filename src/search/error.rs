@@ -37,6 +37,10 @@ pub enum SearchError {
         /// Why.
         source: std::io::Error,
     },
+    /// The caller asked to stop a run that keeps nothing part-way (a set
+    /// search).
+    #[error(transparent)]
+    Interrupted(#[from] crate::kernel::Interrupted),
     /// The best-so-far layout could not be written during the search.
     #[error("could not write the best-so-far layout: {0}")]
     BestSoFar(String),

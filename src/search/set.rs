@@ -250,6 +250,15 @@ impl fmt::Display for TryVerdict {
     }
 }
 
+/// A set search keeps nothing part-way: once asked to stop, it ends.
+fn stopped(stop: &AtomicBool) -> Result<(), SearchError> {
+    if stop.load(std::sync::atomic::Ordering::SeqCst) {
+        let kept = "interrupted; no set written (a set search keeps nothing part-way)";
+        return Err(crate::kernel::Interrupted::keeping(kept).into());
+    }
+    Ok(())
+}
+
 /// Designs the set (module docs). `on_try(marker, try, verdict)` hears
 /// each try's end.
 pub fn design_set(
@@ -334,6 +343,7 @@ pub fn design_set(
             };
             let outcome =
                 optimise::run(family, &evaluator, &settings, stop, Arc::new(Quiet), None)?;
+            stopped(stop)?;
             let outcome = match config.min_identifiability {
                 Some(floor) => {
                     enforce_identifiability(family, &evaluator, floor, &settings, outcome, stop)?.0
@@ -416,6 +426,7 @@ pub fn design_set(
                     TryVerdict::Kept
                 };
             }
+            stopped(stop)?;
             on_try(k + 1, attempt + 1, verdict);
             last = verdict;
             if verdict == TryVerdict::Kept {

@@ -168,11 +168,7 @@ pub struct FrameAnalysis {
 
 /// Reads PNG bytes and tracks the frame.
 pub fn analyse_png(config: &TrackConfig, bytes: &[u8]) -> FrameAnalysis {
-    match GreyFrame::from_png(bytes).and_then(|frame| {
-        frame
-            .check_size(config.camera.width(), config.camera.height())
-            .map(|()| frame)
-    }) {
+    match GreyFrame::from_png_of_size(bytes, config.camera.width(), config.camera.height()) {
         Ok(frame) => analyse(config, &frame),
         Err(error) => FrameAnalysis {
             outcome: Err(error.into()),

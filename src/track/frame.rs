@@ -46,6 +46,17 @@ pub enum FrameError {
     Inconsistent(String),
 }
 
+/// The width and height a PNG's header states, when the bytes start with
+/// a PNG signature and an IHDR chunk.
+pub fn png_size(bytes: &[u8]) -> Option<(u32, u32)> {
+    if bytes.len() < 24 || bytes[..8] != PNG_SIGNATURE || &bytes[12..16] != b"IHDR" {
+        return None;
+    }
+    let word =
+        |at: usize| u32::from_be_bytes([bytes[at], bytes[at + 1], bytes[at + 2], bytes[at + 3]]);
+    Some((word(16), word(20)))
+}
+
 /// A grey frame: row-major samples with their bit depth.
 #[derive(Debug, Clone, PartialEq)]
 pub struct GreyFrame {
@@ -87,6 +98,26 @@ impl GreyFrame {
         })
     }
 
+    /// Decodes PNG bytes of a `width`×`height` frame: a PNG whose header
+    /// states another size is a [`FrameError::SizeMismatch`] before any
+    /// pixel is decoded (so an 8000×8000 file costs no 195 MB), then as
+    /// [`GreyFrame::from_png`].
+    pub fn from_png_of_size(bytes: &[u8], width: u32, height: u32) -> Result<Self, FrameError> {
+        if let Some((w, h)) = png_size(bytes) {
+            if (w, h) != (width, height) {
+                return Err(FrameError::SizeMismatch {
+                    width: w,
+                    height: h,
+                    camera_width: width,
+                    camera_height: height,
+                });
+            }
+        }
+        let frame = Self::from_png(bytes)?;
+        frame.check_size(width, height)?;
+        Ok(frame)
+    }
+
     /// Decodes PNG bytes. Accepts [`ACCEPTED`]; a colour, alpha or
     /// 1/2/4-bit PNG is a [`FrameError::Format`] naming what it holds.
     pub fn from_png(bytes: &[u8]) -> Result<Self, FrameError> {
@@ -115,8 +146,13 @@ impl GreyFrame {
                 found: format!("{depth}-bit {colour_name}"),
             });
         }
-        let image = image::load_from_memory_with_format(bytes, ImageFormat::Png)
-            .map_err(|e| FrameError::Decode(e.to_string()))?;
+        let image =
+            image::load_from_memory_with_format(bytes, ImageFormat::Png).map_err(|e| match e {
+                image::ImageError::Limits(limit) => FrameError::Inconsistent(format!(
+                    "the PNG is larger than the decoder allows: {limit}"
+                )),
+                other => FrameError::Decode(other.to_string()),
+            })?;
         let (width, height) = (image.width(), image.height());
         match image {
             DynamicImage::ImageLuma8(buffer) => GreyFrame::new(
@@ -127,6 +163,12 @@ impl GreyFrame {
             ),
             DynamicImage::ImageLuma16(buffer) => {
                 GreyFrame::new(width, height, 16, buffer.into_raw())
+            }
+            // A grey PNG with a transparency chunk decodes with alpha.
+            DynamicImage::ImageLumaA8(_) | DynamicImage::ImageLumaA16(_) => {
+                Err(FrameError::Format {
+                    found: format!("{depth}-bit greyscale with a transparency chunk (tRNS)"),
+                })
             }
             other => Err(FrameError::Format {
                 found: format!("{:?}", other.color()),
@@ -250,6 +292,56 @@ mod tests {
         let error = GreyFrame::from_png(&png).unwrap_err();
         assert!(
             error.to_string().starts_with("1-bit greyscale PNG"),
+            "{error}"
+        );
+    }
+
+    /// A header that states another size than the camera's is refused
+    /// before a pixel is decoded: an 8000×8000 header on 2×1 px of data
+    /// gives the size, not a decode error.
+    #[test]
+    fn a_frame_of_another_size_is_refused_by_its_header() {
+        let mut png = GreyFrame::new(2, 1, 8, vec![0, 255]).unwrap().to_png();
+        assert_eq!(png_size(&png), Some((2, 1)));
+        png[16..20].copy_from_slice(&8000u32.to_be_bytes());
+        png[20..24].copy_from_slice(&8000u32.to_be_bytes());
+        let error = GreyFrame::from_png_of_size(&png, 1280, 1024).unwrap_err();
+        assert_eq!(
+            error.to_string(),
+            "the image is 8000×8000 px but the camera is 1280×1024 px"
+        );
+        assert_eq!(png_size(b"not a png at all, but long enough"), None);
+    }
+
+    /// A grey PNG with a transparency chunk is named as such, not by the
+    /// decoder's pixel type.
+    #[test]
+    fn a_grey_frame_with_a_transparency_chunk_is_named() {
+        fn crc32(bytes: &[u8]) -> u32 {
+            let mut crc = !0u32;
+            for &byte in bytes {
+                crc ^= u32::from(byte);
+                for _ in 0..8 {
+                    crc = (crc >> 1) ^ (0xEDB8_8320 & (crc & 1).wrapping_neg());
+                }
+            }
+            !crc
+        }
+        let png = GreyFrame::new(2, 1, 8, vec![0, 255]).unwrap().to_png();
+        // After the signature (8 bytes) and IHDR (25): a tRNS chunk that
+        // makes level 0 transparent.
+        let mut chunk = b"tRNS\x00\x00".to_vec();
+        let crc = crc32(&chunk);
+        chunk.extend_from_slice(&crc.to_be_bytes());
+        let mut with_trns = png[..33].to_vec();
+        with_trns.extend_from_slice(&2u32.to_be_bytes());
+        with_trns.extend_from_slice(&chunk);
+        with_trns.extend_from_slice(&png[33..]);
+        let error = GreyFrame::from_png(&with_trns).unwrap_err();
+        assert!(
+            error
+                .to_string()
+                .starts_with("8-bit greyscale with a transparency chunk"),
             "{error}"
         );
     }

@@ -9,6 +9,7 @@ use super::refine::Refiner;
 use super::report;
 use super::set::{analyse_set, set_json_lines, SetFrameAnalysis, SetTrackConfig};
 use crate::config::ConfigError;
+use crate::kernel::{OutputError, OutputPlan, Outputs};
 use crate::observer::{watch, Observer};
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
@@ -17,9 +18,13 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 /// Name of the analysis phase, for progress.
 pub const PHASE_TRACK: &str = "tracking";
 
-/// Where the outputs go.
+/// Where the outputs go, and the files besides the frames that the run
+/// reads (none of which an output may be).
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct TrackOutputs {
+    /// Files the run reads besides the frames, each with the argument that
+    /// named it (the layout, the set).
+    pub sources: Vec<(String, PathBuf)>,
     /// JSON lines file (None: the caller takes the text).
     pub json_lines: Option<PathBuf>,
     /// CSV table.
@@ -46,24 +51,28 @@ pub enum WorkflowError {
     /// No frames to track.
     #[error("no frames: the inputs hold no .png files")]
     NoFrames,
-    /// An output could not be written.
-    #[error("cannot write {path}: {source}")]
-    Write {
-        /// The path.
-        path: PathBuf,
-        /// The I/O error.
-        source: std::io::Error,
-    },
+    /// The outputs were refused (one is an input, or taken by another
+    /// run) or could not be written.
+    #[error(transparent)]
+    Output(#[from] OutputError),
     /// The caller asked to stop; nothing was written.
     #[error("interrupted; no output written")]
     Interrupted,
 }
 
-/// The frames of `inputs`: files as given, directories' `.png` files
-/// (not recursive) sorted by name.
+/// The frames of `inputs`: files as given, directories' `.png` entries
+/// (not recursive) sorted by name. A path that does not exist is an error;
+/// an entry that cannot be read (a broken link) is kept, and gets its
+/// frame's error record.
 pub fn expand_inputs(inputs: &[PathBuf]) -> Result<Vec<PathBuf>, WorkflowError> {
     let mut frames = Vec::new();
     for path in inputs {
+        if std::fs::symlink_metadata(path).is_err() {
+            return Err(WorkflowError::Input {
+                path: path.clone(),
+                reason: "no such file or directory".into(),
+            });
+        }
         if path.is_dir() {
             let entries = std::fs::read_dir(path).map_err(|e| WorkflowError::Input {
                 path: path.clone(),
@@ -72,7 +81,7 @@ pub fn expand_inputs(inputs: &[PathBuf]) -> Result<Vec<PathBuf>, WorkflowError> 
             let mut found: Vec<PathBuf> = entries
                 .filter_map(|entry| entry.ok().map(|e| e.path()))
                 .filter(|p| {
-                    p.is_file() && p.extension().is_some_and(|e| e.eq_ignore_ascii_case("png"))
+                    !p.is_dir() && p.extension().is_some_and(|e| e.eq_ignore_ascii_case("png"))
                 })
                 .collect();
             found.sort();
@@ -121,25 +130,58 @@ pub fn run(
         refiner.check(config)?;
     }
     let paths = expand_inputs(inputs)?;
-    if let Some(dir) = &outputs.overlay_dir {
-        std::fs::create_dir_all(dir).map_err(|source| WorkflowError::Write {
-            path: dir.clone(),
-            source,
-        })?;
-    }
+    let files = open_outputs(&paths, outputs)?;
     let frames = each_frame(observer, &paths, |path| {
-        track_file(config, refiner, path, outputs.overlay_dir.as_deref())
+        track_file(
+            config,
+            refiner,
+            path,
+            outputs.overlay_dir.as_deref(),
+            &files,
+        )
     })?
     .into_iter()
     .collect::<Result<Vec<(String, FrameAnalysis)>, _>>()?;
     let json_lines = report::json_lines(&frames);
     if let Some(path) = &outputs.json_lines {
-        write(path, json_lines.as_bytes())?;
+        files.stage(path, json_lines.as_bytes())?;
     }
     if let Some(path) = &outputs.csv {
-        write(path, report::csv(&frames).as_bytes())?;
+        files.stage(path, report::csv(&frames).as_bytes())?;
     }
+    files.commit()?;
     Ok(TrackRun { frames, json_lines })
+}
+
+/// The run's outputs, checked against its frames and sources and locked
+/// before any frame is read ([`crate::kernel::outputs`]).
+fn open_outputs(frames: &[PathBuf], outputs: &TrackOutputs) -> Result<Outputs, WorkflowError> {
+    let mut plan = OutputPlan::new();
+    plan.inputs("IMAGES", frames);
+    for (what, path) in &outputs.sources {
+        plan.input(what.as_str(), path);
+    }
+    if let Some(path) = &outputs.json_lines {
+        plan.file("--output", path);
+    }
+    if let Some(path) = &outputs.csv {
+        plan.file("--csv", path);
+    }
+    if let Some(dir) = &outputs.overlay_dir {
+        plan.dir("--overlay", dir);
+        for frame in frames {
+            plan.file_in_dir("--overlay", overlay_path(dir, frame));
+        }
+    }
+    Ok(plan.open()?)
+}
+
+/// Where the overlay of `frame` goes.
+fn overlay_path(dir: &Path, frame: &Path) -> PathBuf {
+    let stem = frame
+        .file_stem()
+        .map_or("frame".into(), |s| s.to_string_lossy().into_owned());
+    dir.join(format!("{stem}.overlay.png"))
 }
 
 /// What a `track --set` run produced.
@@ -170,17 +212,15 @@ pub fn run_set(
         )));
     }
     let paths = expand_inputs(inputs)?;
+    let files = open_outputs(&paths, outputs)?;
     let frames = each_frame(observer, &paths, |path| {
         let name = path.display().to_string();
         let analysis = match std::fs::read(path)
             .map_err(|e| format!("cannot read the file: {e}"))
             .and_then(|bytes| {
-                let frame = GreyFrame::from_png(&bytes).map_err(|e| e.to_string())?;
                 let camera = &config.markers[0].1.camera;
-                frame
-                    .check_size(camera.width(), camera.height())
-                    .map_err(|e| e.to_string())?;
-                Ok(frame)
+                GreyFrame::from_png_of_size(&bytes, camera.width(), camera.height())
+                    .map_err(|e| e.to_string())
             }) {
             Ok(frame) => analyse_set(config, &frame),
             Err(error) => SetFrameAnalysis {
@@ -193,8 +233,9 @@ pub fn run_set(
     })?;
     let json_lines = set_json_lines(&frames);
     if let Some(path) = &outputs.json_lines {
-        write(path, json_lines.as_bytes())?;
+        files.stage(path, json_lines.as_bytes())?;
     }
+    files.commit()?;
     Ok(SetTrackRun { frames, json_lines })
 }
 
@@ -233,19 +274,13 @@ fn each_frame<T: Send>(
     }
 }
 
-fn write(path: &Path, bytes: &[u8]) -> Result<(), WorkflowError> {
-    crate::files::write_atomic(path, bytes).map_err(|source| WorkflowError::Write {
-        path: path.to_path_buf(),
-        source,
-    })
-}
-
 /// One file: read, analyse and (when asked) write its overlay.
 fn track_file(
     config: &TrackConfig,
     refiner: Option<&Refiner>,
     path: &Path,
     overlay_dir: Option<&Path>,
+    files: &Outputs,
 ) -> Result<(String, FrameAnalysis), WorkflowError> {
     let name = path.display().to_string();
     let bytes = match std::fs::read(path) {
@@ -275,10 +310,7 @@ fn track_file(
                 config.radius_mm(),
                 analysis.pose.as_ref(),
             );
-            let stem = path
-                .file_stem()
-                .map_or("frame".into(), |s| s.to_string_lossy().into_owned());
-            write(&dir.join(format!("{stem}.overlay.png")), &png)?;
+            files.stage(&overlay_path(dir, path), &png)?;
         }
     }
     Ok((name, analysis))

@@ -39,6 +39,10 @@ pub enum WorkflowError {
     /// The report could not be written.
     #[error(transparent)]
     Report(#[from] ReportError),
+    /// The caller asked to stop after the last interruptible phase, before
+    /// anything was written.
+    #[error(transparent)]
+    Interrupted(#[from] crate::kernel::Interrupted),
     /// The noise law could not be fitted or written.
     #[error("cannot write the noise model {path}: {reason}")]
     NoiseModel {
@@ -61,8 +65,9 @@ impl WorkflowError {
                 Some("interrupted: no report written")
             }
             WorkflowError::Validate(ValidateError::Fabrication(FabricationError::Interrupted)) => {
-                Some("interrupted during the fabrication check")
+                Some("interrupted during the fabrication check: no report written")
             }
+            WorkflowError::Interrupted(_) => Some("interrupted: no report written"),
             WorkflowError::Validate(ValidateError::Images(ImageCheckError::Interrupted)) => {
                 Some("interrupted during the image check: no report written")
             }
@@ -172,11 +177,13 @@ type Phase<O> = fn(&mut Run<'_, O>) -> Result<(), WorkflowError>;
 /// `run.json` (timing, threads, solves, the grid note), into
 /// [`WorkflowConfig::out_dir`], holding its [`OutputLock`] throughout: the
 /// config is checked, the estimate logged, the Monte-Carlo runs done, then
-/// the phases [`write_report`], [`write_run_json`] and [`fabrication`] run
-/// over the finished [`Run`]. An observer that asks to stop ends the
-/// Monte-Carlo runs within a trial (`MonteCarlo(Interrupted)`, no report
-/// written) or the fabrication run (`Fabrication(Interrupted)`, the report
-/// already written).
+/// the phases [`fabrication`], [`write_report`], [`write_noise_model`] and
+/// [`write_run_json`] run over the finished [`Run`]. An observer that asks
+/// to stop ends the Monte-Carlo runs within a trial
+/// (`MonteCarlo(Interrupted)`), the image check or the fabrication run
+/// (`Fabrication(Interrupted)`); a stop asked for after the last of them
+/// ends the run before the first file ([`WorkflowError::Interrupted`]). An
+/// interrupted run writes no report.
 pub fn run(
     config: &WorkflowConfig,
     observer: &mut impl Observer,
@@ -208,7 +215,13 @@ pub fn run(
         seconds,
         image_seconds,
     };
-    let phases: [Phase<_>; 4] = [write_report, write_noise_model, write_run_json, fabrication];
+    let phases: [Phase<_>; 5] = [
+        fabrication,
+        stop_if_asked,
+        write_report,
+        write_noise_model,
+        write_run_json,
+    ];
     for phase in phases {
         phase(&mut run)?;
     }
@@ -238,6 +251,15 @@ fn estimate(validate: Checked, observer: &mut impl Observer) -> Result<RunEstima
         ));
     }
     Ok(estimate)
+}
+
+/// Ends the run when the observer asked to stop once the last
+/// interruptible phase had passed its last poll.
+fn stop_if_asked<O: Observer>(run: &mut Run<'_, O>) -> Result<(), WorkflowError> {
+    match run.observer.interrupted() {
+        true => Err(crate::kernel::Interrupted::nothing_written().into()),
+        false => Ok(()),
+    }
 }
 
 /// The report, from the summary.
@@ -467,5 +489,43 @@ mod tests {
             "{result:?}"
         );
         assert!(!config.out_dir.exists());
+    }
+
+    /// Asks to stop only once the Monte-Carlo phase has reported its last
+    /// step: after the last poll of every interruptible phase.
+    #[derive(Default)]
+    struct LateStop {
+        finished: bool,
+    }
+    impl Observer for LateStop {
+        fn progress(&mut self, phase: &str, done: u64, total: u64) {
+            self.finished |= phase == crate::validate::analysis::PHASE && done == total;
+        }
+        fn interrupted(&self) -> bool {
+            self.finished
+        }
+    }
+
+    #[test]
+    fn a_stop_after_the_last_poll_still_writes_no_report() {
+        let dir = tempfile::tempdir().unwrap();
+        let grid = ScenarioGrid::new(
+            "300,600".parse().unwrap(),
+            Range::single(0.0),
+            Range::single(0.0),
+            Range::single(0.0),
+            Range::single(0.0),
+            Range::single(0.0),
+            Range::single(0.5),
+        )
+        .unwrap();
+        let config = config(dir.path().join("report"), grid, 3, vec![Solver::Ml]);
+        let mut observer = LateStop::default();
+        let result = run(&config, &mut observer);
+        assert!(observer.finished, "the Monte-Carlo phase never finished");
+        let error = result.unwrap_err();
+        assert_eq!(error.interrupted(), Some("interrupted: no report written"));
+        assert!(!config.out_dir.join("report.md").exists());
+        assert!(!config.out_dir.join("run.json").exists());
     }
 }

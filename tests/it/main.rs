@@ -40,6 +40,8 @@ mod images_cli;
 #[cfg(feature = "cli")]
 mod reproduce;
 #[cfg(feature = "cli")]
+mod run_kernel;
+#[cfg(feature = "cli")]
 mod search;
 #[cfg(feature = "cli")]
 mod search_runs;

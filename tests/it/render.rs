@@ -286,6 +286,7 @@ fn job(out_dir: PathBuf, poses: &[Pose]) -> RenderJob {
     let mut config = RenderConfig::new(Camera::paper());
     config.realisations = 2;
     RenderJob {
+        sources: Vec::new(),
         layout: layout("biprism-search.json"),
         marker: MarkerOptions::default(),
         poses: poses
@@ -406,7 +407,8 @@ fn bad_input_is_a_clear_error_and_writes_nothing() {
         &mut layout_opt::observer::Silent,
     )
     .unwrap_err();
-    assert!(matches!(error, RenderError::Io { .. }), "{error}");
+    assert!(matches!(error, RenderError::Output(_)), "{error}");
+    assert!(error.to_string().contains("is a file, not a directory"));
     assert_eq!(std::fs::read_to_string(&file).unwrap(), "x");
 }
 

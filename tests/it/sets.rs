@@ -931,6 +931,7 @@ fn track_set_names_the_marker_each_frame_shows() {
         let mut config = RenderConfig::new(Camera::paper());
         config.realisations = 1;
         let job = RenderJob {
+            sources: Vec::new(),
             layout: layout.clone(),
             marker: layout_opt::mesh::MarkerOptions::default(),
             poses: truths

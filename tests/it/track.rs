@@ -828,6 +828,7 @@ fn malformed_frames_are_error_records_and_the_run_goes_on() {
     write("h-clutter.png", &clutter.to_png());
     let out = dir.path().join("out.jsonl");
     let outputs = TrackOutputs {
+        sources: Vec::new(),
         json_lines: Some(out.clone()),
         csv: Some(dir.path().join("out.csv")),
         overlay_dir: Some(dir.path().join("overlay")),
@@ -916,6 +917,7 @@ fn an_ambiguous_identification_is_an_error_record_and_the_run_goes_on() {
     }
     let out = dir.path().join("out.jsonl");
     let outputs = TrackOutputs {
+        sources: Vec::new(),
         json_lines: Some(out.clone()),
         csv: None,
         overlay_dir: None,

@@ -2,12 +2,12 @@
 //! layouts, set file and report written.
 
 use super::super::common::IdentifiabilityShare;
-use super::super::{progress, GlobalOptions};
+use super::super::GlobalOptions;
 use anyhow::Context;
 use clap::Args;
 use layout_opt::layout::Layout;
 use layout_opt::search::set::{design_set, set_report, SetSearchSettings};
-use layout_opt::search::SearchConfig;
+use layout_opt::search::{SearchConfig, SearchError};
 use layout_opt::set::write_set;
 use std::path::Path;
 
@@ -96,10 +96,10 @@ pub(super) fn run(
         layout_opt::files::check_writable_dir(dir)
             .with_context(|| format!("cannot write into {}; nothing was run", dir.display()))?;
     }
-    progress::catch_ctrl_c();
-    let stop = std::sync::atomic::AtomicBool::new(false);
     let quiet = global.quiet;
-    let outcome = design_set(config, set, &stop, &|marker, attempt, verdict| {
+    layout_opt::kernel::StopRequest::watch();
+    let stop = layout_opt::kernel::StopRequest::flag();
+    let outcome = design_set(config, set, stop, &|marker, attempt, verdict| {
         if !quiet {
             eprintln!(
                 "marker {marker} of {}: try {attempt} {verdict}",
@@ -107,7 +107,10 @@ pub(super) fn run(
             );
         }
     })
-    .map_err(|e| anyhow::anyhow!("--set {}: {e}", set.markers))?;
+    .map_err(|e| match e {
+        SearchError::Interrupted(stopped) => anyhow::Error::new(stopped),
+        e => anyhow::anyhow!("--set {}: {e}", set.markers),
+    })?;
     let layouts: Vec<Layout> = outcome.markers.iter().map(|m| m.layout.clone()).collect();
     let set_path = write_set(&layout_dir, &config.name, &layouts)?;
     let report_path = layout_opt::search::set::validation::write_reports(

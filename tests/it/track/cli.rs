@@ -88,9 +88,9 @@ fn a_directory_of_frames_gives_json_lines_csv_and_overlays() {
     assert!(!overlay.join("b-empty.overlay.png").exists());
 }
 
-/// Bad flags and a missing layout stop the run before any frame, with one
-/// line on stderr naming the flag or the file, and a failing exit status;
-/// an unreadable frame is an error record, and the run itself succeeds.
+/// Bad flags, a missing layout and a missing frame path stop the run
+/// before any frame, with one line on stderr naming the flag or the file,
+/// and a failing exit status.
 #[test]
 fn bad_flags_and_inputs_fail_with_a_named_error() {
     let dir = tempfile::tempdir().unwrap();
@@ -118,9 +118,10 @@ fn bad_flags_and_inputs_fail_with_a_named_error() {
         .arg(dir.path().join("empty-dir-does-not-exist"))
         .arg("--quiet")
         .assert()
-        .success()
-        .stdout(predicate::str::contains("cannot read the file"))
-        .stderr(predicate::str::contains("tracked 0 of 1 frames"));
+        .failure()
+        .stderr(predicate::str::contains(
+            "empty-dir-does-not-exist: no such file or directory",
+        ));
 }
 
 /// `--refine` renders the part at each frame's pose and takes each sphere's
