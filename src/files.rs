@@ -28,6 +28,8 @@ pub const LOCK_SUFFIX: &str = ".lock";
 
 /// Distinguishes the temporaries of one process's threads.
 static NEXT_TEMPORARY: AtomicU64 = AtomicU64::new(0);
+/// The lock files this process holds ([`OutputLock`]).
+static HELD: std::sync::Mutex<Vec<PathBuf>> = std::sync::Mutex::new(Vec::new());
 
 /// The directory `path` lives in (`.` for a bare file name).
 pub fn directory_of(path: &Path) -> PathBuf {
@@ -241,6 +243,9 @@ impl OutputLock {
                 let mut file = file;
                 let _ = file.set_len(0);
                 let _ = writeln!(file, "{}", std::process::id());
+                HELD.lock()
+                    .unwrap_or_else(|e| e.into_inner())
+                    .push(lock.clone());
                 return Ok(OutputLock {
                     path: lock,
                     file: Some(file),
@@ -253,6 +258,15 @@ impl OutputLock {
     pub fn path(&self) -> &Path {
         &self.path
     }
+
+    /// Whether this process holds the lock of `path` already (a run inside
+    /// a run: a search exporting its winner into the directory it locked).
+    pub fn held_here(path: &Path) -> bool {
+        let lock = lock_path(path);
+        HELD.lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .contains(&lock)
+    }
 }
 
 impl Drop for OutputLock {
@@ -260,6 +274,10 @@ impl Drop for OutputLock {
         // Remove before unlocking, so that whoever locks next locks a file
         // that is still there (see `acquire`).
         let _ = std::fs::remove_file(&self.path);
+        let mut held = HELD.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(k) = held.iter().position(|p| *p == self.path) {
+            held.swap_remove(k);
+        }
         drop(self.file.take());
     }
 }

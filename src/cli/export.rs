@@ -198,6 +198,11 @@ pub fn run(args: ExportArgs, global: &GlobalOptions) -> anyhow::Result<()> {
         layout,
         options,
         out_dir: args.out.clone(),
+        sources: args
+            .layout
+            .iter()
+            .map(|path| ("LAYOUT".to_string(), path.clone()))
+            .collect(),
     };
     let mut bars = progress::Bars::new(global.quiet);
     let result = workflow::run(&config, &mut bars);

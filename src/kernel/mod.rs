@@ -13,5 +13,5 @@
 pub mod outputs;
 pub mod stop;
 
-pub use outputs::{OutputError, OutputPlan, Outputs};
+pub use outputs::{OutputError, OutputPlan, Outputs, Scratch};
 pub use stop::{Interrupted, StopRequest};

@@ -177,30 +177,28 @@ impl OutputPlan {
         let mut locks = Vec::new();
         let mut made_dirs = Vec::new();
         for entry in &self.outputs {
-            match entry.kind {
-                Kind::File => {
-                    locks.push(OutputLock::acquire(&entry.path)?);
-                    remove_stale_temporaries(&entry.path).map_err(write_error(&entry.path))?;
-                }
-                Kind::Dir => {
-                    let mut missing: Vec<PathBuf> = entry
-                        .path
-                        .ancestors()
-                        .take_while(|d| !d.as_os_str().is_empty() && !d.exists())
-                        .map(Path::to_path_buf)
-                        .collect();
-                    std::fs::create_dir_all(&entry.path).map_err(write_error(&entry.path))?;
-                    made_dirs.append(&mut missing);
-                    locks.push(OutputLock::acquire(&entry.path)?);
-                }
-                Kind::InDir => {
-                    remove_stale_temporaries(&entry.path).map_err(write_error(&entry.path))?;
-                }
+            if entry.kind == Kind::Dir {
+                let mut missing: Vec<PathBuf> = entry
+                    .path
+                    .ancestors()
+                    .take_while(|d| !d.as_os_str().is_empty() && !d.exists())
+                    .map(Path::to_path_buf)
+                    .collect();
+                std::fs::create_dir_all(&entry.path).map_err(write_error(&entry.path))?;
+                made_dirs.append(&mut missing);
+            }
+            // A lock this process holds already (a run inside a run, such
+            // as a search exporting its winner) covers the output.
+            if entry.kind != Kind::InDir && !OutputLock::held_here(&entry.path) {
+                locks.push(OutputLock::acquire(&entry.path)?);
+            }
+            if entry.kind != Kind::Dir {
+                remove_stale_temporaries(&entry.path).map_err(write_error(&entry.path))?;
             }
         }
         Ok(Outputs {
             plan: self,
-            resolved_inputs: inputs.into_iter().map(|(_, p)| p).collect(),
+            resolved_inputs: inputs,
             staged: Mutex::new(Vec::new()),
             made_dirs,
             committed: false,
@@ -297,7 +295,8 @@ fn resolved(path: &Path) -> PathBuf {
 #[derive(Debug)]
 pub struct Outputs {
     plan: OutputPlan,
-    resolved_inputs: Vec<PathBuf>,
+    /// Each input with the argument that named it, resolved.
+    resolved_inputs: Vec<(String, PathBuf)>,
     /// (temporary, target) of every file staged.
     staged: Mutex<Vec<(PathBuf, PathBuf)>>,
     /// Directories the plan created, deepest first: removed again (when
@@ -308,12 +307,48 @@ pub struct Outputs {
 }
 
 impl Outputs {
+    /// The declared output directories, in the order declared.
+    pub fn dirs(&self) -> impl Iterator<Item = PathBuf> + '_ {
+        self.plan
+            .outputs
+            .iter()
+            .filter(|e| e.kind == Kind::Dir)
+            .map(|e| e.path.clone())
+    }
+
     /// Writes `bytes` for `path` to a temporary beside it; `path` must be a
     /// declared output file or lie directly in a declared directory, and
     /// must not be an input. Nothing replaces `path` before
     /// [`Outputs::commit`]. Threads may stage at once; staging a file again
     /// replaces what was staged for it.
     pub fn stage(&self, path: &Path, bytes: &[u8]) -> Result<(), OutputError> {
+        let target = self.stageable(path)?;
+        let temporary = write_temporary(path, bytes).map_err(write_error(path))?;
+        self.record(temporary, path, &target);
+        Ok(())
+    }
+
+    /// Stages `written`, a file a writer made (in a [`Scratch`] directory
+    /// on the same file system), as `path`: as [`Outputs::stage`], moving
+    /// the file rather than copying its bytes.
+    pub fn stage_written(&self, written: &Path, path: &Path) -> Result<(), OutputError> {
+        let target = self.stageable(path)?;
+        // A fresh temporary name beside the target, then the file over it.
+        let temporary = write_temporary(path, b"").map_err(write_error(path))?;
+        if let Err(source) = std::fs::rename(written, &temporary) {
+            let _ = std::fs::remove_file(&temporary);
+            return Err(OutputError::Write {
+                path: path.to_path_buf(),
+                source,
+            });
+        }
+        self.record(temporary, path, &target);
+        Ok(())
+    }
+
+    /// The file `path` names, once it is known to be a declared output and
+    /// not an input.
+    fn stageable(&self, path: &Path) -> Result<PathBuf, OutputError> {
         let entry = self
             .plan
             .outputs
@@ -324,26 +359,27 @@ impl Outputs {
             })
             .ok_or_else(|| OutputError::Undeclared {
                 path: path.to_path_buf(),
-            })?
-            .clone();
+            })?;
         let target = resolved(path);
-        if self.resolved_inputs.contains(&target) {
-            return Err(clash(
-                &Entry {
-                    path: path.to_path_buf(),
-                    ..entry
-                },
-                "an input".into(),
-            ));
+        if let Some((what, _)) = self.resolved_inputs.iter().find(|(_, p)| *p == target) {
+            let entry = Entry {
+                path: path.to_path_buf(),
+                ..entry.clone()
+            };
+            return Err(clash(&entry, format!("the input {what}")));
         }
-        let temporary = write_temporary(path, bytes).map_err(write_error(path))?;
+        Ok(target)
+    }
+
+    /// Records `temporary` as what `path` becomes at the commit, in place
+    /// of anything staged for it before.
+    fn record(&self, temporary: PathBuf, path: &Path, target: &Path) {
         let mut staged = self.staged.lock().unwrap_or_else(|e| e.into_inner());
         if let Some(k) = staged.iter().position(|(_, t)| resolved(t) == target) {
             let (old, _) = staged.remove(k);
             let _ = std::fs::remove_file(old);
         }
         staged.push((temporary, path.to_path_buf()));
-        Ok(())
     }
 
     /// Moves every staged file into place, in the order of their paths.
@@ -434,6 +470,36 @@ impl Drop for Outputs {
     }
 }
 
+/// A private directory inside an output directory, for writers that make
+/// their files themselves ([`Outputs::stage_written`] moves them out);
+/// removed with whatever is left in it when dropped.
+#[derive(Debug)]
+pub struct Scratch {
+    dir: PathBuf,
+}
+
+impl Scratch {
+    /// A new scratch directory in `dir` (`.scratch.<pid>.<n>.tmp`).
+    pub fn new(dir: &Path) -> Result<Scratch, OutputError> {
+        static NEXT: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+        let n = NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        let scratch = dir.join(format!(".scratch.{}.{n}.tmp", std::process::id()));
+        std::fs::create_dir_all(&scratch).map_err(write_error(&scratch))?;
+        Ok(Scratch { dir: scratch })
+    }
+
+    /// The directory.
+    pub fn path(&self) -> &Path {
+        &self.dir
+    }
+}
+
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.dir);
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -494,18 +560,28 @@ mod tests {
         ));
     }
 
+    /// Open outputs hold their locks (another process is refused them:
+    /// tests/it/run_kernel.rs); a run inside a run of the same process,
+    /// such as a search exporting its winner into the directory it locked,
+    /// is covered by the outer lock.
     #[test]
-    fn a_second_run_on_the_same_output_is_refused_while_the_first_holds_it() {
+    fn open_outputs_hold_their_locks_until_dropped() {
         let dir = tempfile::tempdir().unwrap();
         let out = dir.path().join("out.json");
         let mut plan = OutputPlan::new();
         plan.file("--output", &out);
         let first = plan.clone().open().unwrap();
-        assert!(matches!(
-            plan.clone().open().unwrap_err(),
-            OutputError::Lock(_)
-        ));
+        assert!(OutputLock::held_here(&out));
+        assert!(crate::files::lock_path(&out).exists());
+        let inner = plan.clone().open().unwrap();
+        drop(inner);
+        assert!(
+            OutputLock::held_here(&out),
+            "the inner run took the lock away"
+        );
         drop(first);
+        assert!(!OutputLock::held_here(&out));
+        assert!(!crate::files::lock_path(&out).exists());
         plan.open().unwrap();
     }
 
@@ -602,6 +678,24 @@ mod tests {
         outputs.stage(&out.join("a.png"), b"x").unwrap();
         outputs.commit().unwrap();
         assert_eq!(names(&out), ["a.png"]);
+    }
+
+    #[test]
+    fn a_file_a_writer_made_is_moved_in_at_the_commit() {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("part");
+        let mut plan = OutputPlan::new();
+        plan.dir("--out", &out);
+        let outputs = plan.open().unwrap();
+        let scratch = Scratch::new(&out).unwrap();
+        let written = scratch.path().join("a.stl");
+        std::fs::write(&written, "solid").unwrap();
+        outputs.stage_written(&written, &out.join("a.stl")).unwrap();
+        assert!(!out.join("a.stl").exists());
+        drop(scratch);
+        outputs.commit().unwrap();
+        assert_eq!(names(&out), ["a.stl"]);
+        assert_eq!(std::fs::read_to_string(out.join("a.stl")).unwrap(), "solid");
     }
 
     #[test]

@@ -12,6 +12,10 @@ pub enum ExportError {
     /// were left.
     #[error("export interrupted; none of its files were written")]
     Interrupted,
+    /// The output directory was refused (it is a file, a file in it is
+    /// an input, another run holds it) or a file could not be written.
+    #[error(transparent)]
+    Output(#[from] crate::kernel::OutputError),
     /// The marker cannot be built (layout or geometry options).
     #[error(transparent)]
     Geometry(#[from] GeometryError),

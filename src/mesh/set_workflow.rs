@@ -10,9 +10,10 @@
 //! earlier export is replaced whole.
 
 use super::analysis::{analyse_numbered, Analysis, ExportReport};
-use super::workflow::write_analysis;
+use super::workflow::{write_analysis, Target};
 use super::{file_stem, write_file, ExportError, ExportOptions};
 use crate::kernel::stop::abandon_on_stop;
+use crate::kernel::OutputPlan;
 use crate::observer::Observer;
 use crate::set::MarkerSet;
 use std::fmt::Write as _;
@@ -74,6 +75,11 @@ pub fn export_set(
     out_dir: &Path,
     observer: &mut impl Observer,
 ) -> Result<SetExportReport, ExportError> {
+    // The set's directory checked and locked before any work; the parts
+    // are moved in as whole directories below.
+    let mut plan = OutputPlan::new();
+    plan.input("SET", &set.path).dir("--out", out_dir);
+    let _outputs = plan.open()?;
     let total = 2 * set.members.len() as u64;
     let mut done = 0;
     observer.progress(PHASE_SET_EXPORT, done, total);
@@ -104,9 +110,14 @@ pub fn export_set(
         let number = k + 1;
         let directory = part_directory(number, &member.layout.name);
         let observer_ref = &*observer;
-        let mut report = write_analysis(analysis, options, &staging.0.join(&directory), &|| {
-            observer_ref.interrupted()
-        })?;
+        let part_dir = staging.0.join(&directory);
+        let outputs = Target {
+            dir: &part_dir,
+            sources: &[],
+        }
+        .open()?;
+        let mut report =
+            write_analysis(analysis, options, outputs, &|| observer_ref.interrupted())?;
         for file in &mut report.files {
             if let Ok(rest) = file.path.strip_prefix(&staging.0) {
                 file.path = out_dir.join(rest);

@@ -4,9 +4,10 @@
 //! to an [`Observer`] ([`run`]); the files written are in the returned
 //! report.
 use super::analysis::{analyse, Analysis, ExportReport, WrittenFile};
-use super::{gltf, obj, sheet, stl, threemf, write_file};
+use super::{gltf, obj, sheet, stl, threemf};
 use super::{ExportError, ExportOptions, Format, MeshWriter};
 use crate::kernel::stop::abandon_on_stop;
+use crate::kernel::{OutputPlan, Outputs, Scratch};
 use crate::layout::Layout;
 use crate::observer::Observer;
 use std::path::{Path, PathBuf};
@@ -24,6 +25,9 @@ pub struct ExportConfig {
     pub options: ExportOptions,
     /// Directory every file goes into.
     pub out_dir: PathBuf,
+    /// The files the layout was read from, each with the argument that
+    /// named it: no output may be one of them.
+    pub sources: Vec<(String, PathBuf)>,
 }
 
 /// Builds and writes the part. An observer that asks to stop gets
@@ -35,11 +39,16 @@ pub fn run(
     observer: &mut impl Observer,
 ) -> Result<ExportReport, ExportError> {
     observer.progress(PHASE_EXPORT, 0, 1);
+    let outputs = Target {
+        dir: &config.out_dir,
+        sources: &config.sources,
+    }
+    .open()?;
     let (layout, options) = (config.layout.clone(), config.options.clone());
     let analysis = abandon_on_stop(observer, move || analyse(&layout, &options))
         .map_err(|_| ExportError::Interrupted)??;
     let observer_ref = &*observer;
-    let report = write_analysis(analysis, &config.options, &config.out_dir, &|| {
+    let report = write_analysis(analysis, &config.options, outputs, &|| {
         observer_ref.interrupted()
     })?;
     observer.progress(PHASE_EXPORT, 1, 1);
@@ -80,43 +89,83 @@ fn export_observed(
     out_dir: &Path,
     interrupted: &dyn Fn() -> bool,
 ) -> Result<ExportReport, ExportError> {
+    let outputs = Target {
+        dir: out_dir,
+        sources: &[],
+    }
+    .open()?;
     let analysis = analyse(layout, options)?;
     if interrupted() {
         return Err(ExportError::Interrupted);
     }
-    write_analysis(analysis, options, out_dir, interrupted)
+    write_analysis(analysis, options, outputs, interrupted)
 }
 
-/// Writes an analysed part's files into `out_dir` as one staged file set,
-/// as [`export`] does; `interrupted` is asked between the files.
+/// Where an export's files go, and what they must not overwrite.
+#[derive(Debug, Clone, Copy)]
+pub struct Target<'a> {
+    /// The output directory (created if missing).
+    pub dir: &'a Path,
+    /// The files the run read, each with the argument that named it.
+    pub sources: &'a [(String, PathBuf)],
+}
+
+impl Target<'_> {
+    /// The export's output set, checked and locked before any work
+    /// ([`crate::kernel::outputs`]): an output directory that is a file,
+    /// or that another run holds, is refused here.
+    pub fn open(&self) -> Result<Outputs, ExportError> {
+        let mut plan = OutputPlan::new();
+        for (what, path) in self.sources {
+            plan.input(what.as_str(), path);
+        }
+        plan.dir("--out", self.dir);
+        Ok(plan.open()?)
+    }
+}
+
+/// Writes an analysed part's files into the directory of `outputs` (a
+/// [`Target`] opened) as one output set on the run kernel: each writer's
+/// files made in a scratch directory and staged beside their targets, and
+/// all moved into place together at the end, so that a failure or a stop
+/// part-way leaves none of them (and the files of an earlier export as
+/// they were). A file named like one of the target's sources is refused.
+/// `interrupted` is asked between the files.
 pub fn write_analysis(
     analysis: Analysis,
     options: &ExportOptions,
-    out_dir: &Path,
+    outputs: Outputs,
     interrupted: &dyn Fn() -> bool,
 ) -> Result<ExportReport, ExportError> {
     let Analysis { solid, mut report } = analysis;
-    std::fs::create_dir_all(out_dir).map_err(|source| ExportError::Io {
-        path: out_dir.to_path_buf(),
-        source,
+    let out_dir = &outputs.dirs().next().ok_or_else(|| ExportError::Io {
+        path: PathBuf::new(),
+        source: std::io::Error::other("the export's outputs name no directory"),
     })?;
-    let mut set = FileSet::stage(out_dir, &solid.name())?;
-    let staging = set.staging.clone();
+    let scratch = Scratch::new(out_dir)?;
+    let mut staged = Staged::default();
+    // A writer's file, moved out of the scratch directory; where it lands.
+    let mut stage = |written: &Path| -> Result<PathBuf, ExportError> {
+        let path = out_dir.join(written.file_name().unwrap_or_default());
+        outputs.stage_written(written, &path)?;
+        staged.one_more()?;
+        Ok(path)
+    };
     let mut formats = options.formats.clone();
     formats.sort();
     formats.dedup();
     for format in formats {
         let start = Instant::now();
-        let written = writer(format).write(&solid, &staging)?;
+        let written = writer(format).write(&solid, scratch.path())?;
         let seconds = start.elapsed().as_secs_f64();
         for path in written {
+            let bytes = file_size(&path);
             report.files.push(WrittenFile {
                 format: Some(format),
-                bytes: file_size(&path),
-                path,
+                bytes,
+                path: stage(&path)?,
                 seconds,
             });
-            set.wrote()?;
         }
         if interrupted() {
             return Err(ExportError::Interrupted);
@@ -128,59 +177,44 @@ pub fn write_analysis(
         &report.main_view_coverage,
         &report.tolerances,
         report.one_image_identifiability,
-        &staging,
+        scratch.path(),
     )?;
     let seconds = start.elapsed().as_secs_f64();
     for path in sheet_files {
+        let bytes = file_size(&path);
         report.files.push(WrittenFile {
             format: None,
-            bytes: file_size(&path),
-            path,
+            bytes,
+            path: stage(&path)?,
             seconds,
         });
-        set.wrote()?;
     }
     if interrupted() {
         return Err(ExportError::Interrupted);
     }
-    // The report names the files where they will be.
-    for file in &mut report.files {
-        if let Some(name) = file.path.file_name() {
-            file.path = out_dir.join(name);
-        }
-    }
-    let json_name = format!("{}-export.json", solid.name());
+    let json_path = out_dir.join(format!("{}-export.json", solid.name()));
     report.files.push(WrittenFile {
         format: None,
-        path: out_dir.join(&json_name),
+        path: json_path.clone(),
         bytes: 0,
         seconds: 0.0,
     });
     let json = serde_json::to_string_pretty(&report).expect("the report serialises") + "\n";
-    write_file(&staging.join(&json_name), json.as_bytes())?;
-    set.wrote()?;
-    set.commit()?;
+    outputs.stage(&json_path, json.as_bytes())?;
+    staged.one_more()?;
+    drop(scratch);
+    outputs.commit()?;
     if let Some(last) = report.files.last_mut() {
         last.bytes = json.len() as u64;
     }
     Ok(report)
 }
 
-/// An export's files as a set: written into a staging directory inside the
-/// output directory (`.<name>.export.<pid>.<n>.tmp`), then renamed into
-/// place one by one by [`FileSet::commit`]. Dropped before the commit
-/// finished (an error, an interruption), it removes the staging directory
-/// and any file it had already moved into place, so that an export leaves
-/// all of its files or none of them. Files of an earlier export that a
-/// renamed file replaced are not restored.
-struct FileSet {
-    out_dir: PathBuf,
-    staging: PathBuf,
-    moved: Vec<PathBuf>,
-    committed: bool,
-    /// Files staged so far (for the test-only failure point).
+/// Counts the files an export stages, for the test-only failure point.
+#[derive(Debug, Default)]
+struct Staged {
     #[cfg(test)]
-    written: usize,
+    count: usize,
 }
 
 #[cfg(test)]
@@ -189,74 +223,20 @@ thread_local! {
     static FAIL_AFTER_FILES: std::cell::Cell<Option<usize>> = const { std::cell::Cell::new(None) };
 }
 
-impl FileSet {
-    fn stage(out_dir: &Path, name: &str) -> Result<FileSet, ExportError> {
-        static NEXT: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
-        let n = NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-        let staging = out_dir.join(format!(".{name}.export.{}.{n}.tmp", std::process::id()));
-        std::fs::create_dir(&staging).map_err(|source| ExportError::Io {
-            path: staging.clone(),
-            source,
-        })?;
-        Ok(FileSet {
-            out_dir: out_dir.to_path_buf(),
-            staging,
-            moved: Vec::new(),
-            committed: false,
-            #[cfg(test)]
-            written: 0,
-        })
-    }
-
+impl Staged {
     /// One more file is staged.
-    fn wrote(&mut self) -> Result<(), ExportError> {
+    fn one_more(&mut self) -> Result<(), ExportError> {
         #[cfg(test)]
         {
-            self.written += 1;
-            if FAIL_AFTER_FILES.with(|f| f.get()) == Some(self.written) {
+            self.count += 1;
+            if FAIL_AFTER_FILES.with(|f| f.get()) == Some(self.count) {
                 return Err(ExportError::Io {
-                    path: self.staging.clone(),
+                    path: PathBuf::from("staged"),
                     source: std::io::Error::other("injected failure"),
                 });
             }
         }
         Ok(())
-    }
-
-    /// Moves every staged file into the output directory.
-    fn commit(mut self) -> Result<(), ExportError> {
-        let io = |path: &Path| {
-            let path = path.to_path_buf();
-            move |source| ExportError::Io { path, source }
-        };
-        let mut staged: Vec<PathBuf> = std::fs::read_dir(&self.staging)
-            .map_err(io(&self.staging))?
-            .map(|entry| entry.map(|e| e.path()))
-            .collect::<Result<_, _>>()
-            .map_err(io(&self.staging))?;
-        staged.sort();
-        for from in staged {
-            let Some(name) = from.file_name() else {
-                continue;
-            };
-            let to = self.out_dir.join(name);
-            std::fs::rename(&from, &to).map_err(io(&to))?;
-            self.moved.push(to);
-        }
-        self.committed = true;
-        let _ = std::fs::remove_dir(&self.staging);
-        Ok(())
-    }
-}
-
-impl Drop for FileSet {
-    fn drop(&mut self) {
-        if !self.committed {
-            for path in &self.moved {
-                let _ = std::fs::remove_file(path);
-            }
-            let _ = std::fs::remove_dir_all(&self.staging);
-        }
     }
 }
 
@@ -296,6 +276,7 @@ pub(crate) mod tests {
                 ..Default::default()
             },
             out_dir: dir.path().to_path_buf(),
+            sources: Vec::new(),
         };
         let mut observer = Record::default();
         let report = run(&config, &mut observer).unwrap();
@@ -397,7 +378,11 @@ pub(crate) mod tests {
         std::fs::write(dir.path().join("small.stl").join("x"), "x").unwrap();
         let error = export(&small(), &options(), dir.path()).unwrap_err();
         assert!(
-            matches!(&error, ExportError::Io { path, .. } if path.ends_with("small.stl")),
+            matches!(
+                &error,
+                ExportError::Output(crate::kernel::OutputError::Write { path, .. })
+                    if path.ends_with("small.stl")
+            ),
             "{error}"
         );
         assert_eq!(entries(dir.path()), ["small.stl"]);

@@ -89,6 +89,10 @@ pub enum ReproduceError {
     /// A report file could not be written.
     #[error(transparent)]
     Report(#[from] ReportError),
+    /// The report directory was refused (a file, or held by another run)
+    /// or its files could not be moved into place.
+    #[error(transparent)]
+    Output(#[from] crate::kernel::OutputError),
     /// The caller asked the run to stop before it finished; nothing was
     /// written.
     #[error("the reproduction was stopped before it finished; no report written")]

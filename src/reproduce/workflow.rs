@@ -3,9 +3,10 @@
 //! [`Observer`](crate::observer::Observer) (one phase per experiment).
 use super::report::write as write_report;
 use super::{run_until, Config, ReproduceError, Reproduction};
+use crate::kernel::{OutputPlan, Scratch};
 use crate::observer::{relay, Observer};
 use crate::report::{write_text, ReportError};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::sync::atomic::AtomicBool;
 use std::sync::Mutex;
 use std::time::Instant;
@@ -36,14 +37,19 @@ pub struct ReproduceOutcome {
 /// An observer that asks to stop ([`Observer::interrupted`], polled
 /// every 20 ms) ends the run within one problem with
 /// [`ReproduceError::Interrupted`], and nothing is written. The report is
-/// written as a set: every file first into a staging directory beside
-/// `out_dir` (`.<name>.writing-<pid>`), then moved into `out_dir` one
-/// rename each, so `out_dir` never holds a half-written file, and a
-/// failed write leaves the previous report as it was.
+/// one output set on the run kernel ([`crate::kernel::outputs`]):
+/// `out_dir` is checked and locked before the experiments, the files are
+/// written into a scratch directory inside it, staged beside their
+/// targets and moved into place together, so that `out_dir` never holds a
+/// half-written file and a failed write leaves the previous report as it
+/// was.
 pub fn run(
     config: &ReproduceConfig,
     observer: &mut impl Observer,
 ) -> Result<ReproduceOutcome, ReproduceError> {
+    let mut plan = OutputPlan::new();
+    plan.dir("--out", &config.out_dir);
+    let outputs = plan.open()?;
     let latest = Mutex::new(None::<(String, u64, u64)>);
     let stop = AtomicBool::new(false);
     let started = Instant::now();
@@ -69,67 +75,30 @@ pub fn run(
         },
     )?;
     let seconds = started.elapsed().as_secs_f64();
-    write_as_set(&config.out_dir, |dir| {
-        write_report(dir, &reproduction)?;
-        let run = serde_json::json!({
-            "wall_seconds": seconds,
-            "threads": rayon::current_num_threads(),
-            "experiments": reproduction
-                .wall_seconds
-                .iter()
-                .map(|(e, s)| serde_json::json!({"experiment": e.name(), "wall_seconds": s}))
-                .collect::<Vec<_>>(),
-        });
-        let path = dir.join("run.json");
-        let text = serde_json::to_string_pretty(&run).map_err(|e| ReportError::write(&path, e))?;
-        write_text(&path, &(text + "\n"))?;
-        Ok(())
-    })?;
+    let scratch = Scratch::new(&config.out_dir)?;
+    let dir = scratch.path();
+    write_report(dir, &reproduction)?;
+    let run = serde_json::json!({
+        "wall_seconds": seconds,
+        "threads": rayon::current_num_threads(),
+        "experiments": reproduction
+            .wall_seconds
+            .iter()
+            .map(|(e, s)| serde_json::json!({"experiment": e.name(), "wall_seconds": s}))
+            .collect::<Vec<_>>(),
+    });
+    let path = dir.join("run.json");
+    let text = serde_json::to_string_pretty(&run).map_err(|e| ReportError::write(&path, e))?;
+    write_text(&path, &(text + "\n"))?;
+    let written = std::fs::read_dir(dir).map_err(|e| ReportError::write(dir, e))?;
+    for entry in written {
+        let entry = entry.map_err(|e| ReportError::write(dir, e))?;
+        outputs.stage_written(&entry.path(), &config.out_dir.join(entry.file_name()))?;
+    }
+    drop(scratch);
+    outputs.commit()?;
     Ok(ReproduceOutcome {
         reproduction,
         seconds,
     })
-}
-
-/// Runs `write` on a fresh staging directory beside `out_dir`, then
-/// moves what it wrote into `out_dir` (one rename per file, replacing
-/// files of the same name; other files in `out_dir` stay). The staging
-/// directory is removed either way.
-fn write_as_set(
-    out_dir: &Path,
-    write: impl FnOnce(&Path) -> Result<(), ReproduceError>,
-) -> Result<(), ReproduceError> {
-    let parent = match out_dir.parent() {
-        Some(parent) if !parent.as_os_str().is_empty() => parent.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
-    let name = out_dir
-        .file_name()
-        .map_or_else(|| "report".into(), |n| n.to_string_lossy().into_owned());
-    std::fs::create_dir_all(&parent).map_err(|e| ReportError::write(&parent, e))?;
-    let staging = parent.join(format!(".{name}.writing-{}", std::process::id()));
-    // A killed run of this process id cannot still be writing.
-    let _ = std::fs::remove_dir_all(&staging);
-    let result = write(&staging).and_then(|()| {
-        std::fs::create_dir_all(out_dir).map_err(|e| ReportError::write(out_dir, e))?;
-        move_into(&staging, out_dir)
-    });
-    let _ = std::fs::remove_dir_all(&staging);
-    result
-}
-
-/// Moves every file under `from` to the same place under `to`.
-fn move_into(from: &Path, to: &Path) -> Result<(), ReproduceError> {
-    let entries = std::fs::read_dir(from).map_err(|e| ReportError::write(from, e))?;
-    for entry in entries {
-        let entry = entry.map_err(|e| ReportError::write(from, e))?;
-        let target = to.join(entry.file_name());
-        if entry.path().is_dir() {
-            std::fs::create_dir_all(&target).map_err(|e| ReportError::write(&target, e))?;
-            move_into(&entry.path(), &target)?;
-        } else {
-            std::fs::rename(entry.path(), &target).map_err(|e| ReportError::write(&target, e))?;
-        }
-    }
-    Ok(())
 }

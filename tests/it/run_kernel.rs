@@ -405,3 +405,36 @@ fn a_malformed_yaml_file_and_an_impossible_depth_are_one_line_each() {
         &["--depth must be at most 100000 mm"],
     );
 }
+
+/// `export` with its layout inside `--out`, named as the export's own
+/// report would be: refused, the layout kept, no file of the export left;
+/// an `--out` that is a file: refused before the part is built.
+#[test]
+fn an_export_never_writes_over_its_layout_or_into_a_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("part");
+    std::fs::create_dir(&out).unwrap();
+    let layout = out.join("biprism-search-export.json");
+    std::fs::copy(repository("layouts/biprism-search.json"), &layout).unwrap();
+    let text = std::fs::read_to_string(&layout).unwrap();
+    fails_saying(
+        layout_opt()
+            .arg("export")
+            .arg(&layout)
+            .args(["--format", "stl", "--quiet", "--out"])
+            .arg(&out),
+        &["biprism-search-export.json", "is also the input LAYOUT"],
+    );
+    assert_eq!(std::fs::read_to_string(&layout).unwrap(), text);
+    assert_eq!(names(&out), ["biprism-search-export.json"]);
+    let started = std::time::Instant::now();
+    fails_saying(
+        layout_opt()
+            .arg("export")
+            .arg(repository("layouts/biprism-search.json"))
+            .arg("--out")
+            .arg(&layout),
+        &["--out", "is a file, not a directory"],
+    );
+    assert!(started.elapsed().as_secs_f64() < 2.0, "refused only after the build");
+}
