@@ -23,6 +23,28 @@ use layout_opt::validate::{
 use layout_opt::volume::WorkingVolume;
 use std::path::PathBuf;
 
+/// `--noise-model`: the model, and the calibration file it read, if any
+/// (an input no output may overwrite).
+#[derive(Debug, Clone)]
+struct NoiseModelArg {
+    model: NoiseModel,
+    file: Option<PathBuf>,
+}
+
+impl std::str::FromStr for NoiseModelArg {
+    type Err = <NoiseModel as std::str::FromStr>::Err;
+
+    fn from_str(text: &str) -> Result<Self, Self::Err> {
+        let model = text.parse()?;
+        let file = text
+            .split('+')
+            .next()
+            .and_then(|kind| kind.strip_prefix("calibrated:"))
+            .map(PathBuf::from);
+        Ok(NoiseModelArg { model, file })
+    }
+}
+
 /// Monte-Carlo trials per scenario unless `--trials` says otherwise.
 const DEFAULT_TRIALS: usize = 200;
 
@@ -45,7 +67,7 @@ pub struct ValidateArgs {
     trials: usize,
     /// Noise model: isotropic, per-point, size[:REF_PX] or calibrated:FILE (σ from images, docs/formats.md), each optionally +outliers:RATE[:PX].
     #[arg(long, default_value = "isotropic")]
-    noise_model: NoiseModel,
+    noise_model: NoiseModelArg,
     /// Rotation error counted as a gross failure, degrees.
     #[arg(long, default_value_t = DEFAULT_GROSS_THRESHOLD_DEG)]
     gross_threshold: f64,
@@ -130,7 +152,7 @@ pub fn run(args: ValidateArgs, global: &GlobalOptions) -> anyhow::Result<()> {
             trials: args.identify_trials,
             seed: global.seed,
             observation: args.observation,
-            noise: args.noise_model,
+            noise: args.noise_model.model,
         };
         let volume = protocol_volume(&args, DEFAULT_TILT_STEP_DEG, global.seed)?;
         return super::validate_set::run(
@@ -183,7 +205,7 @@ pub fn run(args: ValidateArgs, global: &GlobalOptions) -> anyhow::Result<()> {
                 trials: args.trials,
                 seed: global.seed,
                 solvers,
-                noise: args.noise_model,
+                noise: args.noise_model.model,
                 gross_threshold_deg: args.gross_threshold,
                 observation: args.observation,
             },
@@ -202,6 +224,15 @@ pub fn run(args: ValidateArgs, global: &GlobalOptions) -> anyhow::Result<()> {
         estimate: !global.quiet,
         images: args.images.check(),
         noise_model_out: args.images.noise_model_out(),
+        sources: [
+            ("LAYOUT", args.layout.clone()),
+            ("--camera", args.camera.camera.clone()),
+            ("--volume", args.volume.volume.clone()),
+            ("--noise-model", args.noise_model.file.clone()),
+        ]
+        .into_iter()
+        .filter_map(|(what, path)| Some((what.to_string(), path?)))
+        .collect(),
     };
     let layout_name = &config.validate.layout.name;
     config

@@ -16,8 +16,6 @@ use super::image_check::{self, ImageCheck, NoiseLaw};
 use super::report;
 use super::summary::ValidateSummary;
 use crate::config::ConfigError;
-use crate::files::LockError;
-use crate::files::OutputLock;
 use crate::montecarlo::{self, MonteCarloConfig, Target};
 use crate::noise::calibrated::{CalibrationFile, CentreErrorMeasure, LAW};
 use crate::observer::Observer;
@@ -33,9 +31,9 @@ pub enum WorkflowError {
     /// The analysis failed, was interrupted, or its config is unusable.
     #[error(transparent)]
     Validate(#[from] ValidateError),
-    /// The output directory is locked by another run, or the lock failed.
+    /// An output is an input or another output, or another run holds it.
     #[error(transparent)]
-    Lock(#[from] LockError),
+    Output(#[from] crate::kernel::OutputError),
     /// The report could not be written.
     #[error(transparent)]
     Report(#[from] ReportError),
@@ -94,6 +92,10 @@ pub struct WorkflowConfig {
     /// Where to write the noise law fitted by the image check (a
     /// [`CalibrationFile`]); needs [`Self::images`].
     pub noise_model_out: Option<PathBuf>,
+    /// The files the run read (the layout, the camera, the volume, the
+    /// noise law), each with the argument that named it: no output may be
+    /// one of them.
+    pub sources: Vec<(String, PathBuf)>,
 }
 
 impl WorkflowConfig {
@@ -112,6 +114,21 @@ impl WorkflowConfig {
         Ok(())
     }
 
+    /// The run's outputs checked against its sources and each other, and
+    /// locked, before any work ([`crate::kernel::outputs`]). The report's
+    /// files are written atomically, one by one, once the run is done.
+    fn open_outputs(&self) -> Result<crate::kernel::Outputs, crate::kernel::OutputError> {
+        let mut plan = crate::kernel::OutputPlan::new();
+        for (what, path) in &self.sources {
+            plan.input(what.as_str(), path);
+        }
+        plan.dir("--out", &self.out_dir);
+        if let Some(path) = &self.noise_model_out {
+            plan.file("--write-noise-model", path);
+        }
+        plan.open()
+    }
+
     /// `validate` into `out_dir`, no grid note, no estimate.
     pub fn new(validate: ValidateConfig, out_dir: impl Into<PathBuf>) -> Self {
         WorkflowConfig {
@@ -121,6 +138,7 @@ impl WorkflowConfig {
             estimate: false,
             images: None,
             noise_model_out: None,
+            sources: Vec::new(),
         }
     }
 }
@@ -175,7 +193,7 @@ type Phase<O> = fn(&mut Run<'_, O>) -> Result<(), WorkflowError>;
 
 /// Validates [`WorkflowConfig::validate`] and writes its report, with
 /// `run.json` (timing, threads, solves, the grid note), into
-/// [`WorkflowConfig::out_dir`], holding its [`OutputLock`] throughout: the
+/// [`WorkflowConfig::out_dir`], holding its lock throughout: the
 /// config is checked, the estimate logged, the Monte-Carlo runs done, then
 /// the phases [`fabrication`], [`write_report`], [`write_noise_model`] and
 /// [`write_run_json`] run over the finished [`Run`]. An observer that asks
@@ -190,7 +208,7 @@ pub fn run(
 ) -> Result<ValidateOutcome, WorkflowError> {
     let validate = config.validate.check().map_err(ValidateError::from)?;
     config.check().map_err(ValidateError::from)?;
-    let _lock = OutputLock::acquire(&config.out_dir)?;
+    let _outputs = config.open_outputs()?;
     let estimate = match config.estimate {
         true => Some(estimate(validate, observer)?),
         false => None,

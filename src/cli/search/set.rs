@@ -96,6 +96,21 @@ pub(super) fn run(
         layout_opt::files::check_writable_dir(dir)
             .with_context(|| format!("cannot write into {}; nothing was run", dir.display()))?;
     }
+    // The set's files and report checked and locked before any work: a
+    // second set search into them is refused at once.
+    let mut plan = layout_opt::kernel::OutputPlan::new();
+    plan.file(
+        "--out",
+        layout_dir.join(format!("{}.set.json", config.name)),
+    );
+    for k in 1..=set.markers {
+        plan.file(
+            "--out",
+            layout_dir.join(format!("{}-{k}.json", config.name)),
+        );
+    }
+    plan.dir("--report", &config.report_dir);
+    let _outputs = plan.open()?;
     let quiet = global.quiet;
     layout_opt::kernel::StopRequest::watch();
     let stop = layout_opt::kernel::StopRequest::flag();
