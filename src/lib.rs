@@ -22,24 +22,23 @@ pub mod files;
 pub mod identifiability;
 pub mod kernel;
 pub mod layout;
-pub mod linalg;
 pub mod mesh;
 pub mod montecarlo;
 pub mod noise;
 pub mod observer;
-pub mod pnp;
-pub mod pose;
 pub mod render;
 pub mod report;
 pub mod reproduce;
 pub mod scenario;
 pub mod search;
 pub mod set;
-pub mod sphere_image;
-pub mod spread;
 pub mod statistics;
-pub mod synthetic;
 pub mod track;
 pub mod validate;
 pub mod visibility;
 pub mod volume;
+
+// The solver crate's modules, under the paths they had when they lived
+// here (`layout_opt::pnp::Solver`, `layout_opt::pose::Pose`, …); the camera
+// model comes through `camera`, which adds reading camera files.
+pub use layout_opt_solvers::{linalg, pnp, pose, sphere_image, spread, synthetic};

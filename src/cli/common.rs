@@ -2,7 +2,7 @@
 //! scenario grid and the solvers.
 
 use clap::Args;
-use layout_opt::camera::Camera;
+use layout_opt::camera::{self, Camera};
 use layout_opt::mesh::geometry::{
     Bed, Structure, DEFAULT_MIN_FEATURE_MM, DEFAULT_STRUT_DIAMETER_MM, DEFAULT_VIEW_CONE_DEG,
 };
@@ -45,7 +45,7 @@ impl CameraArgs {
     /// The camera these flags name.
     pub fn camera(&self) -> anyhow::Result<Camera> {
         match (&self.camera, self.with_distortion) {
-            (Some(path), false) => naming_file(Camera::load(path), "camera", path),
+            (Some(path), false) => naming_file(camera::load(path), "camera", path),
             (Some(_), true) => anyhow::bail!("--with-distortion applies to the default camera; a camera file carries its own distortion"),
             (None, false) => Ok(Camera::paper()),
             (None, true) => Ok(Camera::paper_with_distortion()),

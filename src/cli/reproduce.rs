@@ -4,7 +4,7 @@
 use super::common::{command_line, duration_text, naming_file, SLOW_RUN_SECONDS};
 use super::{progress, GlobalOptions};
 use clap::Args;
-use layout_opt::camera::Camera;
+use layout_opt::camera;
 use layout_opt::report::Table;
 use layout_opt::reproduce::workflow::{self, ReproduceConfig, ReproduceOutcome};
 use layout_opt::reproduce::{self, Config, Experiment, Verdict, REFERENCE_THREADS};
@@ -48,7 +48,7 @@ pub fn run(args: ReproduceArgs, global: &GlobalOptions) -> anyhow::Result<()> {
         camera: args
             .camera
             .as_deref()
-            .map(|path| naming_file(Camera::load(path), "camera", path))
+            .map(|path| naming_file(camera::load(path), "camera", path))
             .transpose()?,
     };
     let out_dir = args.out.clone().unwrap_or_else(|| config.default_out_dir());

@@ -1,11 +1,11 @@
 //! The module import graph reads top to bottom and has no circles.
 //!
 //! Reads every `src/**/*.rs`, builds the graph of imports between modules
-//! (one node per file: `pnp/epnp`, `search/pipeline`, `cli/search`; a
+//! (one node per file: `search/pipeline`, `mesh/stl`, `cli/search`; a
 //! `mod.rs` or `lib.rs`/`main.rs` is its directory's module) from the paths
 //! that start with `crate::`, `super::`, `self::`, `layout_opt::` (in the
-//! binary), or a child module's name in a `use`, and checks against
-//! docs/architecture.md:
+//! binary), `layout_opt_solvers::`, or a child module's name in a `use`,
+//! and checks against docs/architecture.md:
 //! - every module has a layer there (its own line, or the line of the
 //!   nearest enclosing module that has one), and every module named there
 //!   exists;
@@ -15,6 +15,16 @@
 //!   its parent's shared items, the parent re-exporting or dispatching to
 //!   its children, is how Rust modules are built), but not from the layer
 //!   check.
+//!
+//! The solver crate (crates/solvers/, `layout_opt_solvers`) is one node,
+//! `layout_opt_solvers`, on a floor below every floor of the tool: any
+//! module may import it, and it imports nothing of the tool (cargo sees to
+//! that). An import of it by a `layout_opt_solvers::` path, or through the
+//! re-exports of src/lib.rs (`crate::pnp::Solver`, `layout_opt::pose::Pose`)
+//! or src/camera.rs (`crate::camera::Camera`), is an edge to that node. The
+//! solver crate's own `crates/solvers/src/**/*.rs` are checked the same way
+//! against the floors and table of the section "The solver crate" of
+//! docs/architecture.md.
 //!
 //! A path through a `pub use` re-export is followed to the module that
 //! defines the item, so `crate::search::SearchOutcome` counts as an import
@@ -29,6 +39,18 @@ use std::path::{Path, PathBuf};
 fn source_root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("src")
 }
+
+/// The solver crate's source tree.
+fn solver_source_root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("crates/solvers/src")
+}
+
+/// The solver crate's name in paths, and its node in the tool's graph.
+const SOLVER_CRATE: &str = "layout_opt_solvers";
+
+/// The heading of the section of docs/architecture.md that describes the
+/// solver crate; the floors and table above it are the tool's.
+const SOLVER_SECTION: &str = "## The solver crate";
 
 /// The layer document.
 fn layer_doc() -> PathBuf {
@@ -234,11 +256,13 @@ fn strip_test_code(tokens: Vec<(Token, usize)>) -> (Vec<(Token, usize)>, BTreeSe
 }
 
 /// Which crate a module lives in: the library (`crate::` in src/lib.rs and
-/// its modules) or the binary (src/main.rs and src/cli/).
+/// its modules), the binary (src/main.rs and src/cli/), or the solver crate
+/// (crates/solvers/src, `layout_opt_solvers::`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
 enum Crate {
     Library,
     Binary,
+    Solvers,
 }
 
 /// An absolute module path: its crate and segments.
@@ -251,11 +275,14 @@ struct SourceFile {
     tokens: Vec<(Token, usize)>,
 }
 
-/// The graph key of a file module: `pnp/epnp`; `main` for the binary's
-/// root; `` for the library's root.
+/// The graph key of a file module: `search/pipeline`; `main` for the
+/// binary's root; `` for the library's root; [`SOLVER_CRATE`] for the
+/// solver crate's root, which is what every path into the solver crate
+/// resolves to in the tool's graph (none of its files is known there).
 fn key(module: &AbsPath) -> String {
     match (module.0, module.1.is_empty()) {
         (Crate::Binary, true) => "main".to_string(),
+        (Crate::Solvers, true) => SOLVER_CRATE.to_string(),
         _ => module.1.join("/"),
     }
 }
@@ -275,9 +302,14 @@ fn collect_files(dir: &Path, out: &mut Vec<PathBuf>) {
     }
 }
 
-/// Every non-test source file of the library and the binary.
-fn read_sources() -> Vec<SourceFile> {
-    let root = source_root();
+/// Every non-test source file of the library and the binary (`library` is
+/// [`Crate::Library`], under src/), or of the solver crate (`library` is
+/// [`Crate::Solvers`], under crates/solvers/src/).
+fn read_sources(library: Crate) -> Vec<SourceFile> {
+    let (root, shown) = match library {
+        Crate::Solvers => (solver_source_root(), "crates/solvers/src"),
+        _ => (source_root(), "src"),
+    };
     let mut paths = Vec::new();
     collect_files(&root, &mut paths);
     let mut files = Vec::new();
@@ -294,7 +326,8 @@ fn read_sources() -> Vec<SourceFile> {
             segments.pop();
         }
         let module = match segments.as_slice() {
-            [only] if only == "lib" => (Crate::Library, Vec::new()),
+            [only] if only == "lib" => (library, Vec::new()),
+            _ if library == Crate::Solvers => (library, segments),
             [only] if only == "main" => (Crate::Binary, Vec::new()),
             [first, ..] if first == "cli" => (Crate::Binary, segments),
             _ => (Crate::Library, segments),
@@ -311,7 +344,7 @@ fn read_sources() -> Vec<SourceFile> {
             test_only.insert(child);
         }
         files.push(SourceFile {
-            relative: format!("src/{relative}"),
+            relative: format!("{shown}/{relative}"),
             module,
             tokens,
         });
@@ -419,6 +452,10 @@ fn absolute(
             rest = &segments[1..];
             (Crate::Library, Vec::new())
         }
+        SOLVER_CRATE => {
+            rest = &segments[1..];
+            (Crate::Solvers, Vec::new())
+        }
         "self" => {
             rest = &segments[1..];
             current.clone()
@@ -504,8 +541,10 @@ fn references(file: &SourceFile, known: &BTreeSet<AbsPath>) -> Vec<Reference> {
                 }
             }
             Token::Ident(word)
-                if matches!(word.as_str(), "crate" | "super" | "self" | "layout_opt")
-                    && tokens.get(i + 1).map(|t| &t.0) == Some(&Token::PathSep)
+                if matches!(
+                    word.as_str(),
+                    "crate" | "super" | "self" | "layout_opt" | SOLVER_CRATE
+                ) && tokens.get(i + 1).map(|t| &t.0) == Some(&Token::PathSep)
                     && !(i > 0 && tokens[i - 1].0 == Token::PathSep) =>
             {
                 let mut segments = vec![word.clone()];
@@ -545,8 +584,11 @@ struct Graph {
     edges: BTreeMap<(String, String), String>,
 }
 
-fn build_graph() -> Graph {
-    let files = read_sources();
+/// The graph of the tool (`library` is [`Crate::Library`]: its library and
+/// binary, with the solver crate as the one node [`SOLVER_CRATE`]) or of the
+/// solver crate ([`Crate::Solvers`]).
+fn build_graph(library: Crate) -> Graph {
+    let files = read_sources(library);
     let known: BTreeSet<AbsPath> = files.iter().map(|f| f.module.clone()).collect();
     let all_refs: Vec<Vec<Reference>> = files.iter().map(|f| references(f, &known)).collect();
     // Re-exports: module → name → where it really is.
@@ -598,7 +640,7 @@ fn build_graph() -> Graph {
         graph.modules.insert(from.clone(), file.relative.clone());
         for r in refs {
             let target = resolve(&r.path, &known, &reexports, 8);
-            if target.1.is_empty() && target.0 == Crate::Library || target == file.module {
+            if target.1.is_empty() && target.0 == library || target == file.module {
                 continue;
             }
             let to = key(&target);
@@ -608,7 +650,7 @@ fn build_graph() -> Graph {
                 .or_insert_with(|| format!("{}:{}: {}", file.relative, r.line, r.text));
         }
     }
-    graph.modules.remove("");
+    graph.modules.remove(&key(&(library, Vec::new())));
     graph
 }
 
@@ -619,13 +661,25 @@ fn within(a: &str, b: &str) -> bool {
 
 /// Layers (bottom first) and each documented module's layer, from
 /// docs/architecture.md: a numbered list of `**layer**` names, and table
-/// rows `` | `module` | layer | job | ``.
-fn read_layers() -> (Vec<String>, BTreeMap<String, (String, usize)>) {
+/// rows `` | `module` | layer | job | ``. The tool's are those above the
+/// heading [`SOLVER_SECTION`]; the solver crate's (`solver_crate`) those
+/// below it.
+fn read_layers(solver_crate: bool) -> (Vec<String>, BTreeMap<String, (String, usize)>) {
     let text = std::fs::read_to_string(layer_doc()).expect("docs/architecture.md exists");
+    let lines: Vec<&str> = text.lines().collect();
+    let split = lines
+        .iter()
+        .position(|line| line.trim() == SOLVER_SECTION)
+        .unwrap_or_else(|| panic!("docs/architecture.md must have a section `{SOLVER_SECTION}`"));
+    let range = if solver_crate {
+        split..lines.len()
+    } else {
+        0..split
+    };
     let mut layers = Vec::new();
     let mut modules = BTreeMap::new();
-    for (number, line) in text.lines().enumerate() {
-        let line = line.trim();
+    for number in range {
+        let line = lines[number].trim();
         if let Some(rest) = line
             .split_once(". **")
             .filter(|(n, _)| n.parse::<usize>().is_ok())
@@ -717,19 +771,22 @@ fn circles(nodes: &BTreeSet<String>, edges: &BTreeSet<(String, String)>) -> Vec<
     out
 }
 
-/// Every module has a layer in docs/architecture.md, every documented
-/// module exists, no import goes up a layer, and no import goes round in a
-/// circle.
-#[test]
-fn imports_go_down_the_layers_without_circles() {
-    let graph = build_graph();
-    let (layers, documented) = read_layers();
-    assert!(
-        layers.len() >= 2,
-        "docs/architecture.md must list the layers as a numbered list of **names**, bottom first"
-    );
+/// What breaks the floors of one crate's graph: a documented module that
+/// is not on a listed floor or does not exist, a module without a floor, an
+/// import that goes up a floor, a circle. `sources` names the source tree
+/// and `section` the part of docs/architecture.md, for the messages. With
+/// `below_every_floor`, that node (the solver crate, in the tool's graph)
+/// is on a floor of its own under the first listed one.
+fn layer_problems(
+    graph: &Graph,
+    layers: &[String],
+    documented: &BTreeMap<String, (String, usize)>,
+    sources: &str,
+    section: &str,
+    below_every_floor: Option<&str>,
+) -> Vec<String> {
     let mut problems = Vec::new();
-    for (module, (layer, line)) in &documented {
+    for (module, (layer, line)) in documented {
         if !layers.contains(layer) {
             problems.push(format!(
                 "docs/architecture.md:{line}: module `{module}` is in layer `{layer}`, which is not one of the layers listed ({})",
@@ -738,25 +795,33 @@ fn imports_go_down_the_layers_without_circles() {
         }
         if !graph.modules.keys().any(|m| within(m, module)) {
             problems.push(format!(
-                "docs/architecture.md:{line}: module `{module}` does not exist in src/; remove or rename its line"
+                "docs/architecture.md:{line}: module `{module}` does not exist in {sources}/; remove or rename its line"
             ));
         }
     }
     // The layer of a module: its own line, or its nearest documented
-    // ancestor's.
+    // ancestor's; the node below every floor is under the first (rank 0,
+    // the listed floors from 1).
     let layer_of = |module: &str| -> Option<(usize, String, String)> {
+        if below_every_floor == Some(module) {
+            return Some((
+                0,
+                "below every floor".to_string(),
+                "the solver crate".to_string(),
+            ));
+        }
         let owner = documented
             .keys()
             .filter(|d| within(module, d))
             .max_by_key(|d| d.len())?;
         let layer = &documented[owner].0;
-        let rank = layers.iter().position(|l| l == layer)?;
+        let rank = layers.iter().position(|l| l == layer)? + 1;
         Some((rank, layer.clone(), owner.clone()))
     };
     for (module, file) in &graph.modules {
         if layer_of(module).is_none() {
             problems.push(format!(
-                "module `{module}` ({file}) has no layer: add a line `| `{module}` | <layer> | <job> |` (or one for a module above it) to docs/architecture.md"
+                "module `{module}` ({file}) has no layer: add a line `| `{module}` | <layer> | <job> |` (or one for a module above it) to {section}"
             ));
         }
     }
@@ -800,9 +865,59 @@ fn imports_go_down_the_layers_without_circles() {
             inside.join("\n")
         ));
     }
+    problems
+}
+
+/// Every module has a layer in docs/architecture.md, every documented
+/// module exists, no import goes up a layer, and no import goes round in a
+/// circle. The solver crate is below every floor: any module may import
+/// it.
+#[test]
+fn imports_go_down_the_layers_without_circles() {
+    let graph = build_graph(Crate::Library);
+    let (layers, documented) = read_layers(false);
+    assert!(
+        layers.len() >= 2,
+        "docs/architecture.md must list the layers as a numbered list of **names**, bottom first"
+    );
+    let problems = layer_problems(
+        &graph,
+        &layers,
+        &documented,
+        "src",
+        "docs/architecture.md",
+        Some(SOLVER_CRATE),
+    );
     assert!(
         problems.is_empty(),
         "the import graph breaks docs/architecture.md ({} problems):\n{}",
+        problems.len(),
+        problems.join("\n")
+    );
+}
+
+/// The same inside the solver crate, against the floors and table of the
+/// section "The solver crate" of docs/architecture.md.
+#[test]
+fn the_solver_crate_s_imports_go_down_its_layers_without_circles() {
+    let graph = build_graph(Crate::Solvers);
+    let (layers, documented) = read_layers(true);
+    assert!(
+        layers.len() >= 2,
+        "docs/architecture.md, section `{SOLVER_SECTION}`, must list the solver crate's layers as a numbered list of **names**, bottom first"
+    );
+    let section = format!("docs/architecture.md (section `{SOLVER_SECTION}`)");
+    let problems = layer_problems(
+        &graph,
+        &layers,
+        &documented,
+        "crates/solvers/src",
+        &section,
+        None,
+    );
+    assert!(
+        problems.is_empty(),
+        "the solver crate's import graph breaks docs/architecture.md ({} problems):\n{}",
         problems.len(),
         problems.join("\n")
     );
@@ -812,16 +927,29 @@ fn imports_go_down_the_layers_without_circles() {
 /// and skips comments, strings and test code; so the test above can fail.
 #[test]
 fn the_graph_builder_finds_the_imports_it_must() {
-    let graph = build_graph();
+    let graph = build_graph(Crate::Library);
     let edge = |a: &str, b: &str| graph.edges.contains_key(&(a.to_string(), b.to_string()));
+    let solvers = build_graph(Crate::Solvers);
+    let solver_edge =
+        |a: &str, b: &str| solvers.edges.contains_key(&(a.to_string(), b.to_string()));
     // `use super::…` in a solver file, to its sibling.
-    assert!(edge("pnp/gauss_newton", "pnp/epnp"));
+    assert!(solver_edge("pnp/gauss_newton", "pnp/epnp"));
     // `use crate::…` across the tree, through the `pub use` re-exports of
     // linalg/mod.rs to the file that defines the item.
-    assert!(edge("pnp/epnp", "linalg/eigenpairs"));
-    assert!(!edge("pnp/epnp", "linalg"));
-    // `layout_opt::…` from the binary.
-    assert!(edge("cli/solve", "pnp"));
+    assert!(solver_edge("pnp/epnp", "linalg/eigenpairs"));
+    assert!(!solver_edge("pnp/epnp", "linalg"));
+    // `layout_opt::…` from the binary, to the library's own module and,
+    // through src/lib.rs's re-export of `pnp`, to the solver crate.
+    assert!(edge("cli/solve", "batch"));
+    assert!(edge("cli/solve", SOLVER_CRATE));
+    // `crate::pnp::…` in the library, through the same re-export.
+    assert!(edge("montecarlo", SOLVER_CRATE));
+    // A `layout_opt_solvers::…` path (src/camera.rs re-exports the model).
+    assert!(edge("camera", SOLVER_CRATE));
+    // Through src/camera.rs: `Camera` is the solver crate's, `CameraSpec`
+    // the tool's own.
+    assert!(edge("batch", SOLVER_CRATE));
+    assert!(edge("batch", "camera"));
     // `use crate::{…}`-style trees and re-exports are followed.
     let tokens = tokenize("use crate::{a::{b, c as d}, e::*}; // crate::x::y\nlet s = \"crate::z::w\"; let c = '\"'; let r = r#\"crate::v::u\"#; r#type(); crate::f::g();");
     let mut leaves = Vec::new();

@@ -13,6 +13,7 @@ mod export_common;
 mod architecture;
 mod bad_input;
 mod conformance_generator;
+mod dls_limits;
 mod export;
 mod identifiability;
 mod images_calibration;

@@ -135,11 +135,10 @@ const ZERO_SHIFT_SWEEPS: usize = 2;
 const START_SEED: u64 = 0x5eed_5eed_5eed_5eed;
 
 /// Why [`smallest_eigenpairs`] failed.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[non_exhaustive]
 pub enum EigenError {
     /// An entry of the lower triangle is NaN or infinite.
-    #[error("the matrix has a non-finite entry at row {row}, column {column}")]
     NonFinite {
         /// Row of the offending entry.
         row: usize,
@@ -147,18 +146,36 @@ pub enum EigenError {
         column: usize,
     },
     /// The implicit QR iteration for the eigenvalues did not converge.
-    #[error("symmetric QR did not converge within {sweeps} sweeps")]
     QrNoConvergence {
         /// Sweeps performed.
         sweeps: usize,
     },
     /// Inverse iteration for an eigenvector did not reach a small residual.
-    #[error("inverse iteration for eigenvalue {index} (smallest first) did not converge")]
     InverseIterationNoConvergence {
         /// Index of the eigenvalue, 0 for the smallest.
         index: usize,
     },
 }
+
+impl std::fmt::Display for EigenError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            EigenError::NonFinite { row, column } => write!(
+                f,
+                "the matrix has a non-finite entry at row {row}, column {column}"
+            ),
+            EigenError::QrNoConvergence { sweeps } => {
+                write!(f, "symmetric QR did not converge within {sweeps} sweeps")
+            }
+            EigenError::InverseIterationNoConvergence { index } => write!(
+                f,
+                "inverse iteration for eigenvalue {index} (smallest first) did not converge"
+            ),
+        }
+    }
+}
+
+impl std::error::Error for EigenError {}
 
 /// The `K` smallest eigenpairs of a symmetric `N×N` matrix.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -184,7 +201,7 @@ pub struct SmallestEigenpairs<const N: usize, const K: usize> {
 ///
 /// # Example
 /// ```
-/// use layout_opt::linalg::smallest_eigenpairs;
+/// use layout_opt_solvers::linalg::smallest_eigenpairs;
 /// use nalgebra::Matrix3;
 /// let a = Matrix3::new(2.0, 1.0, 0.0, 1.0, 2.0, 0.0, 0.0, 0.0, 5.0);
 /// let pairs = smallest_eigenpairs::<3, 2>(&a).unwrap();

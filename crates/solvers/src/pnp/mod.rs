@@ -13,12 +13,13 @@
 //! returns a [`PnpError`] that says why.
 //!
 //! ```
-//! use layout_opt::layout::Layout;
-//! use layout_opt::pnp::{PnpError, Solver};
-//! use layout_opt::pose::{rotation_error_deg, Pose};
+//! use layout_opt_solvers::pnp::{PnpError, Solver};
+//! use layout_opt_solvers::pose::{rotation_error_deg, Pose};
+//! use layout_opt_solvers::synthetic::biprism_points;
 //! use nalgebra::{Rotation3, Vector2, Vector3};
 //!
-//! let object = Layout::paper_biprism().positions();
+//! // The paper's biprism (L = 50 mm).
+//! let object = biprism_points(50.0);
 //! let truth = Pose::new(
 //!     Rotation3::from_euler_angles(0.2, -0.1, 0.05),
 //!     Vector3::new(20.0, -10.0, 600.0),
@@ -75,11 +76,10 @@ pub const MAX_COORDINATE_SCALE: f64 = 1e60;
 pub const MIN_COORDINATE_SCALE: f64 = 1e-60;
 
 /// Why a solver could not return a pose.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[derive(Debug, Clone, PartialEq)]
 #[non_exhaustive]
 pub enum PnpError {
     /// Fewer correspondences than the method needs.
-    #[error("{solver} needs at least {needed} points, got {got}")]
     TooFewPoints {
         /// Human name of the method.
         solver: &'static str,
@@ -89,7 +89,6 @@ pub enum PnpError {
         got: usize,
     },
     /// Object and image point lists differ in length.
-    #[error("mismatched lengths: {object} object points but {image} image points")]
     MismatchedLengths {
         /// Number of object points.
         object: usize,
@@ -97,7 +96,6 @@ pub enum PnpError {
         image: usize,
     },
     /// A coordinate was NaN or infinite.
-    #[error("{kind} point {index} has a non-finite coordinate")]
     NonFinite {
         /// "object" or "image".
         kind: &'static str,
@@ -105,7 +103,6 @@ pub enum PnpError {
         index: usize,
     },
     /// Two object points coincide.
-    #[error("object points {first} and {second} coincide")]
     DuplicatePoints {
         /// Index of the first point.
         first: usize,
@@ -115,7 +112,6 @@ pub enum PnpError {
     /// Object coordinates too large or too small to square in double
     /// precision (the methods work with squared distances and higher
     /// powers).
-    #[error("{kind} point coordinates of size {magnitude:e} are outside the range {MIN_COORDINATE_SCALE:e}..{MAX_COORDINATE_SCALE:e} that PnP can work in; rescale the units")]
     BadScale {
         /// "object" or "image".
         kind: &'static str,
@@ -124,32 +120,26 @@ pub enum PnpError {
     },
     /// Every image point is the same point: the image says nothing about
     /// rotation or distance.
-    #[error("all image points coincide; no PnP method can recover a pose from one image point")]
     CoincidentImagePoints,
     /// The image points lie on one line, which a noncoplanar object cannot
     /// project to (and a planar one only seen edge-on, where the pose is
     /// undetermined).
-    #[error("the image points are collinear; no PnP method can recover the pose")]
     CollinearImagePoints,
     /// All object points lie on one line: no method can recover the roll about it.
-    #[error("object points are collinear; no PnP method can recover the pose")]
     Collinear,
     /// The object points are coplanar and the method needs a 3D spread.
-    #[error("object points are coplanar; {solver} needs noncoplanar points")]
     Coplanar {
         /// Human name of the method.
         solver: &'static str,
     },
     /// Every candidate puts some point behind the camera: the image points
     /// cannot come from these object points under a perspective camera.
-    #[error("{solver} found no pose that puts every point in front of the camera (points behind the camera)")]
     BehindCamera {
         /// Human name of the method.
         solver: &'static str,
     },
     /// The method's polynomial system solver failed (e.g. a singular
     /// elimination template) on every formulation it tries.
-    #[error("{solver}: the polynomial solver failed: {source}")]
     PolynomialSolver {
         /// Human name of the method.
         solver: &'static str,
@@ -157,7 +147,6 @@ pub enum PnpError {
         source: three_cubics::CubicSystemError,
     },
     /// More object points than the method can track.
-    #[error("{solver} handles at most {max} points, got {got}")]
     TooManyPoints {
         /// Human name of the method.
         solver: &'static str,
@@ -167,13 +156,70 @@ pub enum PnpError {
         got: usize,
     },
     /// The method's numerics broke down on this input.
-    #[error("{solver} failed: {reason}")]
     Degenerate {
         /// Human name of the method.
         solver: &'static str,
         /// What went wrong.
         reason: &'static str,
     },
+}
+
+impl std::fmt::Display for PnpError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            PnpError::TooFewPoints {
+                solver,
+                needed,
+                got,
+            } => write!(f, "{solver} needs at least {needed} points, got {got}"),
+            PnpError::MismatchedLengths { object, image } => write!(
+                f,
+                "mismatched lengths: {object} object points but {image} image points"
+            ),
+            PnpError::NonFinite { kind, index } => {
+                write!(f, "{kind} point {index} has a non-finite coordinate")
+            }
+            PnpError::DuplicatePoints { first, second } => {
+                write!(f, "object points {first} and {second} coincide")
+            }
+            PnpError::BadScale { kind, magnitude } => write!(
+                f,
+                "{kind} point coordinates of size {magnitude:e} are outside the range {MIN_COORDINATE_SCALE:e}..{MAX_COORDINATE_SCALE:e} that PnP can work in; rescale the units"
+            ),
+            PnpError::CoincidentImagePoints => f.write_str(
+                "all image points coincide; no PnP method can recover a pose from one image point",
+            ),
+            PnpError::CollinearImagePoints => f.write_str(
+                "the image points are collinear; no PnP method can recover the pose",
+            ),
+            PnpError::Collinear => {
+                f.write_str("object points are collinear; no PnP method can recover the pose")
+            }
+            PnpError::Coplanar { solver } => {
+                write!(f, "object points are coplanar; {solver} needs noncoplanar points")
+            }
+            PnpError::BehindCamera { solver } => write!(
+                f,
+                "{solver} found no pose that puts every point in front of the camera (points behind the camera)"
+            ),
+            PnpError::PolynomialSolver { solver, source } => {
+                write!(f, "{solver}: the polynomial solver failed: {source}")
+            }
+            PnpError::TooManyPoints { solver, max, got } => {
+                write!(f, "{solver} handles at most {max} points, got {got}")
+            }
+            PnpError::Degenerate { solver, reason } => write!(f, "{solver} failed: {reason}"),
+        }
+    }
+}
+
+impl std::error::Error for PnpError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            PnpError::PolynomialSolver { source, .. } => Some(source),
+            _ => None,
+        }
+    }
 }
 
 /// What one solver is and how it runs: its stable CLI name, the names
@@ -332,6 +378,7 @@ impl std::fmt::Display for Solver {
     }
 }
 
+#[cfg(feature = "serde")]
 impl serde::Serialize for Solver {
     fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
         serializer.serialize_str(self.name())

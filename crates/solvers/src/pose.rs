@@ -5,7 +5,7 @@
 //! degrees at this boundary; code inside works in radians.
 //!
 //! ```
-//! use layout_opt::pose::{nearest_rotation, rotation_error_deg, Pose};
+//! use layout_opt_solvers::pose::{nearest_rotation, rotation_error_deg, Pose};
 //! use nalgebra::{Matrix3, Rotation3, Vector3};
 //!
 //! let truth = Pose::new(
@@ -22,11 +22,11 @@
 
 use crate::linalg::orthogonalise_columns_3x3;
 use nalgebra::{Matrix2x3, Matrix3, Rotation3, SMatrix, Vector2, Vector3, SVD};
-use serde::{Deserialize, Serialize};
 
 /// A rigid transform from the object (marker) frame to the camera frame:
 /// `X_cam = rotation · X_obj + translation`, translation in millimetres.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct Pose {
     /// Rotation from object to camera axes.
     pub rotation: Rotation3<f64>,

@@ -123,12 +123,11 @@ pub const DENOMINATOR_GOOD_RCOND: f64 = 1e-6;
 pub const NEAR_REAL: f64 = 1e-8;
 
 /// Why the polynomial solver could not return solutions.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[non_exhaustive]
 pub enum SolverError {
     /// A block of the elimination template does not have the rank the Hilbert
     /// function of a system without solutions at infinity predicts.
-    #[error("elimination template block of degree {degree} has rank {found}, expected {expected}")]
     RankDeficient {
         /// Top degree of the block.
         degree: usize,
@@ -138,16 +137,35 @@ pub enum SolverError {
         expected: usize,
     },
     /// A coefficient of the equations is NaN or infinite.
-    #[error("a coefficient of the equations is not finite")]
     NonFinite,
     /// Every candidate denominator multiplication matrix is singular.
-    #[error("no multiplication matrix is invertible")]
     SingularDenominator,
     /// The QR iteration for the eigenvalues of the action matrix did not
     /// converge.
-    #[error("the eigenvalues of the action matrix did not converge")]
     SchurFailed,
 }
+
+impl std::fmt::Display for SolverError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            SolverError::RankDeficient {
+                degree,
+                found,
+                expected,
+            } => write!(
+                f,
+                "elimination template block of degree {degree} has rank {found}, expected {expected}"
+            ),
+            SolverError::NonFinite => f.write_str("a coefficient of the equations is not finite"),
+            SolverError::SingularDenominator => f.write_str("no multiplication matrix is invertible"),
+            SolverError::SchurFailed => {
+                f.write_str("the eigenvalues of the action matrix did not converge")
+            }
+        }
+    }
+}
+
+impl std::error::Error for SolverError {}
 
 impl SolverError {
     /// A fixed description, for error types that carry a `&'static str`.

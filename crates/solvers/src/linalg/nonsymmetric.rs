@@ -39,16 +39,28 @@ pub struct Eigenvalue {
 }
 
 /// Why the eigenvalues could not be computed.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[non_exhaustive]
 pub enum EigenvalueError {
     /// An entry of the matrix was NaN or infinite.
-    #[error("the matrix has a non-finite entry")]
     NonFinite,
     /// The QR iteration did not deflate within the iteration limit.
-    #[error("the QR iteration did not converge in {MAX_ITERATIONS_PER_EIGENVALUE} iterations")]
     NoConvergence,
 }
+
+impl std::fmt::Display for EigenvalueError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            EigenvalueError::NonFinite => f.write_str("the matrix has a non-finite entry"),
+            EigenvalueError::NoConvergence => write!(
+                f,
+                "the QR iteration did not converge in {MAX_ITERATIONS_PER_EIGENVALUE} iterations"
+            ),
+        }
+    }
+}
+
+impl std::error::Error for EigenvalueError {}
 
 /// A square matrix stored as its columns: `columns[j][i]` is entry `(i, j)`,
 /// so column operations run over contiguous memory.

@@ -33,8 +33,8 @@
 //! array vector.
 //!
 //! ```
-//! use layout_opt::pnp::p3p;
-//! use layout_opt::pose::{rotation_error_deg, Pose};
+//! use layout_opt_solvers::pnp::p3p;
+//! use layout_opt_solvers::pose::{rotation_error_deg, Pose};
 //! use nalgebra::{Rotation3, Vector2, Vector3};
 //!
 //! let object = [
@@ -46,7 +46,7 @@
 //! let image: Vec<Vector2<f64>> = object.iter().map(|p| truth.project_normalised(p)).collect();
 //! let poses = p3p::solve(&object, &image.try_into().unwrap())?;
 //! assert!(poses.iter().any(|pose| rotation_error_deg(&truth.rotation, &pose.rotation) < 1e-8));
-//! # Ok::<(), layout_opt::pnp::PnpError>(())
+//! # Ok::<(), layout_opt_solvers::pnp::PnpError>(())
 //! ```
 
 // `!(x > 0.0)` is deliberate throughout: it is true for NaN as well, so

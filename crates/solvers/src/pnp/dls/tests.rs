@@ -597,50 +597,6 @@ fn search_layout_at_tilt_30_is_recovered() {
     }
 }
 
-/// Noisy trials of [`search_layout_at_tilt_30_is_recovered`]'s poses.
-const NOISY_TRIALS: usize = 200;
-/// Pixel noise of the noisy trials (the validation protocol's).
-const NOISY_SIGMA_PX: f64 = 0.5;
-/// Rotation errors above this count as gross failures (the validation
-/// report's threshold).
-const GROSS_ROTATION_DEG: f64 = 10.0;
-/// Largest RMS rotation error allowed, as a multiple of the first-order
-/// (Cramér–Rao) limit: measured 0.972 after the fix, plus a margin (before
-/// it: 334, with 87 gross failures near 177°).
-const NOISY_RMS_OVER_LIMIT: f64 = 1.02;
-
-#[test]
-fn search_layout_at_tilt_30_meets_the_first_order_limit_with_noise() {
-    use crate::camera::Camera;
-    use crate::error_model::first_order::pose_covariance_isotropic;
-    use crate::synthetic::project_with_noise;
-    let object = search_layout();
-    let camera = Camera::paper();
-    let poses = tilt_30_poses();
-    let (mut error_sq, mut limit_sq, mut gross) = (0.0, 0.0, 0);
-    for trial in 0..NOISY_TRIALS {
-        let truth = poses[trial % poses.len()];
-        let mut rng = stream_rng(SEED, 10, trial as u64);
-        let problem =
-            project_with_noise(&mut rng, &camera, object.clone(), truth, NOISY_SIGMA_PX).unwrap();
-        let pose = Solver::Dls
-            .solve_best(&problem.object, &problem.normalised)
-            .unwrap();
-        let error = rotation_error_deg(&truth.rotation, &pose.rotation);
-        if error > GROSS_ROTATION_DEG {
-            gross += 1;
-        }
-        error_sq += error * error;
-        let limit = pose_covariance_isotropic(&camera, &truth, &object, NOISY_SIGMA_PX)
-            .unwrap()
-            .rms_rotation_deg();
-        limit_sq += limit * limit;
-    }
-    let ratio = (error_sq / limit_sq).sqrt();
-    assert_eq!(gross, 0, "{gross} gross failures");
-    assert!(ratio < NOISY_RMS_OVER_LIMIT, "ratio {ratio}");
-}
-
 #[test]
 fn on_demand_charts_find_the_four_chart_solve_s_best_pose() {
     // Noise-free, every attitude: the on-demand solve's best candidate is the
@@ -669,43 +625,4 @@ fn on_demand_charts_find_the_four_chart_solve_s_best_pose() {
         charts < 2 * cases as usize,
         "{charts} charts for {cases} problems"
     );
-}
-
-/// Far-field problems of [`far_field_meets_the_limit_without_gross_failures`].
-const FAR_FIELD_PROBLEMS: u64 = 3000;
-
-/// Far field (depth/size 20–30, n = 6–12, σ = 0.5 px): no gross failure for
-/// DLS, SQPnP, OPnP or ML, and DLS's RMS rotation error within 1.1× the
-/// first-order limit. Before the half-turns behind the camera were left out
-/// of the first chart's choice, DLS could choose a chart whose singular set
-/// held the pose and miss it: on 3000 other problems of this kind, one
-/// gross failure 150° off and an RMS of 1.66× the limit.
-#[test]
-fn far_field_meets_the_limit_without_gross_failures() {
-    use crate::conformance::{far_field_cell, generate_with, rotation_limit_deg};
-    let solvers = [Solver::Dls, Solver::Sqpnp, Solver::Opnp, Solver::Ml];
-    let mut gross = [0usize; 4];
-    let (mut error_sq, mut limit_sq) = (0.0, 0.0);
-    for case in 0..FAR_FIELD_PROBLEMS {
-        let mut rng = stream_rng(SEED, 12, case);
-        let cell = far_field_cell(&mut rng, 20.0..30.0, NOISY_SIGMA_PX);
-        let problem = generate_with(&mut rng, &cell).unwrap().problem;
-        for (k, solver) in solvers.iter().enumerate() {
-            let error = solver
-                .solve_best(&problem.object, &problem.normalised)
-                .map(|pose| rotation_error_deg(&problem.truth.rotation, &pose.rotation))
-                .unwrap_or(180.0);
-            if error > GROSS_ROTATION_DEG {
-                gross[k] += 1;
-            }
-            if k == 0 {
-                error_sq += error * error;
-            }
-        }
-        let limit = rotation_limit_deg(&cell.camera(), &problem, NOISY_SIGMA_PX).unwrap();
-        limit_sq += limit * limit;
-    }
-    let ratio = (error_sq / limit_sq).sqrt();
-    assert_eq!(gross, [0; 4], "gross failures of dls, sqpnp, opnp, ml");
-    assert!(ratio <= 1.1, "DLS RMS/limit {ratio}");
 }

@@ -35,9 +35,9 @@
 //! allocated once per call).
 //!
 //! ```
-//! use layout_opt::layout::Layout;
-//! use layout_opt::pnp::unlabelled::{identify, UnlabelledOptions};
-//! use layout_opt::pose::Pose;
+//! use layout_opt_solvers::pnp::unlabelled::{identify, UnlabelledOptions};
+//! use layout_opt_solvers::pose::Pose;
+//! use layout_opt_solvers::synthetic::biprism_points;
 //! use nalgebra::{Rotation3, Vector2, Vector3};
 //!
 //! // An asymmetric 6-point marker, mm.
@@ -59,11 +59,11 @@
 //!
 //! // The paper's biprism is an octahedron with its centre: every view has
 //! // 24 labellings that fit exactly, and the ambiguity says so.
-//! let biprism = Layout::paper_biprism().positions();
+//! let biprism = biprism_points(50.0);
 //! let image: Vec<Vector2<f64>> = biprism.iter().map(|p| truth.project_normalised(p)).collect();
 //! let found = identify(&biprism, &image, &UnlabelledOptions::default())?;
 //! assert!((found.ambiguity().unwrap() - 1.0).abs() < 1e-6);
-//! # Ok::<(), layout_opt::pnp::unlabelled::LabellingError>(())
+//! # Ok::<(), layout_opt_solvers::pnp::unlabelled::LabellingError>(())
 //! ```
 
 // `!(x > 0.0)` is deliberate throughout: it is true for NaN as well, so
@@ -184,15 +184,13 @@ impl Identification {
 
 /// Why the blobs could not be labelled: input that no PnP method could
 /// use ([`PnpError`]), or a problem that only unlabelled blobs have.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[derive(Debug, Clone, PartialEq)]
 #[non_exhaustive]
 pub enum LabellingError {
     /// The object or image points are not usable input for PnP (too few,
     /// non-finite, coincident, collinear, badly scaled).
-    #[error(transparent)]
-    Pnp(#[from] PnpError),
+    Pnp(PnpError),
     /// More image blobs than object points.
-    #[error("{image} image points but only {object} object points: every blob must be one of the object points")]
     TooManyBlobs {
         /// Number of object points.
         object: usize,
@@ -200,7 +198,6 @@ pub enum LabellingError {
         image: usize,
     },
     /// More object points without a blob than allowed.
-    #[error("{image} image points for {object} object points: {} missing, at most {max_missing} allowed", object - image)]
     TooManyMissing {
         /// Number of object points.
         object: usize,
@@ -210,7 +207,6 @@ pub enum LabellingError {
         max_missing: usize,
     },
     /// Two blobs at the same place.
-    #[error("image points {first} and {second} coincide")]
     DuplicateBlobs {
         /// Index of the first blob.
         first: usize,
@@ -218,17 +214,65 @@ pub enum LabellingError {
         second: usize,
     },
     /// The reprojection gate must be a positive distance.
-    #[error("the reprojection gate must be a positive finite distance, got {gate}")]
     BadGate {
         /// The gate given (normalised units).
         gate: f64,
     },
     /// No labelling puts every blob within the gate of its reprojection.
-    #[error("no labelling of the image points is geometrically consistent with the object points ({hypotheses} P3P hypotheses tried); the blobs may not come from this marker, or the gate is too tight for the noise")]
     NoConsistentLabelling {
         /// P3P hypotheses tried.
         hypotheses: usize,
     },
+}
+
+impl std::fmt::Display for LabellingError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            // Transparent: the PnP error's own message.
+            LabellingError::Pnp(error) => std::fmt::Display::fmt(error, f),
+            LabellingError::TooManyBlobs { object, image } => write!(
+                f,
+                "{image} image points but only {object} object points: every blob must be one of the object points"
+            ),
+            LabellingError::TooManyMissing {
+                object,
+                image,
+                max_missing,
+            } => write!(
+                f,
+                "{image} image points for {object} object points: {} missing, at most {max_missing} allowed",
+                object - image
+            ),
+            LabellingError::DuplicateBlobs { first, second } => {
+                write!(f, "image points {first} and {second} coincide")
+            }
+            LabellingError::BadGate { gate } => write!(
+                f,
+                "the reprojection gate must be a positive finite distance, got {gate}"
+            ),
+            LabellingError::NoConsistentLabelling { hypotheses } => write!(
+                f,
+                "no labelling of the image points is geometrically consistent with the object points ({hypotheses} P3P hypotheses tried); the blobs may not come from this marker, or the gate is too tight for the noise"
+            ),
+        }
+    }
+}
+
+impl std::error::Error for LabellingError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            // Transparent: the PnP error stands in for this one, so its
+            // source is this one's.
+            LabellingError::Pnp(error) => std::error::Error::source(error),
+            _ => None,
+        }
+    }
+}
+
+impl From<PnpError> for LabellingError {
+    fn from(error: PnpError) -> Self {
+        LabellingError::Pnp(error)
+    }
 }
 
 /// Finds the labelling of `image` (unordered blobs, normalised coordinates)
@@ -698,8 +742,7 @@ impl<'a> Search<'a> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::layout::biprism_points;
-    use crate::synthetic::{random_points, random_pose, stream_rng};
+    use crate::synthetic::{biprism_points, random_points, random_pose, stream_rng};
     use rand::seq::SliceRandom;
     use rand::Rng;
 

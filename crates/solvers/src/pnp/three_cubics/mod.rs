@@ -76,21 +76,48 @@ pub const ROOT_RESIDUAL_TOLERANCE: f64 = 1e-9;
 pub const DUPLICATE_ROOT_TOLERANCE: f64 = 1e-7;
 
 /// Why the system could not be solved.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[non_exhaustive]
 pub enum CubicSystemError {
     /// A coefficient was NaN or infinite.
-    #[error("a polynomial coefficient is not finite")]
     NonFinite,
     /// A diagonal block of the Macaulay template is singular.
-    #[error("the Macaulay elimination template is singular (degree-{degree} block)")]
     SingularTemplate {
         /// Degree (3…7) of the singular block.
         degree: usize,
     },
     /// The eigenvalues of the action matrix could not be computed.
-    #[error("eigenvalues of the action matrix: {0}")]
-    Eigenvalues(#[from] crate::linalg::nonsymmetric::EigenvalueError),
+    Eigenvalues(crate::linalg::nonsymmetric::EigenvalueError),
+}
+
+impl std::fmt::Display for CubicSystemError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            CubicSystemError::NonFinite => f.write_str("a polynomial coefficient is not finite"),
+            CubicSystemError::SingularTemplate { degree } => write!(
+                f,
+                "the Macaulay elimination template is singular (degree-{degree} block)"
+            ),
+            CubicSystemError::Eigenvalues(source) => {
+                write!(f, "eigenvalues of the action matrix: {source}")
+            }
+        }
+    }
+}
+
+impl std::error::Error for CubicSystemError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            CubicSystemError::Eigenvalues(source) => Some(source),
+            _ => None,
+        }
+    }
+}
+
+impl From<crate::linalg::nonsymmetric::EigenvalueError> for CubicSystemError {
+    fn from(source: crate::linalg::nonsymmetric::EigenvalueError) -> Self {
+        CubicSystemError::Eigenvalues(source)
+    }
 }
 
 /// The fixed change of variables `x = Q y`: a rotation by 1.2 rad about the

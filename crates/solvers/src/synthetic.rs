@@ -21,7 +21,29 @@ pub fn stream_rng(seed: u64, stream: u64, case: u64) -> ChaCha8Rng {
     rng
 }
 
-pub use crate::layout::{biprism, biprism_points};
+/// The paper's biprism (Fig. 6): the centre O0 and six vertices at distance
+/// `arm_mm` on ±x, ±y, ±z, named and ordered as the paper does
+/// (O0P1 = +z, O0P2 = +x, O0P5 = +y).
+pub fn biprism(arm_mm: f64) -> Vec<(String, Vector3<f64>)> {
+    let l = arm_mm;
+    [
+        ("O0", Vector3::new(0.0, 0.0, 0.0)),
+        ("P1", Vector3::new(0.0, 0.0, l)),
+        ("P2", Vector3::new(l, 0.0, 0.0)),
+        ("P3", Vector3::new(0.0, 0.0, -l)),
+        ("P4", Vector3::new(-l, 0.0, 0.0)),
+        ("P5", Vector3::new(0.0, l, 0.0)),
+        ("P6", Vector3::new(0.0, -l, 0.0)),
+    ]
+    .into_iter()
+    .map(|(name, p)| (name.to_string(), p))
+    .collect()
+}
+
+/// The biprism's points without names.
+pub fn biprism_points(arm_mm: f64) -> Vec<Vector3<f64>> {
+    biprism(arm_mm).into_iter().map(|(_, p)| p).collect()
+}
 
 /// A rotation drawn uniformly from SO(3) (normalised Gaussian quaternion).
 pub fn uniform_rotation(rng: &mut impl Rng) -> Rotation3<f64> {

@@ -29,21 +29,52 @@ use crate::sphere_image::ellipse_centre_jacobian;
 use nalgebra::{SMatrix, Vector2, Vector3};
 
 /// Why the sphere-model fit failed.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[derive(Debug, Clone, PartialEq)]
 #[non_exhaustive]
 pub enum SphereFitError {
     /// The start (or the input) was rejected by the PnP layer.
-    #[error(transparent)]
-    Pnp(#[from] PnpError),
+    Pnp(PnpError),
     /// The radius is not a positive finite number of millimetres.
-    #[error("sphere radius must be positive and finite, got {0} mm")]
     BadRadius(f64),
     /// No start puts every sphere wholly in front of the camera (depth > radius).
-    #[error("ML (sphere model): no start puts every {radius_mm} mm sphere wholly in front of the camera")]
     NotInFront {
         /// Sphere radius, mm.
         radius_mm: f64,
     },
+}
+
+impl std::fmt::Display for SphereFitError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            // Transparent: the PnP error's own message.
+            SphereFitError::Pnp(error) => std::fmt::Display::fmt(error, f),
+            SphereFitError::BadRadius(radius_mm) => write!(
+                f,
+                "sphere radius must be positive and finite, got {radius_mm} mm"
+            ),
+            SphereFitError::NotInFront { radius_mm } => write!(
+                f,
+                "ML (sphere model): no start puts every {radius_mm} mm sphere wholly in front of the camera"
+            ),
+        }
+    }
+}
+
+impl std::error::Error for SphereFitError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            // Transparent: the PnP error stands in for this one, so its
+            // source is this one's.
+            SphereFitError::Pnp(error) => std::error::Error::source(error),
+            _ => None,
+        }
+    }
+}
+
+impl From<PnpError> for SphereFitError {
+    fn from(error: PnpError) -> Self {
+        SphereFitError::Pnp(error)
+    }
 }
 
 /// `Σ ‖g(C_i) − m_i‖²`, infinite when a sphere is not wholly in front.

@@ -31,7 +31,7 @@ const JACOBI_MAX_SWEEPS: usize = 32;
 ///
 /// # Example
 /// ```
-/// use layout_opt::linalg::symmetric_eigen_3x3;
+/// use layout_opt_solvers::linalg::symmetric_eigen_3x3;
 /// use nalgebra::Matrix3;
 /// let a = Matrix3::new(2.0, 1.0, 0.0, 1.0, 2.0, 0.0, 0.0, 0.0, 5.0);
 /// let (values, vectors) = symmetric_eigen_3x3(&a);

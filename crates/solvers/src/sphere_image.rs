@@ -53,19 +53,16 @@
 use crate::camera::Camera;
 use crate::pose::Pose;
 use nalgebra::{Matrix2x3, Matrix3, Vector2, Vector3};
-use serde::Serialize;
 use std::fmt;
 use std::str::FromStr;
 
 /// Why a sphere has no elliptical silhouette.
-#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 #[non_exhaustive]
 pub enum SphereImageError {
     /// The radius is not a positive finite number of millimetres.
-    #[error("sphere radius must be positive and finite, got {0} mm")]
     BadRadius(f64),
     /// The camera centre is inside the sphere or on its surface.
-    #[error("the camera centre is inside or on the sphere (centre {distance_mm} mm away, radius {radius_mm} mm): it has no silhouette")]
     CameraInsideSphere {
         /// Distance from the camera centre to the sphere centre, mm.
         distance_mm: f64,
@@ -73,7 +70,6 @@ pub enum SphereImageError {
         radius_mm: f64,
     },
     /// Part of the sphere is at or behind the plane z = 0 of the camera.
-    #[error("the sphere (centre depth {depth_mm} mm, radius {radius_mm} mm) is not wholly in front of the camera: its silhouette is not an ellipse")]
     NotInFront {
         /// Depth of the sphere centre, mm.
         depth_mm: f64,
@@ -81,6 +77,33 @@ pub enum SphereImageError {
         radius_mm: f64,
     },
 }
+
+impl fmt::Display for SphereImageError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            SphereImageError::BadRadius(radius_mm) => write!(
+                f,
+                "sphere radius must be positive and finite, got {radius_mm} mm"
+            ),
+            SphereImageError::CameraInsideSphere {
+                distance_mm,
+                radius_mm,
+            } => write!(
+                f,
+                "the camera centre is inside or on the sphere (centre {distance_mm} mm away, radius {radius_mm} mm): it has no silhouette"
+            ),
+            SphereImageError::NotInFront {
+                depth_mm,
+                radius_mm,
+            } => write!(
+                f,
+                "the sphere (centre depth {depth_mm} mm, radius {radius_mm} mm) is not wholly in front of the camera: its silhouette is not an ellipse"
+            ),
+        }
+    }
+}
+
+impl std::error::Error for SphereImageError {}
 
 fn check(centre_camera_mm: &Vector3<f64>, radius_mm: f64) -> Result<(), SphereImageError> {
     if !(radius_mm > 0.0 && radius_mm.is_finite()) {
@@ -261,8 +284,9 @@ impl SphereSilhouette {
 }
 
 /// What a feature's image point is.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash, Serialize)]
-#[serde(rename_all = "kebab-case")]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
+#[cfg_attr(feature = "serde", serde(rename_all = "kebab-case"))]
 pub enum Observation {
     /// The projection of the sphere's centre (an ideal point feature).
     Centre,

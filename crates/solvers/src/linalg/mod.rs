@@ -20,7 +20,7 @@ use nalgebra::Vector3;
 /// are reproducible.
 ///
 /// ```
-/// use layout_opt::linalg::perpendicular_pair;
+/// use layout_opt_solvers::linalg::perpendicular_pair;
 /// use nalgebra::Vector3;
 /// let axis = Vector3::new(1.0, 2.0, 2.0) / 3.0;
 /// let (e1, e2) = perpendicular_pair(&axis);
