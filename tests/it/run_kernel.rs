@@ -436,5 +436,8 @@ fn an_export_never_writes_over_its_layout_or_into_a_file() {
             .arg(&layout),
         &["--out", "is a file, not a directory"],
     );
-    assert!(started.elapsed().as_secs_f64() < 2.0, "refused only after the build");
+    assert!(
+        started.elapsed().as_secs_f64() < 2.0,
+        "refused only after the build"
+    );
 }

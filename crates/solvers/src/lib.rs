@@ -1,4 +1,4 @@
-//! layout-opt-solvers: thirteen Perspective-n-Point solvers behind one
+//! layout-opt-solvers: fourteen Perspective-n-Point solvers behind one
 //! interface, rigid poses and their error measures, the OpenCV pinhole
 //! camera with Brown–Conrady distortion, and where a sphere's image centre
 //! lies. The solver part of layout-opt, a crate of its own so that a
