@@ -191,6 +191,10 @@ impl OutputPlan {
             // as a search exporting its winner) covers the output.
             if entry.kind != Kind::InDir && !OutputLock::held_here(&entry.path) {
                 locks.push(OutputLock::acquire(&entry.path)?);
+                if entry.kind == Kind::Dir {
+                    // Ours now: what a killed run left in it goes.
+                    remove_stale_in(&entry.path).map_err(write_error(&entry.path))?;
+                }
             }
             if entry.kind != Kind::Dir {
                 remove_stale_temporaries(&entry.path).map_err(write_error(&entry.path))?;
@@ -205,6 +209,39 @@ impl OutputPlan {
             locks,
         })
     }
+}
+
+/// Removes from `dir`, whose lock the caller has just taken, what killed
+/// runs left there: hidden temporaries (`.<name>.<pid>.<n>.tmp`) and
+/// hidden scratch or staging directories (`.<…>.<pid>.<n>.tmp`, as
+/// [`Scratch`] and earlier versions' render and export staging named
+/// them). Nothing else is touched.
+fn remove_stale_in(dir: &Path) -> std::io::Result<()> {
+    crate::files::remove_stale_temporaries_in(dir)?;
+    for entry in std::fs::read_dir(dir)? {
+        let entry = entry?;
+        let name = entry.file_name();
+        let name = name.to_string_lossy();
+        let Some(stem) = name
+            .strip_prefix('.')
+            .and_then(|rest| rest.strip_suffix(".tmp"))
+        else {
+            continue;
+        };
+        let mut parts = stem.rsplit('.');
+        let numbered = parts
+            .next()
+            .zip(parts.next())
+            .is_some_and(|(n, pid)| is_number(n) && is_number(pid));
+        if numbered && entry.file_type()?.is_dir() {
+            std::fs::remove_dir_all(entry.path())?;
+        }
+    }
+    Ok(())
+}
+
+fn is_number(text: &str) -> bool {
+    !text.is_empty() && text.bytes().all(|b| b.is_ascii_digit())
 }
 
 fn clash(entry: &Entry, other: String) -> OutputError {
@@ -696,6 +733,28 @@ mod tests {
         outputs.commit().unwrap();
         assert_eq!(names(&out), ["a.stl"]);
         assert_eq!(std::fs::read_to_string(out.join("a.stl")).unwrap(), "solid");
+    }
+
+    #[test]
+    fn a_killed_runs_scratch_and_staging_directories_go_when_its_directory_opens() {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("part");
+        for stale in [
+            ".scratch.999.0.tmp",
+            ".render.999.3.tmp",
+            ".a.export.999.1.tmp",
+        ] {
+            std::fs::create_dir_all(out.join(stale).join("deeper")).unwrap();
+        }
+        std::fs::write(out.join(".a.stl.999.2.tmp"), "half").unwrap();
+        // Not a run's: kept.
+        std::fs::create_dir(out.join(".git")).unwrap();
+        std::fs::create_dir(out.join(".notes.tmp")).unwrap();
+        std::fs::write(out.join("a.stl"), "solid").unwrap();
+        let mut plan = OutputPlan::new();
+        plan.dir("--out", &out);
+        drop(plan.open().unwrap());
+        assert_eq!(names(&out), [".git", ".notes.tmp", "a.stl"]);
     }
 
     #[test]
