@@ -174,23 +174,32 @@ impl OutputPlan {
                 return Err(clash(entry, other));
             }
         }
-        let mut locks = Vec::new();
-        let mut made_dirs = Vec::new();
-        for entry in &self.outputs {
+        // Built up as it goes, so that a refusal part-way (a lock another
+        // run holds) drops what was taken and made so far.
+        let entries = self.outputs.clone();
+        let mut opened = Outputs {
+            plan: self,
+            resolved_inputs: inputs,
+            staged: Mutex::new(Vec::new()),
+            made_dirs: Vec::new(),
+            committed: false,
+            locks: Vec::new(),
+        };
+        for entry in &entries {
             if entry.kind == Kind::Dir {
-                let mut missing: Vec<PathBuf> = entry
+                let missing: Vec<PathBuf> = entry
                     .path
                     .ancestors()
                     .take_while(|d| !d.as_os_str().is_empty() && !d.exists())
                     .map(Path::to_path_buf)
                     .collect();
                 std::fs::create_dir_all(&entry.path).map_err(write_error(&entry.path))?;
-                made_dirs.append(&mut missing);
+                opened.made_dirs.extend(missing);
             }
             // A lock this process holds already (a run inside a run, such
             // as a search exporting its winner) covers the output.
             if entry.kind != Kind::InDir && !OutputLock::held_here(&entry.path) {
-                locks.push(OutputLock::acquire(&entry.path)?);
+                opened.locks.push(OutputLock::acquire(&entry.path)?);
                 if entry.kind == Kind::Dir {
                     // Ours now: what a killed run left in it goes.
                     remove_stale_in(&entry.path).map_err(write_error(&entry.path))?;
@@ -200,14 +209,7 @@ impl OutputPlan {
                 remove_stale_temporaries(&entry.path).map_err(write_error(&entry.path))?;
             }
         }
-        Ok(Outputs {
-            plan: self,
-            resolved_inputs: inputs,
-            staged: Mutex::new(Vec::new()),
-            made_dirs,
-            committed: false,
-            locks,
-        })
+        Ok(opened)
     }
 }
 
