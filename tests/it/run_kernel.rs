@@ -38,6 +38,17 @@ fn two_frames(dir: &Path) -> Vec<PathBuf> {
     frames
 }
 
+/// A set of two shipped layouts (the winner and the tetrahedron), its
+/// files written into `dir`; the set file's path.
+fn pair_set(dir: &Path) -> PathBuf {
+    let load = |name: &str| layout_opt::layout::Layout::load(&repository(name)).unwrap();
+    let pair = [
+        load("layouts/biprism-search.json"),
+        load("layouts/tetrahedron.json"),
+    ];
+    layout_opt::set::write_set(dir, "pair", &pair).unwrap()
+}
+
 /// The run fails with one line on stderr that holds every needle.
 fn fails_saying(command: &mut Command, needles: &[&str]) {
     let output = command.output().unwrap();
@@ -101,12 +112,7 @@ fn an_output_that_is_an_input_or_another_output_is_refused_and_nothing_is_clobbe
         &["--csv", "the output of --output"],
     );
     // track --set: the set file as --output.
-    let load = |name: &str| layout_opt::layout::Layout::load(&repository(name)).unwrap();
-    let pair = [
-        load("layouts/biprism-search.json"),
-        load("layouts/tetrahedron.json"),
-    ];
-    let set = layout_opt::set::write_set(dir.path(), "pair", &pair).unwrap();
+    let set = pair_set(dir.path());
     let set_text = std::fs::read_to_string(&set).unwrap();
     fails_saying(
         layout_opt()
@@ -360,12 +366,7 @@ fn ctrl_c_ends_an_export_while_it_builds_the_part() {
 #[test]
 fn a_sets_validation_refuses_the_flags_it_has_no_use_for() {
     let dir = tempfile::tempdir().unwrap();
-    let load = |name: &str| layout_opt::layout::Layout::load(&repository(name)).unwrap();
-    let pair = [
-        load("layouts/biprism-search.json"),
-        load("layouts/tetrahedron.json"),
-    ];
-    let set = layout_opt::set::write_set(dir.path(), "pair", &pair).unwrap();
+    let set = pair_set(dir.path());
     let before = names(dir.path());
     for flags in [
         &["--trials", "5"][..],
