@@ -5,6 +5,7 @@ mod common;
 mod export;
 mod export_set;
 mod look;
+mod noise_model;
 mod progress;
 mod render;
 mod reproduce;
@@ -89,7 +90,10 @@ pub fn run() -> anyhow::Result<()> {
     }
     match cli.command {
         Command::Solve(args) => solve::run(args, &cli.global),
-        Command::Validate(args) => validate::run(*args, &cli.global),
+        Command::Validate(args) => match validate::set_path(&args) {
+            Some(set) => validate_set::run(set, &args, &cli.global),
+            None => validate::run(*args, &cli.global),
+        },
         Command::Search(args) => search::run(*args, &cli.global),
         Command::Reproduce(args) => reproduce::run(args, &cli.global),
         Command::Export(args) => export::run(args, &cli.global),

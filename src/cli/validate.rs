@@ -1,6 +1,7 @@
 //! `layout-opt validate`: a layout's sensitivity report.
 
 use super::common::{command_line, naming_file, parse_solvers, CameraArgs, GridArgs};
+use super::noise_model::NoiseModelArg;
 use super::validate_images::{image_flag, ImageArgs};
 use super::volume::{volume_flag, VolumeArgs, VolumeDefaults};
 use super::{progress, GlobalOptions};
@@ -10,7 +11,6 @@ use layout_opt::config::ConfigError;
 use layout_opt::layout::Layout;
 use layout_opt::mesh::MarkerOptions;
 use layout_opt::montecarlo::{MonteCarloConfig, DEFAULT_GROSS_THRESHOLD_DEG};
-use layout_opt::noise::NoiseModel;
 use layout_opt::scenario::ScenarioGrid;
 use layout_opt::sphere_image::Observation;
 use layout_opt::validate::config::default_tilt_step_deg;
@@ -23,91 +23,69 @@ use layout_opt::validate::{
 use layout_opt::volume::WorkingVolume;
 use std::path::PathBuf;
 
-/// `--noise-model`: the model, and the calibration file it read, if any
-/// (an input no output may overwrite).
-#[derive(Debug, Clone)]
-struct NoiseModelArg {
-    model: NoiseModel,
-    file: Option<PathBuf>,
-}
-
-impl std::str::FromStr for NoiseModelArg {
-    type Err = <NoiseModel as std::str::FromStr>::Err;
-
-    fn from_str(text: &str) -> Result<Self, Self::Err> {
-        let model = text.parse()?;
-        let file = text
-            .split('+')
-            .next()
-            .and_then(|kind| kind.strip_prefix("calibrated:"))
-            .map(PathBuf::from);
-        Ok(NoiseModelArg { model, file })
-    }
-}
-
 /// Monte-Carlo trials per scenario unless `--trials` says otherwise.
-const DEFAULT_TRIALS: usize = 200;
+pub(super) const DEFAULT_TRIALS: usize = 200;
 
 /// Flags of `validate`.
 #[derive(Debug, Args)]
 pub struct ValidateArgs {
     /// Layout file (JSON). Default: the paper's biprism (L = 50 mm, 10 mm spheres).
-    layout: Option<PathBuf>,
+    pub(super) layout: Option<PathBuf>,
     #[command(flatten)]
-    grid: GridArgs,
+    pub(super) grid: GridArgs,
     #[command(flatten)]
-    volume: VolumeArgs,
+    pub(super) volume: VolumeArgs,
     #[command(flatten)]
-    camera: CameraArgs,
+    pub(super) camera: CameraArgs,
     /// Solvers: `all` or a comma list of stable names (see `solve --list`).
     #[arg(long, default_value = "all")]
-    solvers: String,
+    pub(super) solvers: String,
     /// Monte-Carlo trials per scenario.
     #[arg(long, default_value_t = DEFAULT_TRIALS)]
-    trials: usize,
+    pub(super) trials: usize,
     /// Noise model: isotropic, per-point, size[:REF_PX] or calibrated:FILE (σ from images, docs/formats.md), each optionally +outliers:RATE[:PX].
     #[arg(long, default_value = "isotropic")]
-    noise_model: NoiseModelArg,
+    pub(super) noise_model: NoiseModelArg,
     /// Rotation error counted as a gross failure, degrees.
     #[arg(long, default_value_t = DEFAULT_GROSS_THRESHOLD_DEG)]
-    gross_threshold: f64,
+    pub(super) gross_threshold: f64,
     /// Image point of a sphere: `ellipse-centre` (its silhouette's centre,
     /// what a blob detector measures) or `centre` (its projected centre).
     /// Noise is added on top.
     #[arg(long, default_value = "ellipse-centre")]
-    observation: Observation,
+    pub(super) observation: Observation,
     /// Monte-Carlo trials of the unlabelled solver per visible scenario: the
     /// blobs shuffled, how often it labels them wrongly (0: the prediction
     /// from the noise-free margin alone).
     #[arg(long, default_value_t = validate::DEFAULT_IDENTIFY_TRIALS)]
-    identify_trials: usize,
+    pub(super) identify_trials: usize,
     /// Least predicted probability of a correct labelling for a scenario to
     /// count as identifiable (0.999 or 99.9%).
     #[arg(long, default_value = "0.999", value_name = "PROBABILITY")]
-    identify_criterion: String,
+    pub(super) identify_criterion: String,
     /// Output directory. Default: reports/<layout name>/.
     #[arg(long, value_name = "DIR")]
-    out: Option<PathBuf>,
+    pub(super) out: Option<PathBuf>,
     /// Sphere-centre fabrication error σ_fab, mm per coordinate: after the
     /// report, a Monte-Carlo run prints a new perturbed part per trial and
     /// solves it with the nominal layout, beside the first-order model
     /// with the fabrication term. 0 (the default) runs nothing more.
     #[arg(long, value_name = "MM", default_value_t = 0.0)]
-    fabrication_sigma: f64,
+    pub(super) fabrication_sigma: f64,
     /// The largest fraction (0–1) of a sphere's silhouette that the part's
     /// own supports may hide while the sphere still counts as seen.
     #[arg(long, value_name = "FRACTION", default_value_t = layout_opt::visibility::DEFAULT_MAX_HIDDEN)]
-    max_hidden: f64,
+    pub(super) max_hidden: f64,
     /// Leave the part's supports out: only the spheres hide each other (the
     /// behaviour before the supports were modelled).
     #[arg(long)]
-    no_supports: bool,
+    pub(super) no_supports: bool,
     #[command(flatten)]
-    images: ImageArgs,
+    pub(super) images: ImageArgs,
 }
 
 /// A probability strictly between 0 and 1, as `0.999` or `99.9%`.
-fn parse_probability(text: &str) -> anyhow::Result<f64> {
+pub(super) fn parse_probability(text: &str) -> anyhow::Result<f64> {
     layout_opt::config::parse_share(text)
         .filter(|&p| p > 0.0 && p < 1.0)
         .ok_or_else(|| {
@@ -117,54 +95,16 @@ fn parse_probability(text: &str) -> anyhow::Result<f64> {
         })
 }
 
-/// The flags of a single layout's validation that were given (that differ
-/// from their defaults): a set's validation has no use for them.
-fn single_layout_flags(args: &ValidateArgs) -> Vec<&'static str> {
-    [
-        ("--solvers", args.solvers != "all"),
-        ("--trials", args.trials != DEFAULT_TRIALS),
-        (
-            "--gross-threshold",
-            args.gross_threshold != DEFAULT_GROSS_THRESHOLD_DEG,
-        ),
-        ("--fabrication-sigma", args.fabrication_sigma != 0.0),
-        (
-            "--max-hidden",
-            args.max_hidden != layout_opt::visibility::DEFAULT_MAX_HIDDEN,
-        ),
-        ("--no-supports", args.no_supports),
-        ("--images", args.images.check().is_some()),
-    ]
-    .into_iter()
-    .filter_map(|(flag, given)| given.then_some(flag))
-    .collect()
+/// The set file (`*.set.json`) the layout argument names, if it names one:
+/// `validate_set` validates it.
+pub fn set_path(args: &ValidateArgs) -> Option<&std::path::Path> {
+    args.layout
+        .as_deref()
+        .filter(|p| p.to_string_lossy().ends_with(".set.json"))
 }
 
+/// `validate LAYOUT` (a set file goes to `validate_set` instead).
 pub fn run(args: ValidateArgs, global: &GlobalOptions) -> anyhow::Result<()> {
-    if let Some(path) = args
-        .layout
-        .as_ref()
-        .filter(|p| p.to_string_lossy().ends_with(".set.json"))
-    {
-        let settings = layout_opt::identifiability::IdentifiabilitySettings {
-            min_correct: parse_probability(&args.identify_criterion)
-                .context("--identify-criterion")?,
-            trials: args.identify_trials,
-            seed: global.seed,
-            observation: args.observation,
-            noise: args.noise_model.model,
-        };
-        let volume = protocol_volume(&args, DEFAULT_TILT_STEP_DEG, global.seed)?;
-        return super::validate_set::run(
-            path,
-            &args.camera.camera()?,
-            &volume,
-            &settings,
-            args.out.clone(),
-            &single_layout_flags(&args),
-            global,
-        );
-    }
     let layout = match &args.layout {
         Some(path) => naming_file(Layout::load(path), "layout", path)?,
         None => Layout::paper_biprism(),
@@ -288,7 +228,7 @@ fn flag_error(error: ConfigError, layout: &str) -> anyhow::Error {
 
 /// The volume the flags give, by default the paper's protocol grid with
 /// tilts `tilt_step_deg` apart.
-fn protocol_volume(
+pub(super) fn protocol_volume(
     args: &ValidateArgs,
     tilt_step_deg: f64,
     seed: u64,

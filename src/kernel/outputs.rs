@@ -330,14 +330,23 @@ fn resolved(path: &Path) -> PathBuf {
     }
 }
 
+/// A file staged: its temporary, the path it was staged for, and that
+/// path resolved (compared when the same file is staged again).
+#[derive(Debug)]
+struct Staged {
+    temporary: PathBuf,
+    path: PathBuf,
+    resolved: PathBuf,
+}
+
 /// A run's opened outputs: its locks, and the files staged so far.
 #[derive(Debug)]
 pub struct Outputs {
     plan: OutputPlan,
     /// Each input with the argument that named it, resolved.
     resolved_inputs: Vec<(String, PathBuf)>,
-    /// (temporary, target) of every file staged.
-    staged: Mutex<Vec<(PathBuf, PathBuf)>>,
+    /// Every file staged.
+    staged: Mutex<Vec<Staged>>,
     /// Directories the plan created, deepest first: removed again (when
     /// still empty) if the run ends without its commit.
     made_dirs: Vec<PathBuf>,
@@ -346,15 +355,6 @@ pub struct Outputs {
 }
 
 impl Outputs {
-    /// The declared output directories, in the order declared.
-    pub fn dirs(&self) -> impl Iterator<Item = PathBuf> + '_ {
-        self.plan
-            .outputs
-            .iter()
-            .filter(|e| e.kind == Kind::Dir)
-            .map(|e| e.path.clone())
-    }
-
     /// Writes `bytes` for `path` to a temporary beside it; `path` must be a
     /// declared output file or lie directly in a declared directory, and
     /// must not be an input. Nothing replaces `path` before
@@ -414,11 +414,14 @@ impl Outputs {
     /// of anything staged for it before.
     fn record(&self, temporary: PathBuf, path: &Path, target: &Path) {
         let mut staged = self.staged.lock().unwrap_or_else(|e| e.into_inner());
-        if let Some(k) = staged.iter().position(|(_, t)| resolved(t) == target) {
-            let (old, _) = staged.remove(k);
-            let _ = std::fs::remove_file(old);
+        if let Some(k) = staged.iter().position(|s| s.resolved == target) {
+            let _ = std::fs::remove_file(staged.remove(k).temporary);
         }
-        staged.push((temporary, path.to_path_buf()));
+        staged.push(Staged {
+            temporary,
+            path: path.to_path_buf(),
+            resolved: target.to_path_buf(),
+        });
     }
 
     /// Moves every staged file into place, in the order of their paths.
@@ -426,14 +429,14 @@ impl Outputs {
     /// replaced file restored) and the error names the file that failed.
     pub fn commit(mut self) -> Result<(), OutputError> {
         let mut staged = std::mem::take(self.staged.get_mut().unwrap_or_else(|e| e.into_inner()));
-        staged.sort_by(|a, b| a.1.cmp(&b.1));
+        staged.sort_by(|a, b| a.path.cmp(&b.path));
         let mut done: Vec<(PathBuf, Option<PathBuf>)> = Vec::new();
         let mut failure = None;
-        for (k, (temporary, target)) in staged.iter().enumerate() {
-            match move_into_place(temporary, target) {
-                Ok(backup) => done.push((target.clone(), backup)),
+        for (k, file) in staged.iter().enumerate() {
+            match move_into_place(&file.temporary, &file.path) {
+                Ok(backup) => done.push((file.path.clone(), backup)),
                 Err(source) => {
-                    failure = Some((k, target.clone(), source));
+                    failure = Some((k, file.path.clone(), source));
                     break;
                 }
             }
@@ -460,8 +463,8 @@ impl Outputs {
                         }
                     }
                 }
-                for (temporary, _) in &staged[k..] {
-                    let _ = std::fs::remove_file(temporary);
+                for file in &staged[k..] {
+                    let _ = std::fs::remove_file(&file.temporary);
                 }
                 Err(OutputError::Write { path, source })
             }
@@ -496,8 +499,8 @@ fn move_into_place(temporary: &Path, target: &Path) -> std::io::Result<Option<Pa
 impl Drop for Outputs {
     fn drop(&mut self) {
         let staged = self.staged.get_mut().unwrap_or_else(|e| e.into_inner());
-        for (temporary, _) in staged.iter() {
-            let _ = std::fs::remove_file(temporary);
+        for file in staged.iter() {
+            let _ = std::fs::remove_file(&file.temporary);
         }
         if !self.committed {
             // The locks first: a directory's lock file lies beside it.

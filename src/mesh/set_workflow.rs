@@ -116,8 +116,9 @@ pub fn export_set(
             sources: &[],
         }
         .open()?;
-        let mut report =
-            write_analysis(analysis, options, outputs, &|| observer_ref.interrupted())?;
+        let mut report = write_analysis(analysis, options, &part_dir, outputs, &|| {
+            observer_ref.interrupted()
+        })?;
         for file in &mut report.files {
             if let Ok(rest) = file.path.strip_prefix(&staging.0) {
                 file.path = out_dir.join(rest);

@@ -48,7 +48,7 @@ pub fn run(
     let analysis = abandon_on_stop(observer, move || analyse(&layout, &options))
         .map_err(|_| ExportError::Interrupted)??;
     let observer_ref = &*observer;
-    let report = write_analysis(analysis, &config.options, outputs, &|| {
+    let report = write_analysis(analysis, &config.options, &config.out_dir, outputs, &|| {
         observer_ref.interrupted()
     })?;
     observer.progress(PHASE_EXPORT, 1, 1);
@@ -98,7 +98,7 @@ fn export_observed(
     if interrupted() {
         return Err(ExportError::Interrupted);
     }
-    write_analysis(analysis, options, outputs, interrupted)
+    write_analysis(analysis, options, out_dir, outputs, interrupted)
 }
 
 /// Where an export's files go, and what they must not overwrite.
@@ -124,8 +124,8 @@ impl Target<'_> {
     }
 }
 
-/// Writes an analysed part's files into the directory of `outputs` (a
-/// [`Target`] opened) as one output set on the run kernel: each writer's
+/// Writes an analysed part's files into `out_dir`, through `outputs` (its
+/// [`Target`] opened), as one output set on the run kernel: each writer's
 /// files made in a scratch directory and staged beside their targets, and
 /// all moved into place together at the end, so that a failure or a stop
 /// part-way leaves none of them (and the files of an earlier export as
@@ -134,14 +134,11 @@ impl Target<'_> {
 pub fn write_analysis(
     analysis: Analysis,
     options: &ExportOptions,
+    out_dir: &Path,
     outputs: Outputs,
     interrupted: &dyn Fn() -> bool,
 ) -> Result<ExportReport, ExportError> {
     let Analysis { solid, mut report } = analysis;
-    let out_dir = &outputs.dirs().next().ok_or_else(|| ExportError::Io {
-        path: PathBuf::new(),
-        source: std::io::Error::other("the export's outputs name no directory"),
-    })?;
     let scratch = Scratch::new(out_dir)?;
     let mut staged = Staged::default();
     // A writer's file, moved out of the scratch directory; where it lands.
