@@ -10,8 +10,10 @@ use layout_opt::render::{Appearance, Blur, Lighting, Optics};
 #[derive(Debug, Args)]
 pub struct LookArgs {
     /// Appearance preset: retroreflective (bright discs under a ring light
-    /// on dark supports) or diffuse (white Lambertian spheres, light beside
-    /// the camera). Default: retroreflective.
+    /// on dark supports), diffuse (white Lambertian spheres and grey
+    /// supports, light beside the camera) or lambertian (white matte
+    /// spheres under a ring light: discs darkening to nothing at their
+    /// limb, on dark supports). Default: retroreflective.
     #[arg(long, value_name = "PRESET")]
     pub preset: Option<Lighting>,
     /// Sphere radiance, fraction of full scale (default: the preset's).

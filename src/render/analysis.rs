@@ -274,10 +274,12 @@ impl Shader<'_> {
             radiance * (a.ambient + (1.0 - a.ambient) * hit.normal.dot(&self.light).max(0.0))
         };
         let radiance = match (a.lighting, hit.sphere.is_some()) {
-            (Lighting::Retroreflective, true) => {
+            (Lighting::Retroreflective | Lighting::Lambertian, true) => {
                 a.sphere_radiance * (1.0 - a.sphere_limb_falloff * (1.0 - facing))
             }
-            (Lighting::Retroreflective, false) => a.support_radiance * facing,
+            (Lighting::Retroreflective | Lighting::Lambertian, false) => {
+                a.support_radiance * facing
+            }
             (Lighting::Diffuse, true) => lit(a.sphere_radiance),
             (Lighting::Diffuse, false) => lit(a.support_radiance),
         };

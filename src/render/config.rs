@@ -57,17 +57,27 @@ pub enum Lighting {
     /// ambient light ([`Appearance::ambient`], [`DIFFUSE_AMBIENT`] by
     /// default); no shadows.
     Diffuse,
+    /// A ring light coaxial with the lens on white matte (Lambertian)
+    /// spheres, as a printed sphere painted white looks: every surface
+    /// returns `cos θ` of the light, so a sphere's disc darkens from its
+    /// centre to nothing at its limb, and the supports are dark matte print.
+    Lambertian,
 }
 
 impl Lighting {
     /// Every lighting, in CLI order.
-    pub const ALL: [Lighting; 2] = [Lighting::Retroreflective, Lighting::Diffuse];
+    pub const ALL: [Lighting; 3] = [
+        Lighting::Retroreflective,
+        Lighting::Diffuse,
+        Lighting::Lambertian,
+    ];
 
     /// Its CLI name.
     pub fn name(self) -> &'static str {
         match self {
             Lighting::Retroreflective => "retroreflective",
             Lighting::Diffuse => "diffuse",
+            Lighting::Lambertian => "lambertian",
         }
     }
 }
@@ -87,7 +97,9 @@ impl FromStr for Lighting {
             .ok_or_else(|| {
                 ConfigError::new(
                     "lighting",
-                    format!("unknown preset \"{text}\"; use retroreflective or diffuse"),
+                    format!(
+                        "unknown preset \"{text}\"; use retroreflective, diffuse or lambertian"
+                    ),
                 )
             })
     }
@@ -107,7 +119,8 @@ pub struct Appearance {
     pub background_radiance: f64,
     /// Multiplies every radiance before the sensor.
     pub exposure: f64,
-    /// Darkening of a sphere at its limb (retroreflective lighting), 0..1.
+    /// Darkening of a sphere at its limb (retroreflective lighting), 0..1;
+    /// 1 under the Lambertian preset (the cosine law).
     pub sphere_limb_falloff: f64,
     /// Share of the light that reaches every surface whatever its
     /// orientation (diffuse lighting), 0..1; the rest comes from the lamp.
@@ -136,13 +149,22 @@ impl Appearance {
                 sphere_limb_falloff: 0.0,
                 ambient: DIFFUSE_AMBIENT,
             },
+            Lighting::Lambertian => Appearance {
+                lighting,
+                sphere_radiance: 0.85,
+                support_radiance: 0.15,
+                background_radiance: 0.02,
+                exposure: 1.0,
+                sphere_limb_falloff: 1.0,
+                ambient: 0.0,
+            },
         }
     }
 
     /// Direction from the part to the light, camera frame (unit).
     pub fn light_direction_camera(&self) -> Vector3<f64> {
         match self.lighting {
-            Lighting::Retroreflective => -Vector3::z(),
+            Lighting::Retroreflective | Lighting::Lambertian => -Vector3::z(),
             Lighting::Diffuse => Vector3::from(DIFFUSE_LIGHT_DIRECTION).normalize(),
         }
     }

@@ -34,7 +34,15 @@
 //!      samples add up to the bright run's length, whatever the edge's
 //!      subpixel phase; linear interpolation of the half level would be off
 //!      by up to a tenth of a pixel, periodically in the phase, which a
-//!      small disc does not average away. The local levels also take out a
+//!      small disc does not average away. On a **shaded** blob (a matte
+//!      sphere darkening towards its limb: its interior's top stands above
+//!      its median by more than [`SHADED_RISE`] of its height) no sample
+//!      inside holds a level of its own, and the edge is the half level's
+//!      own crossing, interpolated between the two pixels that straddle
+//!      it: a contour of the shading, an outline of the silhouette's centre
+//!      a little inside its limb (the pixels a contour crosses hold a
+//!      smooth ramp, which linear interpolation follows closely). The
+//!      local levels also take out a
 //!      dimmer support beside the sphere and the limb's darkening. The
 //!      outside level is the one under the edge ([`TAIL_SHARE`]): where a
 //!      support or the base plate's edge changes the background within
@@ -96,6 +104,15 @@ const KEPT_RMS: f64 = 0.789;
 /// share of its pixels is a dimmer region holding brighter discs, not a
 /// disc: a sphere's plateau is most of its blob.
 pub const DIM_REGION_CORE_SHARE: f64 = 0.25;
+/// The quantile of a blob's interior that stands for its top level.
+pub const TOP_QUANTILE: f64 = 0.9;
+/// A blob is shaded (a matte sphere, darkening towards its limb) when its
+/// interior's top ([`TOP_QUANTILE`]) stands above its median by more than
+/// this share of the top's height above the background. A flat disc's
+/// noise reaches about 1.3 σ (a hundredth of its step), a retroreflector's
+/// limb darkening about 0.04; the cosine law of a white matte sphere under
+/// a light at the camera, 0.25.
+pub const SHADED_RISE: f64 = 0.12;
 /// Side of the coarse cells, px.
 pub const CELL_PX: usize = 4;
 /// Pixels added around a component's bounding box for its measurement (a
@@ -794,8 +811,14 @@ fn neighbour_noise(differences: &mut [f64]) -> f64 {
 }
 
 fn median(values: &mut [f64]) -> f64 {
-    let mid = values.len() / 2;
-    let (_, m, _) = values.select_nth_unstable_by(mid, f64::total_cmp);
+    quantile(values, 0.5)
+}
+
+/// The value `share` of the way up `values` (reordered), which must not be
+/// empty.
+fn quantile(values: &mut [f64], share: f64) -> f64 {
+    let at = ((values.len() as f64 * share) as usize).min(values.len() - 1);
+    let (_, m, _) = values.select_nth_unstable_by(at, f64::total_cmp);
     *m
 }
 
@@ -982,10 +1005,10 @@ fn measure(
             }
         }
     }
-    let plateau = if interior.len() >= 3 {
-        median(&mut interior)
+    let (plateau, top) = if interior.len() >= 3 {
+        (median(&mut interior), quantile(&mut interior, TOP_QUANTILE))
     } else {
-        peak
+        (peak, peak)
     };
     let plateau_noise = if interior_steps.len() >= 8 {
         neighbour_noise(&mut interior_steps)
@@ -998,6 +1021,10 @@ fn measure(
         return Err(Reason::Contrast);
     }
     let half = background + 0.5 * step;
+    // A shaded sphere (module docs): its interior's top stands above its
+    // median by a share of the step that a flat disc's noise and a
+    // retroreflector's slight limb darkening do not reach.
+    let shaded = top - plateau > SHADED_RISE * (top - background);
 
     // The pixels above the half level, other components out; the centroid
     // over the pixels at least `CENTROID_FLOOR` of the step above the
@@ -1083,20 +1110,36 @@ fn measure(
         if local_step < MIN_LOCAL_STEP * step {
             return;
         }
-        // A box-filtered (and symmetrically blurred) step: the samples'
-        // shares of the local step add up to the bright run's length, so
-        // the edge lies Σ u − 1.5 steps beyond `bright` (exact for an
-        // area-sampled straight edge, whatever its phase).
-        let run: f64 = samples[1..5]
-            .iter()
-            .map(|v| ((v - outside_level) / local_step).clamp(0.0, 1.0))
-            .sum();
-        let t = run - 1.5;
+        // Where the edge lies along the scan, in steps beyond `bright`, and
+        // its position noise over the pixel noise.
+        let (t, noise_gain) = if shaded {
+            // A shaded sphere's radiance rises all the way in from its
+            // limb: no sample inside holds a level of its own, and a step
+            // placed against one would sit deeper or shallower with the
+            // edge's subpixel phase and the scan's angle to the outline (a
+            // ripple of a few tenths of a pixel that reads as notches). The
+            // half level's crossing, interpolated between the two pixels
+            // that straddle it, is a contour of the shading: an outline of
+            // the silhouette's centre, a little inside its limb.
+            let fall = samples[2] - samples[3];
+            let t = (samples[2] - half) / fall;
+            (t, ((1.0 - t).powi(2) + t * t).sqrt() / fall)
+        } else {
+            // A box-filtered (and symmetrically blurred) step: the samples'
+            // shares of the local step add up to the bright run's length,
+            // so the edge lies Σ u − 1.5 steps beyond `bright` (exact for
+            // an area-sampled straight edge, whatever its phase).
+            let run: f64 = samples[1..5]
+                .iter()
+                .map(|v| ((v - outside_level) / local_step).clamp(0.0, 1.0))
+                .sum();
+            (run - 1.5, EDGE_SUM_NOISE / local_step)
+        };
         let p = Vector2::new(
             bright.0 as f64 + t * dx as f64,
             bright.1 as f64 + t * dy as f64,
         );
-        edges.push((p, local_step));
+        edges.push((p, noise_gain));
     };
     for y in y0..=y1 {
         for x in x0..=x1 {
@@ -1128,10 +1171,10 @@ fn measure(
     // differs (shot noise).
     let edge_noise = (0.5 * (noise * noise + plateau_noise * plateau_noise)).sqrt();
     let mut sigmas = Vec::with_capacity(edges.len());
-    for (p, step_here) in &edges {
+    for (p, noise_gain) in &edges {
         if let Some(q) = ideal(p) {
             points.push(q);
-            let sigma = EDGE_SUM_NOISE * edge_noise / step_here.max(f64::MIN_POSITIVE);
+            let sigma = noise_gain * edge_noise;
             sigmas.push(sigma);
             tolerances.push(MIN_EDGE_TOLERANCE_PX.max(EDGE_OUTLIER_SIGMAS * sigma));
         }

@@ -8,6 +8,7 @@
 
 mod cli;
 pub mod frames;
+mod shading;
 
 use frames::{blob_of_sphere, clean_view, ellipse_centre, hidden_fraction, Part};
 use layout_opt::camera::Camera;
@@ -25,7 +26,7 @@ use rayon::prelude::*;
 use std::sync::OnceLock;
 
 /// The search winner and its part, built once.
-fn winner() -> &'static Part {
+pub(crate) fn winner() -> &'static Part {
     static PART: OnceLock<Part> = OnceLock::new();
     PART.get_or_init(Part::winner)
 }
@@ -46,7 +47,7 @@ pub fn centred(camera: &Camera, depth_mm: f64, tilt_deg: f64, pan_deg: f64, roll
     scenario.pose()
 }
 
-fn pose_of(tracked: &TrackedFrame) -> Pose {
+pub(crate) fn pose_of(tracked: &TrackedFrame) -> Pose {
     let r = nalgebra::Matrix3::from_fn(|i, j| tracked.rotation[i][j]);
     Pose::new(
         Rotation3::from_matrix_unchecked(r),
@@ -322,7 +323,7 @@ const CLEAN_RAYS: usize = 512;
 /// 8 per view wanted) are judged a thread's worth at a time, in seed
 /// order, until `count` are found: the same views at any thread count, and
 /// no truth traced beyond the batch that completes them.
-fn clean_views(
+pub(crate) fn clean_views(
     seed: u64,
     count: usize,
     depth_mm: f64,
@@ -621,7 +622,7 @@ const BARS: u64 = 8;
 /// Margin round the discs of a cropped render ([`frames::crop`]), px: the
 /// detector's coarse cells and measurement window, and the blur's tail,
 /// with room to spare.
-const CROP_MARGIN_PX: f64 = 12.0;
+pub(crate) const CROP_MARGIN_PX: f64 = 12.0;
 
 /// Clean views with a dark bar painted across a random sphere at a random
 /// depth into it: the partly-hidden flag against the share of the
