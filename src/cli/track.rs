@@ -38,9 +38,13 @@ pub struct TrackArgs {
     /// Sphere diameter, mm. Default: the layout's.
     #[arg(long, value_name = "MM")]
     sphere_diameter: Option<f64>,
-    /// Threshold: otsu, local (uneven light), local:RADIUS_PX:OFFSET, or a
-    /// fixed level in 0..1 of full scale.
-    #[arg(long, default_value = "otsu")]
+    /// Threshold: auto (Otsu's level; where it leaves a blob partly hidden
+    /// or misshapen, also the upper of Otsu's three-class levels, which
+    /// parts white spheres from a lit grey body, keeping the reading with
+    /// more whole blobs; each record names the one applied), otsu, otsu3,
+    /// local (uneven light), local:RADIUS_PX:OFFSET, or a fixed level in
+    /// 0..1 of full scale.
+    #[arg(long, default_value = "auto")]
     threshold: Threshold,
     /// Which blob centre feeds the pose: ellipse (fit to the subpixel edge),
     /// centroid (intensity-weighted, above a quarter of the step) or window

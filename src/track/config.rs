@@ -13,9 +13,22 @@ use std::str::FromStr;
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum Threshold {
+    /// Otsu's level; where it leaves a frame a blob flagged, or rejected
+    /// for its shape or size, the upper of Otsu's three-class levels too, and of
+    /// the two the detection with more whole blobs ([`ThresholdUsed`] says
+    /// which). A frame of bright spheres on a dark ground reads at Otsu's
+    /// level; a diffuse scene, white spheres in front of a lit grey body
+    /// on a darker ground, at the upper level, where Otsu's puts body and
+    /// spheres in one region.
+    Auto,
     /// Otsu's level over the whole frame (Otsu, *A threshold selection
     /// method from gray-level histograms*, IEEE SMC 9(1), 1979).
     Otsu,
+    /// The upper of Otsu's two levels that split the frame's histogram
+    /// into three classes (Liao, Chen and Chung, *A fast algorithm for
+    /// multilevel thresholding*, J. Inf. Sci. Eng. 17, 2001): the
+    /// spheres above a lit body and the ground below it.
+    OtsuUpper,
     /// A fixed level, as a fraction of full scale (0..1).
     Fixed(f64),
     /// Local: a pixel is bright when it exceeds the mean of the square of
@@ -39,11 +52,14 @@ pub const DEFAULT_LOCAL_OFFSET: f64 = 0.1;
 impl FromStr for Threshold {
     type Err = String;
 
-    /// `otsu`, `local`, `local:RADIUS_PX:OFFSET` or a fixed level in 0..1.
+    /// `auto`, `otsu`, `otsu3`, `local`, `local:RADIUS_PX:OFFSET` or a
+    /// fixed level in 0..1.
     fn from_str(text: &str) -> Result<Self, Self::Err> {
         let text = text.trim();
         match text {
+            "auto" => return Ok(Threshold::Auto),
             "otsu" => return Ok(Threshold::Otsu),
+            "otsu3" => return Ok(Threshold::OtsuUpper),
             "local" => {
                 return Ok(Threshold::Local {
                     radius_px: DEFAULT_LOCAL_RADIUS_PX,
@@ -66,7 +82,7 @@ impl FromStr for Threshold {
             });
         }
         text.parse::<f64>().map(Threshold::Fixed).map_err(|_| {
-            format!("unknown threshold {text:?}: expected otsu, local, local:RADIUS_PX:OFFSET or a level in 0..1")
+            format!("unknown threshold {text:?}: expected auto, otsu, otsu3, local, local:RADIUS_PX:OFFSET or a level in 0..1")
         })
     }
 }
@@ -74,7 +90,9 @@ impl FromStr for Threshold {
 impl fmt::Display for Threshold {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
+            Threshold::Auto => f.write_str("auto"),
             Threshold::Otsu => f.write_str("otsu"),
+            Threshold::OtsuUpper => f.write_str("otsu3"),
             Threshold::Fixed(level) => write!(f, "{level}"),
             Threshold::Local { radius_px, offset } => write!(f, "local:{radius_px}:{offset}"),
         }
@@ -182,7 +200,7 @@ pub const DEFAULT_MAX_OUTLINE_DROPPED: f64 = 0.35;
 impl Default for DetectorConfig {
     fn default() -> Self {
         Self {
-            threshold: Threshold::Otsu,
+            threshold: Threshold::Auto,
             min_area_px: DEFAULT_MIN_AREA_PX,
             max_area_px: DEFAULT_MAX_AREA_PX,
             min_contrast: DEFAULT_MIN_CONTRAST,
@@ -198,7 +216,7 @@ impl DetectorConfig {
     /// Checks every field.
     pub fn validate(&self) -> Result<(), ConfigError> {
         match self.threshold {
-            Threshold::Otsu => {}
+            Threshold::Auto | Threshold::Otsu | Threshold::OtsuUpper => {}
             Threshold::Fixed(level) => {
                 if !(level > 0.0 && level < 1.0) {
                     return Err(ConfigError::new(
@@ -458,7 +476,9 @@ mod tests {
             }
         );
         for t in [
+            Threshold::Auto,
             Threshold::Otsu,
+            Threshold::OtsuUpper,
             Threshold::Fixed(0.25),
             Threshold::Local {
                 radius_px: 9,

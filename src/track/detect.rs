@@ -302,6 +302,9 @@ pub struct Detection {
     pub blobs: Vec<Blob>,
     /// Components rejected, by reason.
     pub rejected: Rejected,
+    /// The threshold applied (never [`Threshold::Auto`]: the one it
+    /// chose).
+    pub threshold: Threshold,
     /// Threshold level used (global) or the local offset, fraction of full
     /// scale.
     pub threshold_level: f64,
@@ -356,6 +359,82 @@ fn otsu_bin(histogram: &[u64; 256]) -> Option<usize> {
     best.map(|(_, bin)| bin)
 }
 
+/// The upper of the two bins that split `histogram` into three classes
+/// with the largest between-class variance (Otsu's criterion for three
+/// classes): samples in bins above it are the brightest class. `None` when
+/// the samples fill fewer than three bins ([`Threshold::OtsuUpper`] then
+/// applies Otsu's two-class level).
+fn otsu_upper_bin(histogram: &[u64; 256]) -> Option<usize> {
+    // Prefix counts and sums: a class's weight and its sum in O(1).
+    let mut count = [0f64; 257];
+    let mut sum = [0f64; 257];
+    for (bin, &n) in histogram.iter().enumerate() {
+        count[bin + 1] = count[bin] + n as f64;
+        sum[bin + 1] = sum[bin] + bin as f64 * n as f64;
+    }
+    // Σ wₖ μₖ² = Σ sₖ² / wₖ over the classes [0, low], (low, high],
+    // (high, 255]; the between-class variance differs from it by a
+    // constant.
+    let part = |from: usize, to: usize| {
+        let w = count[to] - count[from];
+        (w > 0.0).then(|| (sum[to] - sum[from]).powi(2) / w)
+    };
+    let mut best: Option<(f64, usize)> = None;
+    for low in 0..254 {
+        let Some(first) = part(0, low + 1) else {
+            continue;
+        };
+        for high in low + 1..255 {
+            let (Some(middle), Some(last)) = (part(low + 1, high + 1), part(high + 1, 256)) else {
+                continue;
+            };
+            let value = first + middle + last;
+            if best.is_none_or(|(b, _)| value > b) {
+                best = Some((value, high));
+            }
+        }
+    }
+    best.map(|(_, high)| high)
+}
+
+/// [`Threshold::Auto`]: the detection at Otsu's level, and where it leaves
+/// a blob flagged as partly hidden or a component rejected for its shape
+/// or size, or gives up, the detection at the upper three-class level too;
+/// of the two, the one with more whole blobs (Otsu's on a tie).
+fn detect_auto(
+    frame: &GreyFrame,
+    camera: &Camera,
+    config: &DetectorConfig,
+    radius_mm: f64,
+    max_blobs: usize,
+) -> Result<Detection, DetectError> {
+    let at = |threshold| {
+        let config = DetectorConfig {
+            threshold,
+            ..*config
+        };
+        detect(frame, camera, &config, radius_mm, max_blobs)
+    };
+    let whole = |detection: &Result<Detection, DetectError>| {
+        detection
+            .as_ref()
+            .map_or(0, |d| d.blobs.iter().filter(|b| !b.hidden()).count())
+    };
+    let otsu = at(Threshold::Otsu);
+    let doubtful = otsu.as_ref().map_or(true, |d| {
+        d.rejected.shape + d.rejected.large > 0 || d.blobs.iter().any(Blob::hidden)
+    });
+    if !doubtful {
+        return otsu;
+    }
+    let upper = at(Threshold::OtsuUpper);
+    if whole(&upper) > whole(&otsu) {
+        upper
+    } else {
+        otsu
+    }
+}
+
 /// Finds and measures the blobs of `frame` (module docs). Stops with
 /// [`DetectError::TooManyBlobs`] once more than `max_blobs` are accepted.
 pub fn detect(
@@ -365,6 +444,9 @@ pub fn detect(
     radius_mm: f64,
     max_blobs: usize,
 ) -> Result<Detection, DetectError> {
+    if matches!(config.threshold, Threshold::Auto) {
+        return detect_auto(frame, camera, config, radius_mm, max_blobs);
+    }
     let width = frame.width() as usize;
     let height = frame.height() as usize;
     let pixels = frame.pixels();
@@ -396,10 +478,16 @@ pub fn detect(
     }
     let bin_scale = f64::from(1u32 << shift);
     let levels = match config.threshold {
-        Threshold::Otsu => Levels::Global(match otsu_bin(&histogram) {
+        Threshold::Otsu | Threshold::Auto => Levels::Global(match otsu_bin(&histogram) {
             Some(bin) => (bin as f64 + 1.0) * bin_scale - 0.5,
             None => full_scale,
         }),
+        Threshold::OtsuUpper => Levels::Global(
+            match otsu_upper_bin(&histogram).or_else(|| otsu_bin(&histogram)) {
+                Some(bin) => (bin as f64 + 1.0) * bin_scale - 0.5,
+                None => full_scale,
+            },
+        ),
         Threshold::Fixed(level) => Levels::Global(level * full_scale),
         Threshold::Local { radius_px, offset } => {
             let radius_cells = (radius_px as usize).div_ceil(CELL_PX);
@@ -486,6 +574,7 @@ pub fn detect(
     let mut detection = Detection {
         blobs: Vec::new(),
         rejected: Rejected::default(),
+        threshold: config.threshold,
         threshold_level,
     };
     let mut order: Vec<(usize, Blob)> = Vec::new();

@@ -3,7 +3,7 @@
 //! and annotated overlay PNGs. Nothing here computes anything new.
 
 use super::analysis::{FrameAnalysis, TrackedFrame};
-use super::detect::{Blob, Rejected};
+use super::detect::{Blob, Detection, Rejected};
 use super::frame::GreyFrame;
 use crate::camera::Camera;
 use crate::pose::Pose;
@@ -28,6 +28,8 @@ pub enum FrameRecord<'a> {
         blobs: &'a [Blob],
         /// Components rejected, by reason.
         rejected: &'a Rejected,
+        /// The threshold the detector applied.
+        threshold: AppliedThreshold,
     },
     /// A frame without one.
     Failed {
@@ -38,7 +40,30 @@ pub enum FrameRecord<'a> {
         /// The detector's figures, when it got that far.
         #[serde(skip_serializing_if = "Option::is_none")]
         blobs: Option<&'a [Blob]>,
+        /// The threshold the detector applied, when it got that far.
+        #[serde(skip_serializing_if = "Option::is_none")]
+        threshold: Option<AppliedThreshold>,
     },
+}
+
+/// The threshold the detector applied to a frame: under `--threshold
+/// auto`, the one it chose.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct AppliedThreshold {
+    /// As `--threshold` names it: `otsu`, `otsu3`, `local:R:OFFSET` or the
+    /// fixed level.
+    pub applied: String,
+    /// The global level, or the local offset, fraction of full scale.
+    pub level: f64,
+}
+
+impl AppliedThreshold {
+    fn of(detection: &Detection) -> AppliedThreshold {
+        AppliedThreshold {
+            applied: detection.threshold.to_string(),
+            level: detection.threshold_level,
+        }
+    }
 }
 
 /// The record of `analysis` of frame `name`.
@@ -49,12 +74,14 @@ pub fn record<'a>(name: &'a str, analysis: &'a FrameAnalysis) -> FrameRecord<'a>
             tracked,
             blobs: &detection.blobs,
             rejected: &detection.rejected,
+            threshold: AppliedThreshold::of(detection),
         },
         (Ok(_), None) => unreachable!("a tracked frame has a detection"),
         (Err(error), detection) => FrameRecord::Failed {
             frame: name,
             error: error.to_string(),
             blobs: detection.as_ref().map(|d| d.blobs.as_slice()),
+            threshold: detection.as_ref().map(AppliedThreshold::of),
         },
     }
 }

@@ -132,6 +132,7 @@ pub fn analyse_set(config: &SetTrackConfig, frame: &GreyFrame) -> SetFrameAnalys
                 detection: Some(Detection {
                     blobs,
                     rejected,
+                    threshold: detection.threshold,
                     threshold_level: detection.threshold_level,
                 }),
                 pose: Some(pose),

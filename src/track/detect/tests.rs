@@ -354,3 +354,26 @@ fn shaded_spheres_are_whole_and_centred() {
         }
     }
 }
+
+/// Three classes (a dark ground, a wide grey body, a few bright discs):
+/// Otsu's two-class level parts the ground from the rest, the upper
+/// three-class level parts the discs from the body. Samples in two bins
+/// have no three-class split (the detector then applies Otsu's level).
+#[test]
+fn the_upper_three_class_level_parts_the_brightest_class() {
+    let mut histogram = [0u64; 256];
+    for (level, count) in [(30usize, 50_000u64), (128, 30_000), (220, 2_000)] {
+        for spread in 0..5 {
+            histogram[level + spread] += count / 5;
+        }
+    }
+    let two = otsu_bin(&histogram).unwrap();
+    let upper = otsu_upper_bin(&histogram).unwrap();
+    assert!((34..128).contains(&two), "{two}");
+    assert!((132..220).contains(&upper), "{upper}");
+    let mut pair = [0u64; 256];
+    pair[40] = 1000;
+    pair[200] = 10;
+    assert_eq!(otsu_upper_bin(&pair), None);
+    assert_eq!(otsu_bin(&pair), Some(40));
+}
