@@ -69,7 +69,7 @@ fn bench(c: &mut Criterion<CpuTime>) {
     .unwrap();
     c.bench_function(
         "track --refine: one round (render 8x8, detect, pose)",
-        |b| b.iter(|| refiner.refine(&config, std::hint::black_box(analysis.clone()))),
+        |b| b.iter(|| refiner.refine(&config, &frame, std::hint::black_box(analysis.clone()))),
     );
     c.bench_function("track: PNG decode, 1280x720 8-bit", |b| {
         b.iter(|| GreyFrame::from_png(std::hint::black_box(&png)).unwrap())

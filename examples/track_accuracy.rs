@@ -237,9 +237,10 @@ fn noisy(part: &Part, camera: Camera, depth: f64, realisations: u64, supersampli
             (0..realisations)
                 .filter(move |_| clean)
                 .filter_map(|r| {
-                    let first = analyse(&config, &rendered.expose(k as u64, r));
+                    let frame = rendered.expose(k as u64, r);
+                    let first = analyse(&config, &frame);
                     let before = error(first.pose)?;
-                    let after = error(refiner.refine(&config, first).pose)?;
+                    let after = error(refiner.refine(&config, &frame, first).pose)?;
                     Some((before, after))
                 })
                 .collect::<Vec<_>>()
@@ -270,9 +271,10 @@ fn clean(part: &Part, camera: Camera, depth: f64, refine: Option<(u32, f64)>) {
             if !clean_view(&rendered.truth, &camera) {
                 return None;
             }
-            let mut analysis = analyse(&config, &rendered.frame());
+            let frame = rendered.frame();
+            let mut analysis = analyse(&config, &frame);
             if let Some(refiner) = &refiner {
-                analysis = refiner.refine(&config, analysis);
+                analysis = refiner.refine(&config, &frame, analysis);
             }
             let detection = analysis.detection.as_ref()?;
             let bias = |b: &layout_opt::track::detect::Blob| {

@@ -143,7 +143,7 @@ pub fn analyse_set(config: &SetTrackConfig, frame: &GreyFrame) -> SetFrameAnalys
             }
         };
         if let Some(refiners) = &config.refiners {
-            analysis = refiners[placement.marker].refine(marker_config, analysis);
+            analysis = refiners[placement.marker].refine(marker_config, frame, analysis);
             if let Err(error) = &analysis.outcome {
                 errors.push(format!("marker {}: {error}", placement.marker + 1));
                 continue;

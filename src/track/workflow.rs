@@ -2,7 +2,7 @@
 //! (results in input order, independent of the thread count), progress and
 //! interruption through an [`Observer`], outputs written atomically.
 
-use super::analysis::{analyse_png, FrameAnalysis, TrackError};
+use super::analysis::{analyse, FrameAnalysis, TrackError};
 use super::config::TrackConfig;
 use super::frame::GreyFrame;
 use super::refine::Refiner;
@@ -296,22 +296,32 @@ fn track_file(
             return Ok((name, analysis));
         }
     };
-    let mut analysis = analyse_png(config, &bytes);
+    let frame =
+        match GreyFrame::from_png_of_size(&bytes, config.camera.width(), config.camera.height()) {
+            Ok(frame) => frame,
+            Err(error) => {
+                let analysis = FrameAnalysis {
+                    outcome: Err(error.into()),
+                    detection: None,
+                    pose: None,
+                };
+                return Ok((name, analysis));
+            }
+        };
+    let mut analysis = analyse(config, &frame);
     if let Some(refiner) = refiner {
-        analysis = refiner.refine(config, analysis);
+        analysis = refiner.refine(config, &frame, analysis);
     }
     if let Some(dir) = overlay_dir {
-        if let Ok(frame) = GreyFrame::from_png(&bytes) {
-            let png = report::overlay_png(
-                &frame,
-                &analysis,
-                &config.camera,
-                &config.object,
-                config.radius_mm(),
-                analysis.pose.as_ref(),
-            );
-            files.stage(&overlay_path(dir, path), &png)?;
-        }
+        let png = report::overlay_png(
+            &frame,
+            &analysis,
+            &config.camera,
+            &config.object,
+            config.radius_mm(),
+            analysis.pose.as_ref(),
+        );
+        files.stage(&overlay_path(dir, path), &png)?;
     }
     Ok((name, analysis))
 }

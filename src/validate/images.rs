@@ -135,7 +135,7 @@ impl Reader<'_> {
     pub fn read(&self, image: &GreyFrame) -> FrameAnalysis {
         let analysis = analyse(self.track, image);
         match self.refiner {
-            Some(refiner) => refiner.refine(self.track, analysis),
+            Some(refiner) => refiner.refine(self.track, image, analysis),
             None => analysis,
         }
     }

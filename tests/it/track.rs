@@ -258,10 +258,11 @@ fn refinement_takes_the_parts_bias_off_the_far_pose() {
     poses.par_iter().for_each(|(was_worst, truth)| {
         let rendered = part.render(&render, truth);
         assert!(clean_view(&rendered.truth, &camera));
-        let first = analyse(&config, &rendered.frame());
+        let frame = rendered.frame();
+        let first = analyse(&config, &frame);
         let first_pose = first.pose.unwrap();
         let before = rotation_error_deg(&truth.rotation, &first_pose.rotation);
-        let refined = refiner.refine(&config, first);
+        let refined = refiner.refine(&config, &frame, first);
         let tracked = refined.outcome.as_ref().unwrap();
         let blobs = &refined.detection.as_ref().unwrap().blobs;
         assert!(labels_correct(tracked, blobs, &rendered.truth));
@@ -277,8 +278,18 @@ fn refinement_takes_the_parts_bias_off_the_far_pose() {
         if *was_worst {
             assert!(after < before, "{before}° → {after}°");
         }
+        // The render is the frame's look: every sphere's likeness matches.
+        let refinement = tracked.refinement.as_ref().unwrap();
+        assert!(
+            refinement
+                .likeness
+                .iter()
+                .all(|l| l.is_some_and(|l| l.matches())),
+            "{:?}",
+            refinement.likeness
+        );
         // The record's change is the move from the first pose.
-        let change = tracked.refinement.as_ref().unwrap().rotation_change_deg;
+        let change = refinement.rotation_change_deg;
         let moved = rotation_error_deg(&first_pose.rotation, &pose_of(tracked).rotation);
         assert!((change - moved).abs() < 1e-9, "{change}° against {moved}°");
     });
