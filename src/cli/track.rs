@@ -167,6 +167,10 @@ pub fn run(args: TrackArgs, global: &GlobalOptions) -> anyhow::Result<()> {
         Some(_) => format!(", refined by {} render round(s)", args.refine_rounds),
         None => String::new(),
     };
+    let (compared, unlike) = run.unlike_spheres();
+    if unlike > 0 {
+        eprintln!("warning: --refine: the render was unlike the frame around {unlike} of {compared} spheres, which kept their measured centres (refinement.likeness in the records); give the look the camera sees (--preset, the radiances, --blur) and the part's structure flags");
+    }
     let summary = format!(
         "tracked {} of {} frames with {} ({} spheres of {} mm, {} centres, {} solver{refined})",
         run.tracked(),

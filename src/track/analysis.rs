@@ -127,10 +127,10 @@ pub struct Refinement {
     /// whole in the render).
     pub bias_px: Vec<Option<[f64; 2]>>,
     /// For each sphere of the layout, how far the last round's render
-    /// departs from the frame around its blob ([`super::refine::Likeness`]);
+    /// departs from the frame around its blob ([`super::likeness::Likeness`]);
     /// a sphere's bias is taken off only where the render matches.
     /// `null` where no whole labelled blob was compared.
-    pub likeness: Vec<Option<super::refine::Likeness>>,
+    pub likeness: Vec<Option<super::likeness::Likeness>>,
     /// Rotation between the first pose and the refined one, degrees.
     pub rotation_change_deg: f64,
     /// Distance between their translations, mm.

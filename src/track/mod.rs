@@ -8,7 +8,8 @@
 //!   the partly-hidden flag;
 //! * [`analysis`]: one frame in, labels + pose + covariance out (no files);
 //! * [`refine`]: render-and-compare, the part's own bias on each centre
-//!   measured on a render at the tracked pose and taken off;
+//!   measured on a render at the tracked pose and taken off, where
+//!   [`likeness`] finds the render like the frame;
 //! * [`uncertainty`]: rvec/tvec, residuals, σ, covariance and label trust,
 //!   shared with `solve`;
 //! * [`report`]: JSON lines, CSV, overlay PNGs;
@@ -22,6 +23,7 @@ pub mod config;
 pub mod conic;
 pub mod detect;
 pub mod frame;
+pub mod likeness;
 pub mod refine;
 pub mod report;
 pub mod set;

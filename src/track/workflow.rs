@@ -113,6 +113,19 @@ impl TrackRun {
             .filter(|(_, a)| a.outcome.is_ok())
             .count()
     }
+
+    /// Over the refined frames, the spheres whose render the likeness
+    /// check compared with the frame, and those of them it found unlike
+    /// (their corrections withdrawn; [`super::likeness::Likeness`]).
+    pub fn unlike_spheres(&self) -> (usize, usize) {
+        self.frames
+            .iter()
+            .filter_map(|(_, a)| a.outcome.as_ref().ok()?.refinement.as_ref())
+            .flat_map(|r| r.likeness.iter().flatten())
+            .fold((0, 0), |(compared, unlike), l| {
+                (compared + 1, unlike + usize::from(!l.matches()))
+            })
+    }
 }
 
 /// Tracks every frame of `inputs`, each refined by `refiner` when given

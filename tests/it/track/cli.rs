@@ -3,7 +3,7 @@
 //! errors on stderr, and exit statuses.
 
 use assert_cmd::Command;
-use layout_opt::track::refine::{LIKENESS_NOISE_FLOOR, MAX_MISMATCH};
+use layout_opt::track::likeness::{LIKENESS_NOISE_FLOOR, MAX_MISMATCH};
 use predicates::prelude::*;
 
 fn layout_opt() -> Command {
@@ -217,4 +217,56 @@ fn solve_reports_rvec_covariance_and_untrusted_labels() {
             .unwrap()
             .starts_with("labels cannot be trusted"));
     }
+}
+
+/// `render --preset lambertian` draws white matte spheres; `track --refine`
+/// with the default (retroreflective) look finds its render unlike the
+/// frame around every sphere, keeps the measured centres and says so on
+/// stderr; with `--preset lambertian` the render is the frame's look and
+/// nothing is said.
+#[test]
+fn refine_warns_when_its_render_is_unlike_the_frames() {
+    let dir = tempfile::tempdir().unwrap();
+    let frames = dir.path().join("frames");
+    layout_opt()
+        .arg("render")
+        .arg(winner_path())
+        .args([
+            "--depth",
+            "500",
+            "--tilt",
+            "10",
+            "--preset",
+            "lambertian",
+            "--quiet",
+            "--out",
+        ])
+        .arg(&frames)
+        .assert()
+        .success();
+    let frame = frames.join("biprism-search-000.png");
+    let track = |look: &[&str]| {
+        let assert = layout_opt()
+            .arg("track")
+            .arg(winner_path())
+            .arg(&frame)
+            .args(["--refine", "--quiet"])
+            .args(look)
+            .assert()
+            .success();
+        let output = assert.get_output();
+        let line: serde_json::Value = serde_json::from_slice(&output.stdout).unwrap();
+        (line, String::from_utf8_lossy(&output.stderr).into_owned())
+    };
+    let (line, stderr) = track(&[]);
+    assert!(
+        stderr.contains("warning: --refine: the render was unlike the frame around 7 of 7 spheres"),
+        "{stderr}"
+    );
+    let biases = line["refinement"]["bias_px"].as_array().unwrap();
+    assert!(biases.iter().all(|b| b.is_null()), "{line}");
+    let (line, stderr) = track(&["--preset", "lambertian"]);
+    assert!(!stderr.contains("warning"), "{stderr}");
+    let biases = line["refinement"]["bias_px"].as_array().unwrap();
+    assert!(biases.iter().all(|b| !b.is_null()), "{line}");
 }
