@@ -114,17 +114,16 @@ impl Refiner {
         }
     }
 
-    /// For each sphere of `config`'s layout, the bias of `config`'s centre
-    /// method at `pose`; `None` where the render shows no blob of it.
-    /// The part is traced only around the frame's `blobs` (their ellipse's
-    /// box, grown by the detector's window padding, the blur's reach and
+    /// The part rendered at `pose` (noise-free, 16 bit), traced only
+    /// around the frame's `blobs` (their ellipse's box, grown by the
+    /// detector's window padding, the blur's reach and
     /// [`REGION_MARGIN_PX`]): a blob's centre depends on no pixel beyond.
-    pub fn biases(
+    pub fn render_around(
         &self,
         config: &TrackConfig,
         pose: &Pose,
         blobs: &[Blob],
-    ) -> Result<(Vec<Option<CentreBias>>, GreyFrame), String> {
+    ) -> Result<GreyFrame, String> {
         let camera = &config.camera;
         let blur = self
             .render
@@ -150,13 +149,26 @@ impl Refiner {
         let radiance = render_radiance_within(&self.scene, pose, &self.render, Some(&regions))
             .map_err(|e| e.to_string())?;
         let digital = expose(&radiance, &self.render.sensor, 0, 0, 0);
-        let frame = GreyFrame::new(
+        GreyFrame::new(
             digital.width as u32,
             digital.height as u32,
             digital.bit_depth,
             digital.values,
         )
-        .map_err(|e| e.to_string())?;
+        .map_err(|e| e.to_string())
+    }
+
+    /// For each sphere of `config`'s layout, the bias of `config`'s centre
+    /// method at `pose`, read on [`Refiner::render_around`]'s render;
+    /// `None` where the render shows no blob of it.
+    pub fn biases(
+        &self,
+        config: &TrackConfig,
+        pose: &Pose,
+        blobs: &[Blob],
+    ) -> Result<Vec<Option<CentreBias>>, String> {
+        let camera = &config.camera;
+        let frame = self.render_around(config, pose, blobs)?;
         let detection = detect_blobs(config, &frame).map_err(|e| format!("the render: {e}"))?;
         let radius = config.radius_mm();
         let biases = config
@@ -180,7 +192,7 @@ impl Refiner {
                 })
             })
             .collect();
-        Ok((biases, frame))
+        Ok(biases)
     }
 
     /// `analysis` refined (module docs); a frame without a pose is
@@ -210,7 +222,7 @@ impl Refiner {
         for _ in 0..self.rounds {
             let around = whole_labelled(&detection.blobs);
             let biases = match self.biases(config, &pose, &around) {
-                Ok((biases, _)) => biases,
+                Ok(biases) => biases,
                 Err(reason) => return failed(detection, reason),
             };
             for blob in &mut detection.blobs {
@@ -221,10 +233,7 @@ impl Refiner {
                 blob.label = None;
             }
             match locate(config, &mut detection.blobs, &detection.rejected) {
-                Ok((frame, refined)) => {
-                    tracked = Some(frame);
-                    pose = refined;
-                }
+                Ok(located) => (tracked, pose) = (Some(located.0), located.1),
                 Err(error) => {
                     return failed(detection, format!("after the correction: {error}"));
                 }
@@ -236,8 +245,8 @@ impl Refiner {
         // wrong one: that sphere keeps its measured centre, and the marker
         // is located again.
         let around = whole_labelled(&detection.blobs);
-        let render = match self.biases(config, &pose, &around) {
-            Ok((_, render)) => render,
+        let render = match self.render_around(config, &pose, &around) {
+            Ok(render) => render,
             Err(reason) => return failed(detection, reason),
         };
         let mut likeness = vec![None; config.object.len()];
@@ -260,10 +269,7 @@ impl Refiner {
                 blob.label = None;
             }
             match locate(config, &mut detection.blobs, &detection.rejected) {
-                Ok((frame, refined)) => {
-                    tracked = Some(frame);
-                    pose = refined;
-                }
+                Ok(located) => (tracked, pose) = (Some(located.0), located.1),
                 Err(error) => {
                     return failed(detection, format!("after the likeness check: {error}"));
                 }
