@@ -27,11 +27,11 @@
 //! 4. takes each labelled unflagged blob's bias off its measured centre
 //!    and locates the marker again: identification, pose and covariance.
 //!
-//! **The likeness check.** After the rounds, the part is rendered once
-//! more at the refined pose and compared with the frame around each
-//! corrected blob ([`Likeness`]: the render fitted to the frame by a gain,
-//! an offset and a subpixel shift, the residual against the frame's own
-//! pixel noise). Where the render is unlike the frame, the look given is
+//! **The likeness check.** After the rounds, the last round's render is
+//! compared with the frame around each corrected blob ([`Likeness`]: the
+//! render fitted to the frame by a gain, an offset and a subpixel shift,
+//! which takes up the pose's own small error, the residual against the
+//! frame's own pixel noise). Where the render is unlike the frame, the look given is
 //! not the camera's (another shading, other support or background levels)
 //! and the bias measured on it is the wrong one: that sphere keeps its
 //! measured centre and the marker is located again. The record's
@@ -159,17 +159,16 @@ impl Refiner {
     }
 
     /// For each sphere of `config`'s layout, the bias of `config`'s centre
-    /// method at `pose`, read on [`Refiner::render_around`]'s render;
-    /// `None` where the render shows no blob of it.
+    /// method at `pose`, read on `render` ([`Refiner::render_around`] at
+    /// that pose); `None` where the render shows no blob of it.
     pub fn biases(
         &self,
         config: &TrackConfig,
         pose: &Pose,
-        blobs: &[Blob],
+        render: &GreyFrame,
     ) -> Result<Vec<Option<CentreBias>>, String> {
         let camera = &config.camera;
-        let frame = self.render_around(config, pose, blobs)?;
-        let detection = detect_blobs(config, &frame).map_err(|e| format!("the render: {e}"))?;
+        let detection = detect_blobs(config, render).map_err(|e| format!("the render: {e}"))?;
         let radius = config.radius_mm();
         let biases = config
             .object
@@ -219,12 +218,17 @@ impl Refiner {
         };
         let mut pose = first;
         let mut tracked = None;
+        let mut last = None;
         for _ in 0..self.rounds {
             let around = whole_labelled(&detection.blobs);
-            let biases = match self.biases(config, &pose, &around) {
-                Ok(biases) => biases,
+            let measured = self
+                .render_around(config, &pose, &around)
+                .and_then(|render| Ok((self.biases(config, &pose, &render)?, render)));
+            let (biases, render) = match measured {
+                Ok(measured) => measured,
                 Err(reason) => return failed(detection, reason),
             };
+            last = Some((around, render));
             for blob in &mut detection.blobs {
                 blob.bias = blob
                     .label
@@ -239,16 +243,12 @@ impl Refiner {
                 }
             }
         }
-        // The likeness check: the render at the refined pose against the
-        // frame, sphere by sphere. Where it is unlike the frame, the look
-        // given is not the camera's and the bias measured on it is the
-        // wrong one: that sphere keeps its measured centre, and the marker
-        // is located again.
-        let around = whole_labelled(&detection.blobs);
-        let render = match self.render_around(config, &pose, &around) {
-            Ok(render) => render,
-            Err(reason) => return failed(detection, reason),
-        };
+        // The likeness check: the last round's render against the frame,
+        // sphere by sphere. Where it is unlike the frame, the look given
+        // is not the camera's and the bias measured on it is the wrong
+        // one: that sphere keeps its measured centre, and the marker is
+        // located again.
+        let (around, render) = last.expect("at least one round");
         let mut likeness = vec![None; config.object.len()];
         for blob in &around {
             if let Some(k) = blob.label {
