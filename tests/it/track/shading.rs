@@ -12,6 +12,26 @@ use layout_opt::render::{Appearance, Lighting};
 use layout_opt::track::{analyse, Threshold, TrackConfig};
 use rayon::prelude::*;
 
+/// `pose` rendered with `appearance` through the window round its discs
+/// ([`frames::crop`]), read by the 8-bit sensor with its default noise
+/// (seeded by `seed`, realisation `k`); and that window's camera.
+fn noisy_frame(
+    appearance: &Appearance,
+    pose: &layout_opt::pose::Pose,
+    truth: &layout_opt::render::FrameTruth,
+    seed: u64,
+    k: usize,
+) -> (layout_opt::track::GreyFrame, Camera) {
+    let camera = Camera::paper();
+    let window = frames::crop(&camera, truth, CROP_MARGIN_PX, |_| true);
+    let mut render = frames::noisy(window, 4);
+    render.appearance = appearance.clone();
+    let frame = winner()
+        .render_window(&render, pose, &camera, truth)
+        .expose(seed, k as u64);
+    (frame, window)
+}
+
 /// Per preset, over the same views: frames posed, whole spheres flagged as
 /// partly hidden, and the rotation errors of the posed frames, degrees.
 fn read_views(
@@ -19,19 +39,15 @@ fn read_views(
     threshold: Threshold,
     views: &[(layout_opt::pose::Pose, layout_opt::render::FrameTruth)],
 ) -> (usize, usize, Vec<f64>) {
-    let camera = Camera::paper();
     let part = winner();
     let results: Vec<(bool, usize, Option<f64>)> = views
         .par_iter()
         .enumerate()
         .map(|(k, (pose, truth))| {
-            let window = frames::crop(&camera, truth, CROP_MARGIN_PX, |_| true);
-            let mut render = frames::noisy(window, 4);
-            render.appearance = appearance.clone();
-            let rendered = part.render_window(&render, pose, &camera, truth);
+            let (frame, window) = noisy_frame(appearance, pose, truth, 0x5AD, k);
             let mut config = TrackConfig::new(&part.layout, window);
             config.detector.threshold = threshold;
-            let analysis = analyse(&config, &rendered.expose(0x5AD, k as u64));
+            let analysis = analyse(&config, &frame);
             let flagged = analysis
                 .detection
                 .as_ref()
@@ -139,24 +155,18 @@ fn diffuse_scenes_are_posed_with_the_default_threshold() {
 /// Rotation errors (degrees) before and after `track --refine` with the
 /// retroreflective preset's look, over `views` rendered with `appearance`
 /// (noisy, 8 bit), and the share of the spheres whose render matched the
-/// frame ([`layout_opt::track::refine::Likeness`]).
+/// frame ([`layout_opt::track::likeness::Likeness`]).
 fn refined_errors(
     appearance: &Appearance,
     views: &[(layout_opt::pose::Pose, layout_opt::render::FrameTruth)],
 ) -> (Vec<f64>, Vec<f64>, f64) {
     use layout_opt::track::refine::Refiner;
-    let camera = Camera::paper();
     let part = winner();
     let results: Vec<(f64, f64, usize, usize)> = views
         .par_iter()
         .enumerate()
         .filter_map(|(k, (pose, truth))| {
-            let window = frames::crop(&camera, truth, CROP_MARGIN_PX, |_| true);
-            let mut render = frames::noisy(window, 4);
-            render.appearance = appearance.clone();
-            let frame = part
-                .render_window(&render, pose, &camera, truth)
-                .expose(0x4EF, k as u64);
+            let (frame, window) = noisy_frame(appearance, pose, truth, 0x4EF, k);
             let config = TrackConfig::new(&part.layout, window);
             let first = analyse(&config, &frame);
             let before = rotation_error_deg(&pose.rotation, &first.pose?.rotation);
