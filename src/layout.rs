@@ -263,6 +263,19 @@ impl Layout {
         self.points.iter().map(|p| p.sigma_px).collect()
     }
 
+    /// "characterised from N frames of NOMINAL, residual RMS X px" when
+    /// `characterise` measured this layout from images of a printed part
+    /// (its provenance says so); `None` for a designed layout.
+    pub fn characterised(&self) -> Option<String> {
+        let c = self.provenance.as_ref()?.get("characterised")?;
+        Some(format!(
+            "characterised from {} frames of {}, residual RMS {:.4} px",
+            c.get("frames")?.as_u64()?,
+            c.get("nominal")?.as_str()?,
+            c.get("residual_rms_px")?.as_f64()?
+        ))
+    }
+
     /// Sphere radius, mm.
     pub fn sphere_radius_mm(&self) -> f64 {
         0.5 * self.sphere_diameter_mm

@@ -13,6 +13,7 @@
 
 pub mod batch;
 pub mod camera;
+pub mod characterise;
 pub mod config;
 pub mod conformance;
 pub mod ellipse;

@@ -1,6 +1,7 @@
 //! Argument parsing and dispatch. Each subcommand lives in its own file and
 //! turns its flags into library configurations before any work starts.
 
+mod characterise;
 mod common;
 mod export;
 mod export_set;
@@ -70,6 +71,10 @@ enum Command {
     /// Grey camera frames of a printed marker → labelled poses with their
     /// uncertainty (JSON lines).
     Track(Box<track::TrackArgs>),
+    /// The printed part measured from frames of it: every sphere centre
+    /// and its 1σ by bundle adjustment, written as a layout to track with
+    /// (or, with --plan, the views to capture).
+    Characterise(Box<characterise::CharacteriseArgs>),
 }
 
 /// Parses the command line and runs the chosen subcommand.
@@ -99,6 +104,7 @@ pub fn run() -> anyhow::Result<()> {
         Command::Export(args) => export::run(args, &cli.global),
         Command::Render(args) => render::run(*args, &cli.global),
         Command::Track(args) => track::run(*args, &cli.global),
+        Command::Characterise(args) => characterise::run(*args, &cli.global),
     }
 }
 

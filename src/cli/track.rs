@@ -34,52 +34,7 @@ pub struct TrackArgs {
     #[arg(long, value_name = "SET.json", conflicts_with_all = ["csv", "overlay"])]
     set: Option<PathBuf>,
     #[command(flatten)]
-    camera: CameraArgs,
-    /// Sphere diameter, mm. Default: the layout's.
-    #[arg(long, value_name = "MM")]
-    sphere_diameter: Option<f64>,
-    /// Threshold: auto (Otsu's level; where it leaves a blob partly hidden
-    /// or misshapen, also the upper of Otsu's three-class levels, which
-    /// parts white spheres from a lit grey body, keeping the reading with
-    /// more whole blobs; each record names the one applied), otsu, otsu3,
-    /// local (uneven light), local:RADIUS_PX:OFFSET, or a fixed level in
-    /// 0..1 of full scale.
-    #[arg(long, default_value = "auto")]
-    threshold: Threshold,
-    /// Which blob centre feeds the pose: ellipse (fit to the subpixel edge),
-    /// centroid (intensity-weighted, above a quarter of the step) or window
-    /// (background-subtracted, over the fitted ellipse grown by 1.5 px: the
-    /// least noisy, but pulled by the part behind the limb; use it with
-    /// --refine).
-    #[arg(long, default_value = "ellipse")]
-    centre: CentreMethod,
-    /// Solver of the final pose; ml fits the exact sphere-image model, the
-    /// others fit the projected sphere centres.
-    #[arg(long, default_value = "ml")]
-    solver: Solver,
-    /// Pixel σ of the blob centres for the covariance. Default: estimated
-    /// from each frame's residuals.
-    #[arg(long, value_name = "PX")]
-    sigma_px: Option<f64>,
-    /// Identification gate, px.
-    #[arg(long, value_name = "PX", default_value_t = layout_opt::batch::DEFAULT_GATE_PX)]
-    gate_px: f64,
-    /// Blobs tolerated beyond the spheres (clutter, reflections).
-    #[arg(long, default_value_t = 2, value_name = "N")]
-    max_extra_blobs: usize,
-    /// Smallest blob, px.
-    #[arg(long, default_value_t = DEFAULT_MIN_AREA_PX, value_name = "PX")]
-    min_area: usize,
-    /// Largest blob, px.
-    #[arg(long, default_value_t = DEFAULT_MAX_AREA_PX, value_name = "PX")]
-    max_area: usize,
-    /// Least blob contrast, fraction of full scale.
-    #[arg(long, default_value_t = DEFAULT_MIN_CONTRAST, value_name = "FRACTION")]
-    min_contrast: f64,
-    /// Refuse a frame whose labels are wrong with a larger predicted
-    /// probability (the identifiability model's bar is 1e-3).
-    #[arg(long, value_name = "P")]
-    max_wrong_labels: Option<f64>,
+    reading: ReadingArgs,
     /// Write the JSON lines here instead of stdout.
     #[arg(long, value_name = "FILE")]
     output: Option<PathBuf>,
@@ -89,6 +44,60 @@ pub struct TrackArgs {
     /// Write an annotated PNG per frame into this directory.
     #[arg(long, value_name = "DIR")]
     overlay: Option<PathBuf>,
+}
+
+/// How frames are read: the camera, the detector, the centres, the
+/// identification and the render-and-compare refinement (`track` and
+/// `characterise` read frames alike).
+#[derive(Debug, Args)]
+pub struct ReadingArgs {
+    #[command(flatten)]
+    pub(super) camera: CameraArgs,
+    /// Sphere diameter, mm. Default: the layout's.
+    #[arg(long, value_name = "MM")]
+    pub(super) sphere_diameter: Option<f64>,
+    /// Threshold: auto (Otsu's level; where it leaves a blob partly hidden
+    /// or misshapen, also the upper of Otsu's three-class levels, which
+    /// parts white spheres from a lit grey body, keeping the reading with
+    /// more whole blobs; each record names the one applied), otsu, otsu3,
+    /// local (uneven light), local:RADIUS_PX:OFFSET, or a fixed level in
+    /// 0..1 of full scale.
+    #[arg(long, default_value = "auto")]
+    pub(super) threshold: Threshold,
+    /// Which blob centre feeds the pose: ellipse (fit to the subpixel edge),
+    /// centroid (intensity-weighted, above a quarter of the step) or window
+    /// (background-subtracted, over the fitted ellipse grown by 1.5 px: the
+    /// least noisy, but pulled by the part behind the limb; use it with
+    /// --refine).
+    #[arg(long, default_value = "ellipse")]
+    pub(super) centre: CentreMethod,
+    /// Solver of the final pose; ml fits the exact sphere-image model, the
+    /// others fit the projected sphere centres.
+    #[arg(long, default_value = "ml")]
+    pub(super) solver: Solver,
+    /// Pixel σ of the blob centres for the covariance. Default: estimated
+    /// from each frame's residuals.
+    #[arg(long, value_name = "PX")]
+    pub(super) sigma_px: Option<f64>,
+    /// Identification gate, px.
+    #[arg(long, value_name = "PX", default_value_t = layout_opt::batch::DEFAULT_GATE_PX)]
+    pub(super) gate_px: f64,
+    /// Blobs tolerated beyond the spheres (clutter, reflections).
+    #[arg(long, default_value_t = 2, value_name = "N")]
+    pub(super) max_extra_blobs: usize,
+    /// Smallest blob, px.
+    #[arg(long, default_value_t = DEFAULT_MIN_AREA_PX, value_name = "PX")]
+    pub(super) min_area: usize,
+    /// Largest blob, px.
+    #[arg(long, default_value_t = DEFAULT_MAX_AREA_PX, value_name = "PX")]
+    pub(super) max_area: usize,
+    /// Least blob contrast, fraction of full scale.
+    #[arg(long, default_value_t = DEFAULT_MIN_CONTRAST, value_name = "FRACTION")]
+    pub(super) min_contrast: f64,
+    /// Refuse a frame whose labels are wrong with a larger predicted
+    /// probability (the identifiability model's bar is 1e-3).
+    #[arg(long, value_name = "P")]
+    pub(super) max_wrong_labels: Option<f64>,
     /// Render-and-compare: render the part at each frame's pose, read the
     /// render with the same detector, take each sphere's bias (the part
     /// behind its limb) off its centre and solve again. The part and its
@@ -96,15 +105,15 @@ pub struct TrackArgs {
     /// the camera sees. With --set, each marker found is refined with its
     /// own part alone.
     #[arg(long)]
-    refine: bool,
+    pub(super) refine: bool,
     /// Rounds of --refine.
     #[arg(long, value_name = "N", default_value_t = 1, requires = "refine")]
-    refine_rounds: u32,
+    pub(super) refine_rounds: u32,
     #[command(flatten)]
     #[command(next_help_heading = "The part and its look, for --refine")]
-    structure: StructureArgs,
+    pub(super) structure: StructureArgs,
     #[command(flatten)]
-    look: LookArgs,
+    pub(super) look: LookArgs,
 }
 
 /// The flag of a config field, for error messages.
@@ -133,8 +142,8 @@ pub fn run(args: TrackArgs, global: &GlobalOptions) -> anyhow::Result<()> {
             &frames,
             args.output.as_deref(),
             global,
-            &|layout| configure(&args, layout),
-            &|layout, config| refiner(&args, layout, config),
+            &|layout| configure(&args.reading, layout),
+            &|layout, config| refiner(&args.reading, layout, config),
         );
     }
     let layout_path = args
@@ -142,8 +151,8 @@ pub fn run(args: TrackArgs, global: &GlobalOptions) -> anyhow::Result<()> {
         .clone()
         .expect("clap requires LAYOUT without --set");
     let layout = naming_file(Layout::load(&layout_path), "layout", &layout_path)?;
-    let config = configure(&args, &layout)?;
-    let refiner = refiner(&args, &layout, &config)?;
+    let config = configure(&args.reading, &layout)?;
+    let refiner = refiner(&args.reading, &layout, &config)?;
     let outputs = TrackOutputs {
         sources: vec![("LAYOUT".into(), layout_path.clone())],
         json_lines: args.output.clone(),
@@ -164,18 +173,25 @@ pub fn run(args: TrackArgs, global: &GlobalOptions) -> anyhow::Result<()> {
         }
     }
     let refined = match &refiner {
-        Some(_) => format!(", refined by {} render round(s)", args.refine_rounds),
+        Some(_) => format!(
+            ", refined by {} render round(s)",
+            args.reading.refine_rounds
+        ),
         None => String::new(),
     };
     let (compared, unlike) = run.unlike_spheres();
     if unlike > 0 {
         eprintln!("warning: --refine: the render was unlike the frame around {unlike} of {compared} spheres, which kept their measured centres (refinement.likeness in the records); give the look the camera sees (--preset, the radiances, --blur) and the part's structure flags");
     }
+    let layout_name = match layout.characterised() {
+        Some(how) => format!("{} ({how})", layout.name),
+        None => layout.name.clone(),
+    };
     let summary = format!(
         "tracked {} of {} frames with {} ({} spheres of {} mm, {} centres, {} solver{refined})",
         run.tracked(),
         run.frames.len(),
-        layout.name,
+        layout_name,
         config.object.len(),
         config.sphere_diameter_mm,
         config.centre.name(),
@@ -192,7 +208,7 @@ pub fn run(args: TrackArgs, global: &GlobalOptions) -> anyhow::Result<()> {
 }
 
 /// The tracking configuration of `layout` from the flags, checked.
-fn configure(args: &TrackArgs, layout: &Layout) -> anyhow::Result<TrackConfig> {
+pub(super) fn configure(args: &ReadingArgs, layout: &Layout) -> anyhow::Result<TrackConfig> {
     let camera = args.camera.camera()?;
     let mut config = TrackConfig::new(layout, camera);
     if let Some(diameter) = args.sphere_diameter {
@@ -221,8 +237,8 @@ fn configure(args: &TrackArgs, layout: &Layout) -> anyhow::Result<TrackConfig> {
 }
 
 /// The render-and-compare refiner the flags ask for, if any.
-fn refiner(
-    args: &TrackArgs,
+pub(super) fn refiner(
+    args: &ReadingArgs,
     layout: &Layout,
     config: &TrackConfig,
 ) -> anyhow::Result<Option<Refiner>> {

@@ -183,6 +183,9 @@ pub fn run(args: ValidateArgs, global: &GlobalOptions) -> anyhow::Result<()> {
     if let Some(note) = &config.grid_note {
         println!("note: {note}");
     }
+    if let Some(how) = config.validate.layout.characterised() {
+        println!("layout {layout_name}: {how}");
+    }
     let mut bars = progress::Bars::new(global.quiet);
     let result = validate::workflow::run(&config, &mut bars);
     bars.finish();

@@ -29,6 +29,8 @@ mod unlabelled;
 mod visibility;
 
 #[cfg(feature = "cli")]
+mod characterise;
+#[cfg(feature = "cli")]
 mod cli_consistency;
 #[cfg(feature = "cli")]
 mod cli_solve;
