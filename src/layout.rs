@@ -276,6 +276,27 @@ impl Layout {
         ))
     }
 
+    /// Each point's 3×3 centre covariance, mm², when `characterise`
+    /// measured this layout (its provenance's
+    /// `characterised.covariance_mm2`); `None` otherwise or when a point's
+    /// is missing or malformed.
+    pub fn characterised_covariances(&self) -> Option<Vec<nalgebra::Matrix3<f64>>> {
+        let blocks = self
+            .provenance
+            .as_ref()?
+            .get("characterised")?
+            .get("covariance_mm2")?;
+        self.points
+            .iter()
+            .map(|p| {
+                let rows: [[f64; 3]; 3] =
+                    serde_json::from_value(blocks.get(&p.name)?.clone()).ok()?;
+                let m = nalgebra::Matrix3::from_fn(|r, c| rows[r][c]);
+                m.iter().all(|v| v.is_finite()).then_some(m)
+            })
+            .collect()
+    }
+
     /// Sphere radius, mm.
     pub fn sphere_radius_mm(&self) -> f64 {
         0.5 * self.sphere_diameter_mm

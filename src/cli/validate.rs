@@ -15,7 +15,7 @@ use layout_opt::scenario::ScenarioGrid;
 use layout_opt::sphere_image::Observation;
 use layout_opt::validate::config::default_tilt_step_deg;
 use layout_opt::validate::image_report;
-use layout_opt::validate::markdown::{console, fabrication_line};
+use layout_opt::validate::markdown::{budget_text, console};
 use layout_opt::validate::workflow::{WorkflowConfig, WorkflowError};
 use layout_opt::validate::{
     self, IdentifiabilityCheck, ValidateConfig, DEFAULT_TILT_STEP_DEG, POLYNOMIAL_TILT_STEP_DEG,
@@ -66,12 +66,17 @@ pub struct ValidateArgs {
     /// Output directory. Default: reports/<layout name>/.
     #[arg(long, value_name = "DIR")]
     pub(super) out: Option<PathBuf>,
-    /// Sphere-centre fabrication error σ_fab, mm per coordinate: after the
-    /// report, a Monte-Carlo run prints a new perturbed part per trial and
-    /// solves it with the nominal layout, beside the first-order model
-    /// with the fabrication term. 0 (the default) runs nothing more.
+    /// Sphere-centre fabrication error σ_fab, mm per coordinate: the error
+    /// budget (report.md, summary.json) counts a part printed to it, first
+    /// order and by a Monte-Carlo run with a new part per trial solved with
+    /// the nominal layout, under --noise-model. 0 (the default): a
+    /// characterised layout's own covariance, or no part error.
     #[arg(long, value_name = "MM", default_value_t = 0.0)]
     pub(super) fabrication_sigma: f64,
+    /// 1σ of the camera's intrinsics for the error budget, px:
+    /// fx=…,fy=…,cx=…,cy=… (a name left out is 0).
+    #[arg(long, value_name = "fx=PX,fy=PX,cx=PX,cy=PX")]
+    pub(super) camera_sigma: Option<layout_opt::error_model::budget::IntrinsicSigma>,
     /// The largest fraction (0–1) of a sphere's silhouette that the part's
     /// own supports may hide while the sphere still counts as seen.
     #[arg(long, value_name = "FRACTION", default_value_t = layout_opt::visibility::DEFAULT_MAX_HIDDEN)]
@@ -154,6 +159,7 @@ pub fn run(args: ValidateArgs, global: &GlobalOptions) -> anyhow::Result<()> {
                 trials: args.identify_trials,
             },
             fabrication_sigma_mm: args.fabrication_sigma,
+            camera_sigma: args.camera_sigma.unwrap_or_default(),
             structure: (!args.no_supports).then(MarkerOptions::default),
             max_hidden: args.max_hidden,
             command: command_line(),
@@ -201,8 +207,8 @@ pub fn run(args: ValidateArgs, global: &GlobalOptions) -> anyhow::Result<()> {
         println!("noise model written to {}", path.display());
     }
     println!("{}", outcome.timing_line(&config.out_dir));
-    if let Some(run) = &outcome.summary.fabrication {
-        println!("{}", fabrication_line(run));
+    if let Some(budget) = &outcome.summary.overview.error_budget {
+        print!("{}", budget_text(budget));
     }
     Ok(())
 }

@@ -85,6 +85,7 @@ fn single_layout_flags(args: &ValidateArgs) -> Vec<&'static str> {
             args.gross_threshold != DEFAULT_GROSS_THRESHOLD_DEG,
         ),
         ("--fabrication-sigma", args.fabrication_sigma != 0.0),
+        ("--camera-sigma", args.camera_sigma.is_some()),
         (
             "--max-hidden",
             args.max_hidden != layout_opt::visibility::DEFAULT_MAX_HIDDEN,

@@ -23,18 +23,14 @@
 //! against the nominal marker frame sees.
 //!
 //! [`tolerance`] turns this into a centre tolerance over a scenario grid;
-//! [`monte_carlo`] checks it with a new perturbed part per trial.
+//! [`super::budget`] puts it beside the image noise and the camera, and
+//! checks it with a new perturbed part per trial.
 
 use super::first_order::{pixel_jacobian, pose_covariance, FirstOrderError, PoseCovariance};
 use crate::camera::Camera;
-use crate::pnp::Solver;
-use crate::pose::{rotation_error_deg, Pose};
+use crate::pose::Pose;
 use crate::scenario::{sphere_images, visibility, Scenario, ScenarioGrid};
-use crate::synthetic::stream_rng;
-use nalgebra::{SMatrix, Vector2, Vector3};
-use rand::Rng;
-use rand_distr::StandardNormal;
-use rayon::prelude::*;
+use nalgebra::{SMatrix, Vector3};
 use serde::Serialize;
 
 /// The fabrication share the sheet's tolerance is set for: the RMS
@@ -43,29 +39,16 @@ use serde::Serialize;
 /// grid (added in quadrature, it raises the total by under 0.5 %).
 pub const TOLERANCE_SHARE: f64 = 0.1;
 
-/// Added to the run's seed for the fabrication Monte-Carlo's streams, so
-/// that they differ from the main Monte-Carlo's (which use the seed itself).
-pub const FABRICATION_SEED_OFFSET: u64 = 0xfab0_0000;
-
 /// Why a fabrication figure could not be computed.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[non_exhaustive]
 pub enum FabricationError {
-    /// σ_fab is negative or not finite.
-    #[error("--fabrication-sigma must be a finite number of millimetres ≥ 0, got {0}")]
-    BadSigma(f64),
     /// The share is not in (0, 1].
     #[error("the fabrication share must be in (0, 1], got {0}")]
     BadShare(f64),
     /// No scenario of the grid sees every sphere with noise σ > 0.
     #[error("no scenario of the grid sees every sphere with image noise above 0 px, so no tolerance follows from it")]
     NoVisibleScenario,
-    /// A Monte-Carlo run needs trials.
-    #[error("a fabrication Monte-Carlo run needs at least one trial")]
-    NoTrials,
-    /// The caller asked to stop.
-    #[error("the fabrication Monte-Carlo run was interrupted")]
-    Interrupted,
     /// The first-order model failed.
     #[error(transparent)]
     FirstOrder(#[from] FirstOrderError),
@@ -233,205 +216,16 @@ pub fn tolerance(
     })
 }
 
-/// One scenario of a fabrication Monte-Carlo run.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct FabricationOutcome {
-    /// The scenario.
-    pub scenario: Scenario,
-    /// First-order RMS rotation error of the image noise alone, degrees.
-    pub noise_rotation_deg: f64,
-    /// First-order RMS rotation error of the fabrication alone, degrees.
-    pub fabrication_rotation_deg: f64,
-    /// First-order RMS rotation error of both, degrees.
-    pub predicted_rotation_deg: f64,
-    /// Measured RMS rotation error over the trials (a new part and new
-    /// noise per trial), degrees.
-    pub measured_rotation_deg: f64,
-    /// Trials whose solve failed or whose image could not be undistorted.
-    pub failed_trials: usize,
-}
-
-/// A fabrication Monte-Carlo run: what it measured over the scenarios.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct FabricationRun {
-    /// σ_fab, mm.
-    pub sigma_fab_mm: f64,
-    /// The solver.
-    pub solver: String,
-    /// Trials per scenario.
-    pub trials: usize,
-    /// Every visible scenario with σ > 0, in grid order.
-    pub outcomes: Vec<FabricationOutcome>,
-}
-
-impl FabricationRun {
-    /// RMS over the scenarios of a per-scenario figure.
-    fn pooled(&self, figure: impl Fn(&FabricationOutcome) -> f64) -> Option<f64> {
-        (!self.outcomes.is_empty()).then(|| {
-            (self.outcomes.iter().map(|o| figure(o).powi(2)).sum::<f64>()
-                / self.outcomes.len() as f64)
-                .sqrt()
-        })
-    }
-
-    /// Pooled first-order noise RMS rotation error, degrees.
-    pub fn noise_rotation_deg(&self) -> Option<f64> {
-        self.pooled(|o| o.noise_rotation_deg)
-    }
-
-    /// Pooled first-order fabrication RMS rotation error, degrees.
-    pub fn fabrication_rotation_deg(&self) -> Option<f64> {
-        self.pooled(|o| o.fabrication_rotation_deg)
-    }
-
-    /// Pooled first-order RMS rotation error of both, degrees.
-    pub fn predicted_rotation_deg(&self) -> Option<f64> {
-        self.pooled(|o| o.predicted_rotation_deg)
-    }
-
-    /// Pooled measured RMS rotation error, degrees.
-    pub fn measured_rotation_deg(&self) -> Option<f64> {
-        self.pooled(|o| o.measured_rotation_deg)
-    }
-}
-
-/// The inputs of a fabrication Monte-Carlo run ([`monte_carlo`]).
-#[derive(Debug, Clone, Copy)]
-pub struct FabricationMonteCarlo<'a> {
-    /// The camera.
-    pub camera: &'a Camera,
-    /// The nominal sphere centres, marker frame, mm (what the solver fits).
-    pub object: &'a [Vector3<f64>],
-    /// Sphere diameter, mm (for visibility).
-    pub sphere_diameter_mm: f64,
-    /// σ_fab, mm per coordinate.
-    pub sigma_fab_mm: f64,
-    /// Trials per scenario.
-    pub trials: usize,
-    /// The run's seed (the streams add [`FABRICATION_SEED_OFFSET`]).
-    pub seed: u64,
-    /// The solver.
-    pub solver: Solver,
-}
-
-/// Monte-Carlo check of the fabrication term: in every scenario of
-/// `scenarios` that sees every sphere with σ > 0, each trial prints a new
-/// part (centres `Xᵢ + eᵢ`, `eᵢ ~ N(0, σ_fab² I₃)`), projects its centres
-/// (the projected centre, no ellipse-centre bias) with isotropic pixel
-/// noise of the scenario's σ, and solves with the nominal `object`. Trial
-/// `k` of scenario `s` draws from `stream_rng(seed +`
-/// [`FABRICATION_SEED_OFFSET`]`, s, k)`: the part first, then the noise,
-/// so the results do not depend on the thread count. `stop` is read before
-/// every trial.
-pub fn monte_carlo(
-    run: &FabricationMonteCarlo,
-    scenarios: &[Scenario],
-    stop: &(dyn Fn() -> bool + Sync),
-) -> Result<FabricationRun, FabricationError> {
-    if !(run.sigma_fab_mm >= 0.0 && run.sigma_fab_mm.is_finite()) {
-        return Err(FabricationError::BadSigma(run.sigma_fab_mm));
-    }
-    if run.trials == 0 {
-        return Err(FabricationError::NoTrials);
-    }
-    let outcomes: Vec<Option<FabricationOutcome>> = scenarios
-        .par_iter()
-        .map(|scenario| run_scenario(run, scenario, stop))
-        .collect::<Result<_, _>>()?;
-    Ok(FabricationRun {
-        sigma_fab_mm: run.sigma_fab_mm,
-        solver: run.solver.name().to_string(),
-        trials: run.trials,
-        outcomes: outcomes.into_iter().flatten().collect(),
-    })
-}
-
-fn run_scenario(
-    run: &FabricationMonteCarlo,
-    scenario: &Scenario,
-    stop: &(dyn Fn() -> bool + Sync),
-) -> Result<Option<FabricationOutcome>, FabricationError> {
-    let FabricationMonteCarlo {
-        camera,
-        object,
-        sphere_diameter_mm,
-        sigma_fab_mm,
-        trials,
-        seed,
-        solver,
-    } = *run;
-    if scenario.sigma_px.is_nan() || scenario.sigma_px <= 0.0 {
-        return Ok(None);
-    }
-    let truth = scenario.pose();
-    let images = sphere_images(camera, &truth, object, sphere_diameter_mm);
-    if !visibility(&images, camera).is_visible() {
-        return Ok(None);
-    }
-    let sigmas = vec![scenario.sigma_px; object.len()];
-    let (Ok(noise), Ok(fabrication)) = (
-        pose_covariance(camera, &truth, object, &sigmas),
-        sensitivity(camera, &truth, object, &sigmas),
-    ) else {
-        return Ok(None);
-    };
-    let total = fabrication.add_to(&noise, sigma_fab_mm);
-    let mut printed = object.to_vec();
-    let mut image = vec![Vector2::zeros(); object.len()];
-    let mut squared = 0.0;
-    let mut solved = 0usize;
-    for trial in 0..trials {
-        if stop() {
-            return Err(FabricationError::Interrupted);
-        }
-        let mut rng = stream_rng(
-            seed.wrapping_add(FABRICATION_SEED_OFFSET),
-            scenario.index as u64,
-            trial as u64,
-        );
-        for (p, nominal) in printed.iter_mut().zip(object) {
-            let e = Vector3::from_fn(|_, _| rng.sample::<f64, _>(StandardNormal));
-            *p = nominal + e * sigma_fab_mm;
-        }
-        let mut usable = true;
-        for (slot, p) in image.iter_mut().zip(&printed) {
-            let noise = Vector2::from_fn(|_, _| rng.sample::<f64, _>(StandardNormal));
-            let projected = camera.project(&truth.transform(p));
-            match projected
-                .map(|pixel| camera.pixel_to_normalised(&(pixel + noise * scenario.sigma_px)))
-            {
-                Some(Ok(m)) => *slot = m,
-                _ => usable = false,
-            }
-        }
-        if !usable {
-            continue;
-        }
-        if let Ok(pose) = solver.solve_best(object, &image) {
-            squared += rotation_error_deg(&truth.rotation, &pose.rotation).powi(2);
-            solved += 1;
-        }
-    }
-    Ok(Some(FabricationOutcome {
-        scenario: *scenario,
-        noise_rotation_deg: noise.rms_rotation_deg(),
-        fabrication_rotation_deg: fabrication.rotation_deg_per_mm() * sigma_fab_mm,
-        predicted_rotation_deg: total.rms_rotation_deg(),
-        measured_rotation_deg: if solved > 0 {
-            (squared / solved as f64).sqrt()
-        } else {
-            f64::NAN
-        },
-        failed_trials: trials - solved,
-    }))
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::layout::Layout;
+    use crate::synthetic::stream_rng;
     use approx::assert_relative_eq;
     use nalgebra::Rotation3;
+    use nalgebra::Vector2;
+    use rand::Rng;
+    use rand_distr::StandardNormal;
 
     fn pose() -> Pose {
         Pose::new(
@@ -518,60 +312,6 @@ mod tests {
             tolerance(&camera, &grid, &object, 10.0, 0.0).unwrap_err(),
             FabricationError::BadShare(0.0)
         );
-        let never = || false;
-        let scenarios = grid.scenarios();
-        let base = FabricationMonteCarlo {
-            camera: &camera,
-            object: &object,
-            sphere_diameter_mm: 10.0,
-            sigma_fab_mm: 0.0,
-            trials: 1,
-            seed: 1,
-            solver: Solver::Ml,
-        };
-        for bad in [-0.1, f64::NAN, f64::INFINITY] {
-            assert!(matches!(
-                monte_carlo(
-                    &FabricationMonteCarlo {
-                        sigma_fab_mm: bad,
-                        trials: 10,
-                        seed: 1,
-                        ..base
-                    },
-                    &scenarios,
-                    &never
-                ),
-                Err(FabricationError::BadSigma(_))
-            ));
-        }
-        assert_eq!(
-            monte_carlo(
-                &FabricationMonteCarlo {
-                    sigma_fab_mm: 0.1,
-                    trials: 0,
-                    seed: 1,
-                    ..base
-                },
-                &scenarios,
-                &never
-            )
-            .unwrap_err(),
-            FabricationError::NoTrials
-        );
-        assert_eq!(
-            monte_carlo(
-                &FabricationMonteCarlo {
-                    sigma_fab_mm: 0.1,
-                    trials: 3,
-                    seed: 1,
-                    ..base
-                },
-                &scenarios,
-                &|| true
-            )
-            .unwrap_err(),
-            FabricationError::Interrupted
-        );
     }
 
     /// The tolerance meets its share exactly in the worst scenario and
@@ -601,74 +341,6 @@ mod tests {
                 g.rotation_deg_per_mm() * t.max_sigma_mm
                     <= TOLERANCE_SHARE * noise.rms_rotation_deg() * (1.0 + 1e-9)
             );
-        }
-    }
-
-    /// Monte-Carlo with a new part per trial agrees with the first-order
-    /// sum of noise and fabrication; σ_fab = 0 predicts the noise alone; the
-    /// results do not depend on the thread count.
-    #[test]
-    fn monte_carlo_agrees_with_the_first_order_model_on_any_thread_count() {
-        let camera = Camera::paper();
-        let object = Layout::paper_biprism().positions();
-        let grid = ScenarioGrid::new(
-            crate::scenario::Range::list(&[300.0, 600.0]),
-            crate::scenario::Range::single(0.0),
-            crate::scenario::Range::single(0.0),
-            crate::scenario::Range::list(&[-40.0, -30.0, -20.0, 20.0, 30.0, 40.0]),
-            crate::scenario::Range::single(0.0),
-            crate::scenario::Range::single(0.0),
-            crate::scenario::Range::single(0.3),
-        )
-        .unwrap();
-        let scenarios = grid.scenarios();
-        let base = FabricationMonteCarlo {
-            camera: &camera,
-            object: &object,
-            sphere_diameter_mm: 10.0,
-            sigma_fab_mm: 0.0,
-            trials: 1,
-            seed: 1,
-            solver: Solver::Ml,
-        };
-        let run = |sigma_fab: f64, threads: usize| {
-            rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .unwrap()
-                .install(|| {
-                    monte_carlo(
-                        &FabricationMonteCarlo {
-                            sigma_fab_mm: sigma_fab,
-                            trials: 400,
-                            seed: 7,
-                            ..base
-                        },
-                        &scenarios,
-                        &|| false,
-                    )
-                    .unwrap()
-                })
-        };
-        let with = run(0.3, 2);
-        assert_eq!(with, run(0.3, 1));
-        // Some tilts hide a sphere behind another: those are left out.
-        assert!(with.outcomes.len() >= 3, "{with:?}");
-        for o in &with.outcomes {
-            assert!(
-                o.fabrication_rotation_deg > 0.5 * o.noise_rotation_deg,
-                "{o:?}"
-            );
-            let ratio = o.measured_rotation_deg / o.predicted_rotation_deg;
-            assert!((0.9..1.1).contains(&ratio), "{o:?}");
-            assert_eq!(o.failed_trials, 0);
-        }
-        let without = run(0.0, 2);
-        for o in &without.outcomes {
-            assert_eq!(o.fabrication_rotation_deg, 0.0);
-            assert_eq!(o.predicted_rotation_deg, o.noise_rotation_deg);
-            let ratio = o.measured_rotation_deg / o.predicted_rotation_deg;
-            assert!((0.9..1.1).contains(&ratio), "{o:?}");
         }
     }
 }

@@ -23,6 +23,7 @@
 //! assert!(near.rms_rotation_deg() > 0.0 && near.rms_rotation_deg() < 1.0);
 //! ```
 
+pub mod budget;
 pub mod fabrication;
 pub mod first_order;
 pub mod transfer;

@@ -832,6 +832,7 @@ impl Run<'_, '_> {
             monte_carlo,
             identifiability: config.identifiability_check(),
             fabrication_sigma_mm: 0.0,
+            camera_sigma: Default::default(),
             // The winner's validation keeps to the spheres alone, as the
             // search's own figures do; the report's held-out check with
             // supports says what the printed part loses.

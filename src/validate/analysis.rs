@@ -18,8 +18,7 @@ use super::summary::{
     Systematic, ValidateSummary, VisibilityClass, VisibilityCounts,
 };
 use crate::config::ConfigError;
-use crate::error_model::fabrication::FabricationError;
-use crate::error_model::fabrication::{self, FabricationMonteCarlo, FabricationRun};
+use crate::error_model::budget::{self, Budget, BudgetError, BudgetInputs};
 use crate::identifiability::{self, IdentifiabilitySettings, ScenarioIdentifiability};
 use crate::layout::Layout;
 use crate::montecarlo::{
@@ -43,9 +42,9 @@ pub enum ValidateError {
     /// The Monte-Carlo run failed or was interrupted.
     #[error(transparent)]
     MonteCarlo(#[from] MonteCarloError),
-    /// The fabrication run failed or was interrupted.
+    /// The error budget's Monte-Carlo check failed or was interrupted.
     #[error(transparent)]
-    Fabrication(#[from] FabricationError),
+    Budget(#[from] BudgetError),
     /// The image-level check failed or was interrupted.
     #[error(transparent)]
     Images(#[from] super::image_check::ImageCheckError),
@@ -72,21 +71,21 @@ pub struct Hooks<'a> {
 }
 
 /// The whole validation of `config`: checks it, then runs
-/// [`monte_carlo`] and [`fabrication`]. An observer that asks to stop ends
+/// [`monte_carlo`] and [`error_budget`]. An observer that asks to stop ends
 /// the run within a trial with `MonteCarlo(Interrupted)` or
-/// `Fabrication(Interrupted)`.
+/// `Budget(Interrupted)`.
 pub fn analyse(
     config: &ValidateConfig,
     observer: &mut impl Observer,
 ) -> Result<ValidateSummary, ValidateError> {
     let config = config.check()?;
     let mut summary = monte_carlo(config, observer)?;
-    summary.fabrication = fabrication(config, observer)?;
+    add_budget(&mut summary, error_budget(config, observer)?);
     Ok(summary)
 }
 
 /// The solvers' and the unlabelled solver's Monte-Carlo runs, pooled, with
-/// progress as [`PHASE`] (no fabrication run: `fabrication` is None).
+/// progress as [`PHASE`] (no error budget: `budget` is None).
 pub fn monte_carlo(
     config: Checked,
     observer: &mut impl Observer,
@@ -179,13 +178,14 @@ pub fn monte_carlo_until(config: Checked, hooks: Hooks) -> Result<ValidateSummar
         identifiability: identifiability_summary(&axes, &outcomes, &identified, &settings),
         pairs: super::pairs::pairwise(&axes, &outcomes, monte_carlo.solvers[0].name()),
         worst: super::pairs::worst(&outcomes),
+        error_budget: None,
     };
     Ok(ValidateSummary {
         layout: layout.clone(),
         overview,
         outcomes,
         identifiability: identified,
-        fabrication: None,
+        budget: None,
         images: None,
     })
 }
@@ -226,23 +226,29 @@ fn count_supports(
         });
 }
 
-/// The fabrication check (None when σ_fab is 0): in every visible scenario
-/// with σ > 0, the first solver on a new perturbed part per trial, beside
-/// the first-order model with the fabrication term
-/// ([`fabrication::monte_carlo`]).
-pub fn fabrication(
+/// The error budget (None when only image noise counts: no part error
+/// and no camera σ): in every visible scenario, each source's first-order
+/// pose covariance beside a Monte-Carlo run of each source alone and of
+/// all together, with the first solver and the run's trials and noise
+/// model ([`budget`]).
+pub fn error_budget(
     config: Checked,
     observer: &mut impl Observer,
-) -> Result<Option<FabricationRun>, ValidateError> {
-    if config.fabrication_sigma_mm == 0.0 {
+) -> Result<Option<Budget>, ValidateError> {
+    let part = config.part_error();
+    if part.is_exact() && config.camera_sigma.is_zero() {
         return Ok(None);
     }
     let object = config.layout.positions();
-    let trials = FabricationMonteCarlo {
+    let layout_sigmas = config.layout.point_sigmas();
+    let inputs = BudgetInputs {
         camera: &config.camera,
         object: &object,
+        layout_sigmas: &layout_sigmas,
         sphere_diameter_mm: config.layout.sphere_diameter_mm,
-        sigma_fab_mm: config.fabrication_sigma_mm,
+        noise: &config.monte_carlo.noise,
+        part: &part,
+        camera_sigma: config.camera_sigma,
         trials: config.monte_carlo.trials,
         seed: config.monte_carlo.seed,
         solver: config.monte_carlo.solvers[0],
@@ -253,9 +259,15 @@ pub fn fabrication(
         observer,
         |_| {},
         Some(&stop),
-        || fabrication::monte_carlo(&trials, &scenarios, &|| stop.load(Ordering::Relaxed)),
+        || budget::budget(&inputs, &scenarios, &|| stop.load(Ordering::Relaxed)),
     );
     Ok(Some(run?))
+}
+
+/// Puts a budget into the summary and its overview.
+pub fn add_budget(summary: &mut ValidateSummary, budget: Option<Budget>) {
+    summary.overview.error_budget = budget.as_ref().map(Budget::overview);
+    summary.budget = budget;
 }
 
 /// Where every number came from.
@@ -669,17 +681,22 @@ mod tests {
     }
 
     #[test]
-    fn the_fabrication_run_adds_to_the_summary_and_changes_nothing_else() {
+    fn the_error_budget_adds_to_the_summary_and_changes_nothing_else() {
         let plain = analyse(&config(), &mut Silent).unwrap();
         assert_eq!(plain.outcomes.len(), 4);
         assert_eq!(plain.identifiability.len(), 4);
         assert_eq!(plain.solves(), 4 * 5);
-        assert!(plain.fabrication.is_none());
+        assert!(plain.budget.is_none() && plain.overview.error_budget.is_none());
         let mut with = config();
         with.fabrication_sigma_mm = 0.1;
-        let with = analyse(&with, &mut Silent).unwrap();
-        let run = with.fabrication.as_ref().unwrap();
+        let mut with = analyse(&with, &mut Silent).unwrap();
+        let run = with.budget.as_ref().unwrap();
         assert_eq!((run.solver.as_str(), run.trials), ("ml", 5));
+        let overview = with.overview.error_budget.take().unwrap();
+        assert_eq!(
+            overview.by_depth.iter().map(|r| r.scenarios).sum::<usize>(),
+            run.outcomes.len()
+        );
         assert_eq!(
             serde_json::to_string(&plain.overview).unwrap(),
             serde_json::to_string(&with.overview).unwrap()

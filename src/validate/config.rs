@@ -75,13 +75,14 @@ pub struct ValidateConfig {
     pub monte_carlo: MonteCarloConfig,
     /// How identifiability is checked.
     pub identifiability: IdentifiabilityCheck,
-    /// Sphere-centre fabrication error σ_fab, mm per coordinate: above 0, a
-    /// second Monte-Carlo run prints a new perturbed part per trial and
-    /// solves it with the nominal layout (with the first solver, the same
-    /// trial count and the seed offset by
-    /// [`crate::error_model::fabrication::FABRICATION_SEED_OFFSET`]); 0
-    /// runs nothing more.
+    /// Sphere-centre fabrication error σ_fab, mm per coordinate: above 0,
+    /// the error budget ([`crate::error_model::budget`]) counts a part
+    /// printed to it; 0 counts the part a characterised layout's
+    /// covariance describes, or none.
     pub fabrication_sigma_mm: f64,
+    /// 1σ of the camera's intrinsics, px: any above 0 puts the camera in
+    /// the error budget.
+    pub camera_sigma: crate::error_model::budget::IntrinsicSigma,
     /// The part's structure: the supports that `export` builds with these
     /// options, routed for this grid ([`crate::mesh::supports_for_range`]),
     /// hide spheres as any occluder does; `None`: the spheres alone.
@@ -114,9 +115,24 @@ impl ValidateConfig {
             },
             identifiability: IdentifiabilityCheck::default(),
             fabrication_sigma_mm: 0.0,
+            camera_sigma: Default::default(),
             structure: Some(MarkerOptions::default()),
             max_hidden: DEFAULT_MAX_HIDDEN,
             command: String::new(),
+        }
+    }
+
+    /// The part's error for the budget: printed to `fabrication_sigma_mm`
+    /// when it is above 0, else a characterised layout's own covariance,
+    /// else none.
+    pub fn part_error(&self) -> crate::error_model::budget::PartError {
+        use crate::error_model::budget::PartError;
+        if self.fabrication_sigma_mm > 0.0 {
+            return PartError::Printed(self.fabrication_sigma_mm);
+        }
+        match self.layout.characterised_covariances() {
+            Some(blocks) => PartError::Characterised(blocks),
+            None => PartError::Exact,
         }
     }
 

@@ -1,12 +1,12 @@
 //! Renders a [`ValidateSummary`] as text: `report.md` ([`markdown`]) and the
 //! lines the command line prints when a run ends ([`console`],
-//! [`fabrication_line`]). Computes nothing new.
+//! [`budget_text`]). Computes nothing new.
 
 use super::summary::{
     axis_unit, AxisErrors, AxisVisibility, IdentifiabilitySummary, Overview, Systematic,
     ValidateSummary,
 };
-use crate::error_model::fabrication::FabricationRun;
+use crate::error_model::budget::{BudgetOverview, SourceFigures};
 use crate::report::{significant, Table};
 use crate::volume::WorkingVolume;
 use std::fmt::Write as _;
@@ -14,7 +14,7 @@ use std::path::Path;
 
 /// What a run prints when it ends: the visibility counts, one row per
 /// solver, the models' predictions, the systematic part, identifiability
-/// and (when there was one) the fabrication run. `out` is the report
+/// (the error budget is [`budget_text`]). `out` is the report
 /// directory the lines point to.
 pub fn console(validation: &ValidateSummary, out: &Path) -> String {
     let summary = &validation.overview;
@@ -112,24 +112,82 @@ pub fn console(validation: &ValidateSummary, out: &Path) -> String {
     text
 }
 
-/// The fabrication run in one line: the first-order parts and the
-/// Monte-Carlo measurement, with their ratio.
-pub fn fabrication_line(run: &FabricationRun) -> String {
-    let show = |v: Option<f64>| v.map_or("not measurable".into(), |v| format!("{v:.4}°"));
-    let ratio = run
-        .measured_rotation_deg()
-        .zip(run.predicted_rotation_deg())
-        .map_or("—".into(), |(m, p)| format!("{:.3}", m / p));
+/// The error budget as a table: one row per depth and one for all, each
+/// source's first-order RMS rotation with its share of the total variance,
+/// and the Monte-Carlo total beside the first-order one.
+fn budget_table(b: &BudgetOverview) -> Table {
+    let mut table = Table::new([
+        "depth (mm)",
+        "noise (°)",
+        "part (°)",
+        "camera (°)",
+        "total (°)",
+        "Monte-Carlo (°)",
+        "MC / 1st order",
+    ]);
+    let cell = |deg: f64, total: f64| {
+        let share = if total > 0.0 {
+            100.0 * (deg / total).powi(2)
+        } else {
+            0.0
+        };
+        format!("{} ({share:.0}%)", significant(Some(deg), 3))
+    };
+    let mut row = |label: String, f: &SourceFigures, m: &SourceFigures| {
+        table.row([
+            label,
+            cell(f.noise_deg, f.total_deg),
+            cell(f.part_deg, f.total_deg),
+            cell(f.camera_deg, f.total_deg),
+            significant(Some(f.total_deg), 3),
+            significant(Some(m.total_deg), 3),
+            format!("{:.3}", m.total_deg / f.total_deg),
+        ]);
+    };
+    for depth in &b.by_depth {
+        row(
+            format!("{}", depth.depth_mm),
+            &depth.first_order,
+            &depth.monte_carlo,
+        );
+    }
+    row("all".into(), &b.first_order, &b.monte_carlo);
+    table
+}
+
+/// The sources of a budget, in one sentence.
+fn budget_sources(b: &BudgetOverview) -> String {
+    let c = &b.camera_sigma;
     format!(
-        "fabrication σ {} mm ({}, a new part per trial, projected centres, isotropic noise; {} scenarios × {} trials): first-order RMS rotation {} from the noise, {} from the fabrication, {} both; Monte-Carlo {} (ratio {ratio})",
-        run.sigma_fab_mm,
-        run.solver,
-        run.outcomes.len(),
-        run.trials,
-        show(run.noise_rotation_deg()),
-        show(run.fabrication_rotation_deg()),
-        show(run.predicted_rotation_deg()),
-        show(run.measured_rotation_deg()),
+        "image noise {}; the part {}; the camera σ fx {} fy {} cx {} cy {} px; Monte-Carlo: {}, {} trials per scenario and source, {} visible scenarios",
+        b.noise, b.part, c.fx, c.fy, c.cx, c.cy, b.solver, b.trials, b.scenarios
+    )
+}
+
+/// The error budget's section of `report.md`.
+fn budget_markdown(b: &BudgetOverview) -> String {
+    let mut out = String::new();
+    let _ = writeln!(
+        out,
+        "## Error budget
+"
+    );
+    let _ = writeln!(
+        out,
+        "The RMS rotation error each source leaves, to first order, and its share of the total variance; the total beside a Monte-Carlo run of all sources together (each trial a new part, camera and noise, solved with the nominal layout and camera). Sources: {}. The reading's bias is zero: `track` turns each ellipse into the sphere's projected centre. Per source alone, the Monte-Carlo figures are in `summary.json` (`error_budget`).\n",
+        budget_sources(b)
+    );
+    out.push_str(&budget_table(b).markdown());
+    out.push('\n');
+    out
+}
+
+/// The error budget as terminal text: its sources and its table.
+pub fn budget_text(b: &BudgetOverview) -> String {
+    format!(
+        "error budget, RMS rotation and share of the variance ({}):\n{}",
+        budget_sources(b),
+        budget_table(b).console()
     )
 }
 
@@ -347,6 +405,9 @@ pub(super) fn markdown(summary: &Overview) -> String {
     );
 
     out.push_str(&systematic_markdown(&summary.systematic, &h.observation));
+    if let Some(budget) = &summary.error_budget {
+        out.push_str(&budget_markdown(budget));
+    }
     out.push_str(&identifiability_markdown(&summary.identifiability));
 
     if !summary.curves.is_empty() {

@@ -3,11 +3,11 @@
 //! [`ValidateSummary`] is the analysis's output and the report's only
 //! input: the pooled [`Overview`] (exactly what `summary.json` holds, and
 //! nothing that depends on the machine, so the same seed gives the same file
-//! at any thread count), every scenario's outcome, and the fabrication run
-//! when one was asked for.
+//! at any thread count), every scenario's outcome, and the error budget
+//! when the part or the camera adds to the noise.
 
 use crate::camera::Camera;
-use crate::error_model::fabrication::FabricationRun;
+use crate::error_model::budget::{Budget, BudgetOverview};
 use crate::identifiability::{self, ScenarioIdentifiability};
 use crate::layout::Layout;
 use crate::montecarlo::{Pooled, PoseErrorVector, ScenarioOutcome};
@@ -28,8 +28,9 @@ pub struct ValidateSummary {
     /// Per-scenario identifiability, in grid order (None for scenarios that
     /// are not visible).
     pub identifiability: Vec<Option<ScenarioIdentifiability>>,
-    /// The fabrication Monte-Carlo run (None when σ_fab is 0).
-    pub fabrication: Option<FabricationRun>,
+    /// The error budget, every scenario (None when only image noise is
+    /// counted).
+    pub budget: Option<Budget>,
     /// The image-level check (None unless asked for).
     pub images: Option<super::image_check::ImageSummary>,
 }
@@ -253,6 +254,11 @@ pub struct Overview {
     pub pairs: PairwiseErrors,
     /// The visible viewpoints with the first solver's largest errors.
     pub worst: Vec<WorstViewpoint>,
+    /// The error budget of the chain (image noise, the part, the camera),
+    /// first order and Monte-Carlo, pooled and per depth; absent when
+    /// only image noise is counted.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub error_budget: Option<BudgetOverview>,
 }
 
 /// One axis of the pairwise matrix.

@@ -4,10 +4,10 @@
 //!
 //! [`run`] checks the configuration once, takes the output lock, logs an
 //! estimate of a slow run, runs the analysis's Monte-Carlo runs, then its
-//! phases in order over one [`Run`] context: [`write_report`],
-//! [`write_run_json`], [`fabrication`]. A stop during the Monte-Carlo runs
-//! leaves no report; the fabrication run comes after the report, which it
-//! does not change.
+//! phases in order over one [`Run`] context: [`error_budget`],
+//! [`write_report`], [`write_noise_model`], [`write_run_json`]. A stop
+//! during the Monte-Carlo runs or the budget leaves no report; the budget
+//! comes before the report, which carries it.
 
 use super::analysis;
 use super::analysis::ValidateError;
@@ -55,15 +55,15 @@ impl WorkflowError {
     /// What the run was doing when Ctrl-C stopped it, for an interrupted
     /// run; `None` for any other error.
     pub fn interrupted(&self) -> Option<&'static str> {
-        use crate::error_model::fabrication::FabricationError;
+        use crate::error_model::budget::BudgetError;
         use crate::montecarlo::MonteCarloError;
         use crate::validate::image_check::ImageCheckError;
         match self {
             WorkflowError::Validate(ValidateError::MonteCarlo(MonteCarloError::Interrupted)) => {
                 Some("interrupted: no report written")
             }
-            WorkflowError::Validate(ValidateError::Fabrication(FabricationError::Interrupted)) => {
-                Some("interrupted during the fabrication check: no report written")
+            WorkflowError::Validate(ValidateError::Budget(BudgetError::Interrupted)) => {
+                Some("interrupted during the error budget: no report written")
             }
             WorkflowError::Interrupted(_) => Some("interrupted: no report written"),
             WorkflowError::Validate(ValidateError::Images(ImageCheckError::Interrupted)) => {
@@ -195,11 +195,11 @@ type Phase<O> = fn(&mut Run<'_, O>) -> Result<(), WorkflowError>;
 /// `run.json` (timing, threads, solves, the grid note), into
 /// [`WorkflowConfig::out_dir`], holding its lock throughout: the
 /// config is checked, the estimate logged, the Monte-Carlo runs done, then
-/// the phases [`fabrication`], [`write_report`], [`write_noise_model`] and
+/// the phases [`error_budget`], [`write_report`], [`write_noise_model`] and
 /// [`write_run_json`] run over the finished [`Run`]. An observer that asks
 /// to stop ends the Monte-Carlo runs within a trial
-/// (`MonteCarlo(Interrupted)`), the image check or the fabrication run
-/// (`Fabrication(Interrupted)`); a stop asked for after the last of them
+/// (`MonteCarlo(Interrupted)`), the image check or the error budget
+/// (`Budget(Interrupted)`); a stop asked for after the last of them
 /// ends the run before the first file ([`WorkflowError::Interrupted`]). An
 /// interrupted run writes no report.
 pub fn run(
@@ -234,7 +234,7 @@ pub fn run(
         image_seconds,
     };
     let phases: [Phase<_>; 5] = [
-        fabrication,
+        error_budget,
         stop_if_asked,
         write_report,
         write_noise_model,
@@ -340,9 +340,10 @@ fn write_run_json<O: Observer>(run: &mut Run<'_, O>) -> Result<(), WorkflowError
     Ok(())
 }
 
-/// The fabrication Monte-Carlo run, when σ_fab > 0.
-fn fabrication<O: Observer>(run: &mut Run<'_, O>) -> Result<(), WorkflowError> {
-    run.summary.fabrication = analysis::fabrication(run.validate, run.observer)?;
+/// The error budget, when the part or the camera adds to the noise.
+fn error_budget<O: Observer>(run: &mut Run<'_, O>) -> Result<(), WorkflowError> {
+    let budget = analysis::error_budget(run.validate, run.observer)?;
+    analysis::add_budget(&mut run.summary, budget);
     Ok(())
 }
 
@@ -465,7 +466,7 @@ mod tests {
         let outcome = run(&config, &mut Silent).unwrap();
         assert_eq!(outcome.solves, 4 * 5);
         assert!(outcome.estimate.is_some_and(|e| e.seconds >= 0.0));
-        assert!(outcome.summary.fabrication.is_none());
+        assert!(outcome.summary.budget.is_none());
         assert!(outcome.image_seconds.is_none() && outcome.summary.images.is_none());
         assert!(config.out_dir.join("report.md").exists());
         assert!(config.out_dir.join("run.json").exists());

@@ -359,6 +359,7 @@ fn write_reports(dir: &Path) {
             ..Default::default()
         },
         fabrication_sigma_mm: 0.0,
+        camera_sigma: Default::default(),
         structure: Some(Default::default()),
         max_hidden: layout_opt::visibility::DEFAULT_MAX_HIDDEN,
         command: "plots test".into(),

@@ -303,6 +303,7 @@ fn validate_counts_the_scenarios_the_supports_hide() {
                 ..Default::default()
             },
             fabrication_sigma_mm: 0.0,
+            camera_sigma: Default::default(),
             structure,
             max_hidden: 0.01,
             command: String::new(),
