@@ -178,7 +178,7 @@ fn budget_markdown(b: &BudgetOverview) -> String {
         budget_sources(b)
     );
     out.push_str(&budget_table(b).markdown());
-    out.push('\n');
+    let _ = writeln!(out, "\n![error budget](error_budget.svg)\n");
     out
 }
 

@@ -5,6 +5,7 @@
 
 use super::markdown::markdown;
 use super::summary::{occluded_pairs, visible, Curve, IdentifiabilityCurve, ValidateSummary};
+use crate::error_model::budget::{BudgetOverview, DepthRow};
 use crate::report::{plots, write_text, ReportError, Table};
 use crate::validate::VisibilityClass;
 use std::path::Path;
@@ -28,6 +29,9 @@ pub fn write(dir: &Path, validation: &ValidateSummary) -> Result<(), ReportError
     write_text(&dir.join("occlusions.csv"), &occlusions_csv)?;
     for curve in &summary.curves {
         write_curve(dir, curve)?;
+    }
+    if let Some(budget) = &summary.error_budget {
+        write_budget_plot(dir, budget)?;
     }
     for curve in &summary.identifiability.curves {
         write_identifiability_curve(dir, curve, summary.identifiability.trials_per_scenario)?;
@@ -162,6 +166,34 @@ fn write_pairs(dir: &Path, summary: &super::summary::Overview) -> Result<(), Rep
     let path = dir.join("worst_viewpoints.csv");
     let csv = table.csv().map_err(|e| ReportError::write(&path, e))?;
     write_text(&path, &csv)
+}
+
+/// `error_budget.svg`: each source's first-order RMS rotation per depth,
+/// the first-order total and the Monte-Carlo total, on a log scale (a
+/// source that adds nothing is left out).
+fn write_budget_plot(dir: &Path, budget: &BudgetOverview) -> Result<(), ReportError> {
+    let line = |name: &str, dashed: bool, pick: &dyn Fn(&DepthRow) -> f64| plots::Series {
+        name: name.into(),
+        points: budget
+            .by_depth
+            .iter()
+            .map(|row| (row.depth_mm, pick(row)))
+            .collect(),
+        dashed,
+    };
+    plots::line_plot(
+        &dir.join("error_budget.svg"),
+        "Error budget: RMS rotation per source",
+        "depth (mm)",
+        "RMS rotation (deg)",
+        &[
+            line("image noise", false, &|r| r.first_order.noise_deg),
+            line("the part", false, &|r| r.first_order.part_deg),
+            line("the camera", false, &|r| r.first_order.camera_deg),
+            line("total, first order", true, &|r| r.first_order.total_deg),
+            line("total, Monte-Carlo", false, &|r| r.monte_carlo.total_deg),
+        ],
+    )
 }
 
 fn write_curve(dir: &Path, curve: &Curve) -> Result<(), ReportError> {
