@@ -57,6 +57,11 @@ pub const MIN_CENTRES_PER_FRAME: usize = 4;
 /// while another marker or a wrong label leaves residuals of pixels.
 pub const DROP_RMS_FACTOR: f64 = 3.0;
 
+/// Nor is a frame dropped whose residual RMS per axis is below this, px:
+/// no reading tells frames apart at a thousandth of a pixel (exact
+/// centres converted from ellipse centres differ by less).
+pub const DROP_FLOOR_PX: f64 = 1e-3;
+
 /// Largest share of the frames that may be dropped before the run refuses:
 /// beyond it the nominal layout, the camera or the labels are wrong.
 pub const MAX_DROPPED_SHARE: f64 = 0.34;
@@ -523,7 +528,10 @@ pub fn characterise(
         let worst = statistic
             .iter()
             .enumerate()
-            .filter(|&(k, _)| frame_rms[k] > DROP_RMS_FACTOR * median_rms)
+            .filter(|&(k, _)| {
+                frame_rms[k] > DROP_RMS_FACTOR * median_rms
+                    && frame_rms[k] * sigma * focal_px / std::f64::consts::SQRT_2 > DROP_FLOOR_PX
+            })
             .map(|(k, &(t, n))| {
                 let dof = (2 * n).saturating_sub(6).max(1) as f64;
                 (k, t / chi_squared_quantile(dof, config.drop_probability))

@@ -1,5 +1,6 @@
 //! The `characterise` run: the frames' labelled centres read (grey frames
-//! through `track`'s reading, or `track`'s JSON lines), the part
+//! through `track`'s reading, `track`'s JSON lines, or `solve` batches),
+//! the part
 //! characterised, and the characterised layout with its report written
 //! together, or nothing (a refusal writes nothing).
 
@@ -8,6 +9,7 @@ use super::{characterise, Characterisation, CharacteriseConfig, CharacteriseErro
 use crate::camera::Camera;
 use crate::config::ConfigError;
 use crate::kernel::{OutputError, OutputPlan};
+use crate::layout::Layout;
 use crate::observer::Observer;
 use crate::pose::Pose;
 use crate::track::analysis::projected_centre_normalised;
@@ -29,7 +31,9 @@ pub enum Source<'a> {
         /// The frames.
         inputs: &'a [PathBuf],
     },
-    /// `track`'s JSON-lines files.
+    /// `track`'s JSON-lines files, or `solve` batch files (a JSON object
+    /// with `problems`: each problem a frame, its object points the
+    /// nominal's, which label its image points).
     Records {
         /// The files.
         inputs: &'a [PathBuf],
@@ -155,7 +159,7 @@ pub fn run(
         Source::Records { inputs } => {
             let mut frames = Vec::new();
             for path in inputs {
-                frames.extend(read_records(path, &config.camera)?);
+                frames.extend(read_records(path, &config.camera, &config.nominal)?);
             }
             frames
         }
@@ -252,19 +256,142 @@ fn frame_centres(
     })
 }
 
-/// The frames of a `track` JSON-lines file: each tracked record's pose and
-/// its whole labelled blobs' projected centres (`centre_px`, less a
-/// `bias` where `--refine` measured one), undistorted. Error records are
-/// frames skipped.
+/// One frame read from a file, or why it is skipped.
+type ReadFrame = Result<FrameCentres, super::SkippedFrame>;
+
+/// The frames of a `track` JSON-lines file ([`read_track_lines`]) or of a
+/// `solve` batch ([`read_batch`]), by its content: a batch is one JSON
+/// object with `problems`.
 fn read_records(
     path: &Path,
     camera: &Camera,
-) -> Result<Vec<Result<FrameCentres, super::SkippedFrame>>, CharacteriseWorkflowError> {
+    nominal: &Layout,
+) -> Result<Vec<ReadFrame>, CharacteriseWorkflowError> {
     let text = std::fs::read_to_string(path).map_err(|e| CharacteriseWorkflowError::Record {
         path: path.to_path_buf(),
         line: 0,
         reason: format!("cannot read: {e}"),
     })?;
+    let batch = serde_json::from_str::<serde_json::Value>(&text)
+        .ok()
+        .is_some_and(|v| v.get("problems").is_some());
+    if batch {
+        read_batch(path, &text, nominal)
+    } else {
+        read_track_lines(path, &text, camera)
+    }
+}
+
+/// Largest distance, mm, between a batch's object point and the nominal
+/// sphere centre it names.
+pub const OBJECT_POINT_MATCH_MM: f64 = 1e-3;
+
+/// The frames of a `solve` batch: each problem's image points, labelled by
+/// the nominal sphere its object point is (within
+/// [`OBJECT_POINT_MATCH_MM`]), undistorted with the batch's camera; a
+/// problem with `sphere_diameter` has ellipse centres, each turned into
+/// the projected centre (`m₀ (C_z² − r²) / C_z²`, the sphere's depth `C_z`
+/// at the pose solved from them). The starting pose is
+/// `ml`'s.
+fn read_batch(
+    path: &Path,
+    text: &str,
+    nominal: &Layout,
+) -> Result<Vec<ReadFrame>, CharacteriseWorkflowError> {
+    let batch =
+        crate::batch::Batch::from_json(text).map_err(|e| CharacteriseWorkflowError::Record {
+            path: path.to_path_buf(),
+            line: 0,
+            reason: e.to_string(),
+        })?;
+    let centres = nominal.positions();
+    Ok(batch
+        .problems
+        .iter()
+        .map(|(id, problem)| {
+            let skipped = |reason: String| super::SkippedFrame {
+                frame: format!("{}#{id}", path.display()),
+                reason,
+            };
+            let problem = problem.as_ref().map_err(|e| skipped(e.clone()))?;
+            let name = format!("{}#{id}", path.display());
+            batch_frame(name, &batch.camera, problem, &centres).map_err(skipped)
+        })
+        .collect())
+}
+
+/// One problem as a frame named `name`: its pose and labelled projected
+/// centres.
+fn batch_frame(
+    name: String,
+    camera: &Camera,
+    problem: &crate::batch::ProblemInput,
+    nominal: &[Vector3<f64>],
+) -> Result<FrameCentres, String> {
+    if problem.object_points.len() != problem.image_points.len() {
+        return Err(format!(
+            "{} object points for {} image points",
+            problem.object_points.len(),
+            problem.image_points.len()
+        ));
+    }
+    let mut labels = Vec::with_capacity(problem.object_points.len());
+    for (k, p) in problem.object_points.iter().enumerate() {
+        let p = Vector3::from(*p);
+        let label = nominal
+            .iter()
+            .position(|x| (x - p).norm() <= OBJECT_POINT_MATCH_MM)
+            .ok_or_else(|| {
+                format!(
+                    "object point {k} ({}, {}, {}) is no sphere centre of the nominal layout",
+                    p.x, p.y, p.z
+                )
+            })?;
+        labels.push(label);
+    }
+    let image = problem
+        .image_points
+        .iter()
+        .map(|u| camera.pixel_to_normalised(&Vector2::from(*u)))
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(|e| e.to_string())?;
+    let object: Vec<Vector3<f64>> = labels.iter().map(|&i| nominal[i]).collect();
+    let pose = crate::pnp::Solver::Ml
+        .solve_best(&object, &image)
+        .map_err(|e| format!("no starting pose: {e}"))?;
+    let centres = labels
+        .iter()
+        .zip(&object)
+        .zip(&image)
+        .map(|((&label, x), m)| {
+            let shrink = match problem.sphere_diameter {
+                Some(d) => {
+                    let r = 0.5 * d;
+                    // m₀ = π(C) · C_z² / (C_z² − r²) (the track conic's).
+                    let depth_squared = pose.transform(x).z.powi(2);
+                    1.0 + r * r / (depth_squared - r * r)
+                }
+                None => 1.0,
+            };
+            (label, m / shrink)
+        })
+        .collect();
+    Ok(FrameCentres {
+        name,
+        pose,
+        centres,
+    })
+}
+
+/// The frames of a `track` JSON-lines file: each tracked record's pose and
+/// its whole labelled blobs' projected centres (`centre_px`, less a
+/// `bias` where `--refine` measured one), undistorted. Error records are
+/// frames skipped.
+fn read_track_lines(
+    path: &Path,
+    text: &str,
+    camera: &Camera,
+) -> Result<Vec<ReadFrame>, CharacteriseWorkflowError> {
     let mut frames = Vec::new();
     for (k, line) in text.lines().enumerate() {
         if line.trim().is_empty() {

@@ -26,7 +26,8 @@ pub struct CharacteriseArgs {
     layout: PathBuf,
     /// Frames of the printed part: 8- or 16-bit greyscale PNG files or
     /// directories of them, read as `track` reads them (its flags below);
-    /// or `track`'s JSON-lines files (.jsonl, .ndjson, .json).
+    /// or `track`'s JSON-lines files (.jsonl, .ndjson, .json), or `solve`
+    /// batch files (.json with "problems"; object points the nominal's).
     #[arg(value_name = "FRAMES", required_unless_present = "plan")]
     frames: Vec<PathBuf>,
     /// The characterised layout to write (JSON, the layout format); its

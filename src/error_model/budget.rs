@@ -619,6 +619,68 @@ mod tests {
     use super::*;
     use crate::layout::Layout;
 
+    /// The paper's biprism and camera under isotropic noise.
+    struct Fixture {
+        object: Vec<Vector3<f64>>,
+        own_sigmas: Vec<Option<f64>>,
+        camera: Camera,
+        noise: NoiseModel,
+    }
+
+    impl Fixture {
+        fn new() -> Fixture {
+            let object = Layout::paper_biprism().positions();
+            Fixture {
+                own_sigmas: vec![None; object.len()],
+                object,
+                camera: Camera::paper(),
+                noise: NoiseModel::default(),
+            }
+        }
+
+        /// Inputs with `part`, `camera_sigma` and `trials`; seed 3, `ml`.
+        fn inputs<'a>(
+            &'a self,
+            part: &'a PartError,
+            camera_sigma: IntrinsicSigma,
+            trials: usize,
+        ) -> BudgetInputs<'a> {
+            BudgetInputs {
+                camera: &self.camera,
+                object: &self.object,
+                layout_sigmas: &self.own_sigmas,
+                sphere_diameter_mm: 10.0,
+                noise: &self.noise,
+                part,
+                camera_sigma,
+                trials,
+                seed: 3,
+                solver: Solver::Ml,
+            }
+        }
+    }
+
+    /// A view at `depth_mm` tilted `tilt_deg`, panned `pan_deg`, 20 mm off
+    /// axis, with σ `sigma_px`.
+    fn scenario(
+        index: usize,
+        depth_mm: f64,
+        tilt_deg: f64,
+        pan_deg: f64,
+        sigma_px: f64,
+    ) -> Scenario {
+        Scenario {
+            index,
+            depth_mm,
+            offset_x_mm: 20.0,
+            offset_y_mm: 0.0,
+            tilt_deg,
+            pan_deg,
+            roll_deg: 0.0,
+            sigma_px,
+        }
+    }
+
     #[test]
     fn intrinsic_sigmas_parse_and_refuse_with_the_reason() {
         let sigma: IntrinsicSigma = "fx=0.5, cy=0.25".parse().unwrap();
@@ -683,47 +745,23 @@ mod tests {
     /// Monte-Carlo RMS on every depth of a small grid.
     #[test]
     fn the_first_order_budget_agrees_with_monte_carlo() {
-        let layout = Layout::paper_biprism();
-        let object = layout.positions();
-        let camera = Camera::paper();
-        let noise = NoiseModel::default();
+        let fixture = Fixture::new();
         let part = PartError::Printed(0.05);
-        let scenarios: Vec<Scenario> = [300.0, 600.0]
-            .iter()
-            .flat_map(|&depth_mm| {
-                [-20.0, 20.0]
-                    .into_iter()
-                    .map(move |tilt_deg| (depth_mm, tilt_deg))
-            })
-            .enumerate()
-            .map(|(index, (depth_mm, tilt_deg))| Scenario {
-                index,
-                depth_mm,
-                offset_x_mm: 20.0,
-                offset_y_mm: 0.0,
-                tilt_deg,
-                pan_deg: 15.0,
-                roll_deg: 0.0,
-                sigma_px: 0.3,
-            })
-            .collect();
-        let inputs = BudgetInputs {
-            camera: &camera,
-            object: &object,
-            layout_sigmas: &vec![None; object.len()],
-            sphere_diameter_mm: layout.sphere_diameter_mm,
-            noise: &noise,
-            part: &part,
-            camera_sigma: IntrinsicSigma {
-                fx: 2.0,
-                fy: 2.0,
-                cx: 1.5,
-                cy: 1.5,
-            },
-            trials: 1500,
-            seed: 3,
-            solver: Solver::Ml,
+        let scenarios: Vec<Scenario> =
+            [(300.0, -20.0), (300.0, 20.0), (600.0, -20.0), (600.0, 20.0)]
+                .iter()
+                .enumerate()
+                .map(|(index, &(depth_mm, tilt_deg))| {
+                    scenario(index, depth_mm, tilt_deg, 15.0, 0.3)
+                })
+                .collect();
+        let camera_sigma = IntrinsicSigma {
+            fx: 2.0,
+            fy: 2.0,
+            cx: 1.5,
+            cy: 1.5,
         };
+        let inputs = fixture.inputs(&part, camera_sigma, 1500);
         let on = |threads: usize| {
             rayon::ThreadPoolBuilder::new()
                 .num_threads(threads)
@@ -756,33 +794,10 @@ mod tests {
 
     #[test]
     fn bad_inputs_and_a_stop_are_errors() {
-        let layout = Layout::paper_biprism();
-        let object = layout.positions();
-        let camera = Camera::paper();
-        let noise = NoiseModel::default();
+        let fixture = Fixture::new();
         let part = PartError::Characterised(vec![Matrix3::identity() * 1e-4; 2]);
-        let inputs = BudgetInputs {
-            camera: &camera,
-            object: &object,
-            layout_sigmas: &vec![None; object.len()],
-            sphere_diameter_mm: layout.sphere_diameter_mm,
-            noise: &noise,
-            part: &part,
-            camera_sigma: IntrinsicSigma::default(),
-            trials: 2,
-            seed: 1,
-            solver: Solver::Ml,
-        };
-        let scenario = Scenario {
-            index: 0,
-            depth_mm: 500.0,
-            offset_x_mm: 0.0,
-            offset_y_mm: 0.0,
-            tilt_deg: 20.0,
-            pan_deg: 10.0,
-            roll_deg: 0.0,
-            sigma_px: 0.2,
-        };
+        let inputs = fixture.inputs(&part, IntrinsicSigma::default(), 2);
+        let scenario = scenario(0, 500.0, 20.0, 10.0, 0.2);
         assert_eq!(
             budget(&inputs, &[scenario], &|| false)
                 .unwrap_err()

@@ -421,3 +421,49 @@ fn the_plan_lists_views_and_sigmas() {
     assert_eq!(sigmas.len(), 7, "{text}");
     assert!(sigmas.iter().all(|&s| s > 0.0 && s < 0.02), "{sigmas:?}");
 }
+
+/// A `solve` batch of the render's exact centres (object points the
+/// nominal's, which label them): ellipse centres with `sphere_diameter` in
+/// half the problems, projected centres in the others. With no reading in
+/// between, the printed centres come back to rounding.
+#[test]
+fn a_solve_batch_of_exact_centres_gives_the_part_back_exactly() {
+    let nominal = nominal();
+    let mut problems = Vec::new();
+    for k in 0..50 {
+        let record: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(noise_free().join(format!("frames/printed-{k:03}.json")))
+                .unwrap(),
+        )
+        .unwrap();
+        let ellipses = k % 2 == 0;
+        let key = if ellipses {
+            "ellipse_centre_px"
+        } else {
+            "projected_centre_px"
+        };
+        let spheres = record["spheres"].as_array().unwrap();
+        let mut problem = serde_json::json!({
+            "id": format!("view-{k}"),
+            "object_points": nominal.points.iter().map(|p| [p.position.x, p.position.y, p.position.z]).collect::<Vec<_>>(),
+            "image_points": spheres.iter().map(|s| s[key].clone()).collect::<Vec<_>>(),
+        });
+        if ellipses {
+            problem["sphere_diameter"] = serde_json::json!(nominal.sphere_diameter_mm);
+        }
+        problems.push(problem);
+    }
+    let camera = std::fs::read_to_string(noise_free().join("frames/printed-000.json")).unwrap();
+    let camera: serde_json::Value = serde_json::from_str(&camera).unwrap();
+    let batch = serde_json::json!({"camera": camera["camera"], "problems": problems});
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("batch.json");
+    std::fs::write(&path, batch.to_string()).unwrap();
+    let out = dir.path().join("measured.json");
+    characterise(&[&path], &out, &[]).success();
+    for (k, (error, _)) in errors(&out, false).into_iter().enumerate() {
+        assert!(error < 1e-5, "sphere {k}: {error} mm");
+    }
+    let layout = Layout::load(&out).unwrap();
+    assert_eq!(layout.provenance.unwrap()["characterised"]["frames"], 50);
+}
