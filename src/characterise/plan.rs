@@ -21,7 +21,7 @@ use crate::camera::Camera;
 use crate::layout::Layout;
 use crate::pose::Pose;
 use crate::scenario::{sphere_images, visibility};
-use nalgebra::{DMatrix, Rotation3, Vector3};
+use nalgebra::{DMatrix, Matrix3, Rotation3, Vector3};
 use serde::Serialize;
 
 /// The plan's tilts and pans, degrees (every pair).
@@ -156,6 +156,48 @@ fn view_information(shape: &[Vector3<f64>], view: &PlannedView) -> Option<DMatri
     .ok()
 }
 
+/// Each centre's predicted 3×3 covariance, mm², once `layout` is
+/// characterised from the capture plan's views (at the nearest depth in
+/// `[near_mm, far_mm]` where they fit) with `sigma_px` of centre noise per
+/// axis, at the nominal's scale; `None` when fewer than
+/// [`MIN_FRAMES`] views see four spheres or the views leave the shape
+/// unobserved.
+pub fn predicted_covariances(
+    layout: &Layout,
+    camera: &Camera,
+    near_mm: f64,
+    far_mm: f64,
+    sigma_px: f64,
+) -> Option<Vec<Matrix3<f64>>> {
+    let depth_mm = nearest_depth(layout, camera, near_mm, far_mm);
+    let views = views(layout, camera, depth_mm);
+    if views.len() < MIN_FRAMES {
+        return None;
+    }
+    let shape = layout.positions();
+    let focal = 0.5 * (camera.fx() + camera.fy());
+    let covariance = shape_covariance(
+        &plan_information(&shape, &views),
+        &shape,
+        (sigma_px / focal).powi(2),
+        &[],
+    )?;
+    Some(
+        (0..shape.len())
+            .map(|i| covariance.fixed_view::<3, 3>(3 * i, 3 * i).into_owned())
+            .collect(),
+    )
+}
+
+/// The summed reduced information of `shape` over `views`.
+fn plan_information(shape: &[Vector3<f64>], views: &[PlannedView]) -> DMatrix<f64> {
+    let n = 3 * shape.len();
+    views
+        .iter()
+        .filter_map(|v| view_information(shape, v))
+        .fold(DMatrix::zeros(n, n), |sum, s| sum + s)
+}
+
 /// Each sphere's largest predicted 1σ, mm, from `information` at centre
 /// noise σ² (normalised units²); `None` where the views leave the shape
 /// unobserved.
@@ -232,11 +274,7 @@ pub fn capture_plan(
     let depth_mm = nearest_depth(layout, camera, near_mm, far_mm);
     let views = views(layout, camera, depth_mm);
     let shape = layout.positions();
-    let n = 3 * shape.len();
-    let information = views
-        .iter()
-        .filter_map(|v| view_information(&shape, v))
-        .fold(DMatrix::zeros(n, n), |sum, s| sum + s);
+    let information = plan_information(&shape, &views);
     let focal = 0.5 * (camera.fx() + camera.fy());
     let too_few = || PlanError::TooFewViews {
         layout: layout.name.clone(),

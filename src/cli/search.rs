@@ -127,6 +127,7 @@ fn config(args: SearchArgs, global: &GlobalOptions) -> anyhow::Result<SearchConf
             seed: global.seed,
             noise: args.noise_model,
             observation: args.observation,
+            chain: args.chain,
         },
         search: SearchSettings {
             optimiser: args.optimiser,

@@ -348,21 +348,35 @@ pub struct BudgetInputs<'a> {
     pub solver: Solver,
 }
 
-/// The first-order covariances of one scenario: noise, part, camera.
-struct Linear {
-    noise: SMatrix<f64, 6, 6>,
-    part: SMatrix<f64, 6, 6>,
-    camera: SMatrix<f64, 6, 6>,
+/// The first-order pose covariances of one view, one per source, of
+/// `(ω [rad], δt [mm])` (module docs).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SourceCovariances {
+    /// Image noise.
+    pub noise: SMatrix<f64, 6, 6>,
+    /// The part.
+    pub part: SMatrix<f64, 6, 6>,
+    /// The camera.
+    pub camera: SMatrix<f64, 6, 6>,
 }
 
-fn rotation_deg(covariance: &SMatrix<f64, 6, 6>) -> f64 {
+impl SourceCovariances {
+    /// All three together.
+    pub fn total(&self) -> SMatrix<f64, 6, 6> {
+        self.noise + self.part + self.camera
+    }
+}
+
+/// RMS geodesic rotation of a pose covariance, degrees.
+pub fn rms_rotation_deg(covariance: &SMatrix<f64, 6, 6>) -> f64 {
     (covariance[(0, 0)] + covariance[(1, 1)] + covariance[(2, 2)])
         .max(0.0)
         .sqrt()
         .to_degrees()
 }
 
-fn translation_mm(covariance: &SMatrix<f64, 6, 6>) -> f64 {
+/// RMS translation of a pose covariance, mm.
+pub fn rms_translation_mm(covariance: &SMatrix<f64, 6, 6>) -> f64 {
     (covariance[(3, 3)] + covariance[(4, 4)] + covariance[(5, 5)])
         .max(0.0)
         .sqrt()
@@ -374,37 +388,52 @@ fn intrinsic_jacobian(camera: &Camera, pose: &Pose, p: &Vector3<f64>) -> SMatrix
     SMatrix::<f64, 2, 4>::new(distorted.x, 0.0, 1.0, 0.0, 0.0, distorted.y, 0.0, 1.0)
 }
 
-fn linear(inputs: &BudgetInputs, pose: &Pose, sigmas: &[f64]) -> Result<Linear, FirstOrderError> {
+/// Each source's first-order pose covariance at `pose`: per-point pixel σ
+/// `sigmas`, each centre's covariance `part` (mm²), the intrinsics'
+/// `camera_sigma`.
+pub fn source_covariances(
+    camera: &Camera,
+    pose: &Pose,
+    object: &[Vector3<f64>],
+    sigmas: &[f64],
+    part: &[Matrix3<f64>],
+    camera_sigma: IntrinsicSigma,
+) -> Result<SourceCovariances, FirstOrderError> {
+    if sigmas.len() != object.len() || part.len() != object.len() {
+        return Err(FirstOrderError::MismatchedLengths {
+            points: object.len(),
+            sigmas: sigmas.len().min(part.len()),
+        });
+    }
     let mut information = SMatrix::<f64, 6, 6>::zeros();
-    for (index, (p, &sigma)) in inputs.object.iter().zip(sigmas).enumerate() {
+    for (index, (p, &sigma)) in object.iter().zip(sigmas).enumerate() {
         if !(sigma > 0.0 && sigma.is_finite()) {
             return Err(FirstOrderError::BadSigma(sigma));
         }
         if pose.transform(p).z <= 0.0 {
             return Err(FirstOrderError::BehindCamera(index));
         }
-        let j = pixel_jacobian(inputs.camera, pose, p);
+        let j = pixel_jacobian(camera, pose, p);
         information += j.transpose() * j / (sigma * sigma);
     }
     let cholesky = information.cholesky().ok_or(FirstOrderError::Singular)?;
     let noise = cholesky.inverse();
-    let mut part = SMatrix::<f64, 6, 6>::zeros();
+    let mut part_covariance = SMatrix::<f64, 6, 6>::zeros();
     let mut camera_map = SMatrix::<f64, 6, 4>::zeros();
-    for (i, (p, &sigma)) in inputs.object.iter().zip(sigmas).enumerate() {
-        let j = pixel_jacobian(inputs.camera, pose, p);
+    for ((p, &sigma), centre) in object.iter().zip(sigmas).zip(part) {
+        let j = pixel_jacobian(camera, pose, p);
         // Aᵢ = (JᵀWJ)⁻¹ Jᵢᵀ Wᵢ.
         let a = cholesky.solve(&(j.transpose() / (sigma * sigma)));
-        let ab = a * object_point_jacobian(inputs.camera, pose, p);
-        part += ab * inputs.part.covariance(i) * ab.transpose();
-        camera_map += a * intrinsic_jacobian(inputs.camera, pose, p);
+        let ab = a * object_point_jacobian(camera, pose, p);
+        part_covariance += ab * centre * ab.transpose();
+        camera_map += a * intrinsic_jacobian(camera, pose, p);
     }
-    let sigma = inputs.camera_sigma.as_vector();
+    let sigma = camera_sigma.as_vector();
     let theta = SMatrix::<f64, 4, 4>::from_diagonal(&sigma.component_mul(&sigma));
-    let camera = camera_map * theta * camera_map.transpose();
-    Ok(Linear {
+    Ok(SourceCovariances {
         noise,
-        part,
-        camera,
+        part: part_covariance,
+        camera: camera_map * theta * camera_map.transpose(),
     })
 }
 
@@ -503,13 +532,21 @@ fn budget_scenario(
             inputs.noise.point_sigma(scenario.sigma_px, *own, radius)
         })
         .collect();
-    let Ok(linear) = linear(inputs, &truth, &sigmas) else {
+    let part: Vec<Matrix3<f64>> = (0..inputs.object.len())
+        .map(|i| inputs.part.covariance(i))
+        .collect();
+    let Ok(linear) = source_covariances(
+        inputs.camera,
+        &truth,
+        inputs.object,
+        &sigmas,
+        &part,
+        inputs.camera_sigma,
+    ) else {
         return Ok(None);
     };
-    let roots: Vec<Matrix3<f64>> = (0..inputs.object.len())
-        .map(|i| square_root(&inputs.part.covariance(i)))
-        .collect();
-    let total = linear.noise + linear.part + linear.camera;
+    let roots: Vec<Matrix3<f64>> = part.iter().map(square_root).collect();
+    let total = linear.total();
     let mut measured = [0.0; 4];
     let mut failed = 0;
     for (run, draw) in RUNS.iter().enumerate() {
@@ -541,12 +578,12 @@ fn budget_scenario(
     Ok(Some(BudgetOutcome {
         scenario: *scenario,
         first_order: SourceFigures {
-            noise_deg: rotation_deg(&linear.noise),
-            part_deg: rotation_deg(&linear.part),
-            camera_deg: rotation_deg(&linear.camera),
-            total_deg: rotation_deg(&total),
+            noise_deg: rms_rotation_deg(&linear.noise),
+            part_deg: rms_rotation_deg(&linear.part),
+            camera_deg: rms_rotation_deg(&linear.camera),
+            total_deg: rms_rotation_deg(&total),
         },
-        total_translation_mm: translation_mm(&total),
+        total_translation_mm: rms_translation_mm(&total),
         monte_carlo: SourceFigures {
             noise_deg: measured[0],
             part_deg: measured[1],

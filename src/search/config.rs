@@ -213,6 +213,7 @@ impl SearchConfig {
                 seed,
                 noise: NoiseModel::default(),
                 observation: crate::sphere_image::Observation::default(),
+                chain: Default::default(),
             },
             search: SearchSettings {
                 optimiser: Optimiser::NelderMead,

@@ -124,6 +124,7 @@ pub use supports::{held_out_with_supports, SUPPORT_ROUNDS, SUPPORT_ROUND_ITERATI
 use supports::{Following, SupportRule};
 
 use crate::camera::Camera;
+use crate::error_model::budget;
 use crate::error_model::first_order::{pose_covariance, pose_covariance_and_bias};
 use crate::error_model::transfer;
 use crate::family::{Constraints, Violations};
@@ -406,6 +407,127 @@ impl Aggregate {
     }
 }
 
+/// The chain the objective scores: what stands between the layout and
+/// the pose a user reads, besides the image noise.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize)]
+#[serde(tag = "kind", rename_all = "kebab-case")]
+pub enum Chain {
+    /// The part is the layout, read as `observation` says (with ellipse
+    /// centres, the `crlb` term carries their pose bias).
+    #[default]
+    Ideal,
+    /// A part printed with every centre coordinate off by `sigma_mm`, read
+    /// as `track` reads it: projected centres, no ellipse bias; the `crlb`
+    /// term adds the part's pose covariance
+    /// ([`crate::error_model::budget`]).
+    Printed {
+        /// σ per coordinate, mm.
+        sigma_mm: f64,
+    },
+    /// A printed part characterised from the default capture plan
+    /// ([`crate::characterise::plan`]) at `sigma_px` of centre noise, read
+    /// as projected centres; the `crlb` term adds the pose covariance of
+    /// the characterised centres' remaining error.
+    Characterised {
+        /// Centre noise of the capture, px per axis.
+        sigma_px: f64,
+    },
+}
+
+impl Chain {
+    /// Each centre's covariance, mm², for a layout of `points`, or `None`
+    /// for the ideal chain; `Some(None)` when the capture plan cannot
+    /// characterise the layout.
+    fn part_covariances(
+        &self,
+        points: &[Vector3<f64>],
+        sphere_diameter_mm: f64,
+        camera: &Camera,
+        depth_range_mm: (f64, f64),
+    ) -> Option<Option<Vec<nalgebra::Matrix3<f64>>>> {
+        match *self {
+            Chain::Ideal => None,
+            Chain::Printed { sigma_mm } => Some(Some(vec![
+                nalgebra::Matrix3::identity()
+                    * (sigma_mm * sigma_mm);
+                points.len()
+            ])),
+            Chain::Characterised { sigma_px } => {
+                let layout = crate::layout::Layout {
+                    name: "candidate".into(),
+                    points: points
+                        .iter()
+                        .enumerate()
+                        .map(|(i, p)| crate::layout::LayoutPoint::new(format!("P{i}"), *p))
+                        .collect(),
+                    sphere_diameter_mm,
+                    family: None,
+                    provenance: None,
+                };
+                Some(crate::characterise::plan::predicted_covariances(
+                    &layout,
+                    camera,
+                    depth_range_mm.0,
+                    depth_range_mm.1,
+                    sigma_px,
+                ))
+            }
+        }
+    }
+
+    /// How reports name it.
+    pub fn describe(&self) -> String {
+        match self {
+            Chain::Ideal => "ideal (the part is the layout)".into(),
+            Chain::Printed { sigma_mm } => {
+                format!("printed (σ {sigma_mm} mm per centre coordinate), read as projected centres")
+            }
+            Chain::Characterised { sigma_px } => format!(
+                "printed and characterised from the default capture plan ({sigma_px} px centre noise), read as projected centres"
+            ),
+        }
+    }
+}
+
+/// Default σ of a printed part's centres, mm per coordinate (an FDM or SLA
+/// printer's ±0.1 mm).
+pub const DEFAULT_PRINTED_SIGMA_MM: f64 = 0.1;
+
+impl FromStr for Chain {
+    type Err = String;
+
+    /// `ideal`, `printed[:SIGMA_MM]` or `characterised[:SIGMA_PX]`.
+    fn from_str(text: &str) -> Result<Self, Self::Err> {
+        let (kind, value) = match text.split_once(':') {
+            Some((kind, value)) => (kind, Some(value)),
+            None => (text, None),
+        };
+        let number = |default: f64, unit: &str| -> Result<f64, String> {
+            let Some(value) = value else {
+                return Ok(default);
+            };
+            match value.trim().parse::<f64>() {
+                Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
+                _ => Err(format!(
+                    "the chain's σ must be a positive number of {unit}, got '{value}'"
+                )),
+            }
+        };
+        match kind.trim() {
+            "ideal" if value.is_none() => Ok(Chain::Ideal),
+            "printed" => Ok(Chain::Printed {
+                sigma_mm: number(DEFAULT_PRINTED_SIGMA_MM, "mm")?,
+            }),
+            "characterised" | "characterized" => Ok(Chain::Characterised {
+                sigma_px: number(crate::characterise::plan::DEFAULT_PLAN_SIGMA_PX, "px")?,
+            }),
+            _ => Err(format!(
+                "unknown chain '{text}'; use ideal, printed[:SIGMA_MM] or characterised[:SIGMA_PX]"
+            )),
+        }
+    }
+}
+
 /// Everything the objective needs besides the layout.
 #[derive(Debug, Clone, Serialize)]
 pub struct ObjectiveSettings {
@@ -426,8 +548,11 @@ pub struct ObjectiveSettings {
     /// Pixel noise model.
     pub noise: NoiseModel,
     /// What a sphere's image point is; with ellipse centres the `crlb` term
-    /// carries the first-order pose bias, `√(rms² + bias²)`.
+    /// carries the first-order pose bias, `√(rms² + bias²)`. Only the ideal
+    /// chain reads it: the others read projected centres.
     pub observation: Observation,
+    /// The chain scored (the part's error beside the image noise).
+    pub chain: Chain,
 }
 
 /// One term's raw aggregates.
@@ -866,6 +991,28 @@ impl Evaluator {
         let reference = reference_index(points);
         let mut image_bias = Vec::with_capacity(points.len());
         let radius_mm = 0.5 * self.constraints.sphere_diameter_mm;
+        // The chain's part: each centre's covariance (None: the ideal
+        // chain; Some(None): the capture plan cannot characterise it, and
+        // no scenario can be scored).
+        let depths = self
+            .scenarios
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), s| {
+                (lo.min(s.depth_mm), hi.max(s.depth_mm))
+            });
+        let part = match needs_models {
+            true => self.settings.chain.part_covariances(
+                points,
+                self.constraints.sphere_diameter_mm,
+                &self.camera,
+                depths,
+            ),
+            false => None,
+        };
+        let observation = match part {
+            None => self.settings.observation,
+            Some(_) => Observation::Centre,
+        };
         let own;
         let screen;
         // A repair round's part, carried to these spheres and judged on
@@ -974,12 +1121,29 @@ impl Evaluator {
             }
             for (k, (term, _)) in terms.iter().enumerate() {
                 let value = match term {
-                    Term::Crlb => match self.settings.observation {
-                        Observation::Centre => {
-                            pose_covariance(&self.camera, &pose, points, &sigmas)
+                    Term::Crlb => match observation {
+                        Observation::Centre => match &part {
+                            None => pose_covariance(&self.camera, &pose, points, &sigmas)
                                 .ok()
-                                .map(|c| (c.rms_rotation_deg(), c.rms_translation_mm()))
-                        }
+                                .map(|c| (c.rms_rotation_deg(), c.rms_translation_mm())),
+                            Some(None) => None,
+                            Some(Some(blocks)) => budget::source_covariances(
+                                &self.camera,
+                                &pose,
+                                points,
+                                &sigmas,
+                                blocks,
+                                budget::IntrinsicSigma::default(),
+                            )
+                            .ok()
+                            .map(|c| {
+                                let total = c.total();
+                                (
+                                    budget::rms_rotation_deg(&total),
+                                    budget::rms_translation_mm(&total),
+                                )
+                            }),
+                        },
                         // The bias of ellipse-centre observations adds to
                         // the random part in quadrature (an RMS error).
                         Observation::EllipseCentre => {
@@ -1037,7 +1201,7 @@ impl Evaluator {
                 solvers: vec![*solver],
                 noise: self.settings.noise,
                 gross_threshold_deg: DEFAULT_GROSS_THRESHOLD_DEG,
-                observation: self.settings.observation,
+                observation,
             };
             match montecarlo::run(&target, &in_front, &config, &|_| {}) {
                 Ok(outcomes) => {
@@ -1268,6 +1432,7 @@ mod tests {
                 seed: 1,
                 noise: NoiseModel::default(),
                 observation: Observation::default(),
+                chain: Default::default(),
             },
             Constraints {
                 envelope: Envelope::new([100.0; 3]).unwrap(),
@@ -1378,6 +1543,81 @@ mod tests {
                 .unwrap()
                 .to_string(),
             "crlb:0.5+mc:ml:0.5"
+        );
+    }
+
+    #[test]
+    fn chains_parse_and_refuse_with_the_reason() {
+        assert_eq!("ideal".parse::<Chain>().unwrap(), Chain::Ideal);
+        assert_eq!(
+            "printed".parse::<Chain>().unwrap(),
+            Chain::Printed {
+                sigma_mm: DEFAULT_PRINTED_SIGMA_MM
+            }
+        );
+        assert_eq!(
+            "printed:0.2".parse::<Chain>().unwrap(),
+            Chain::Printed { sigma_mm: 0.2 }
+        );
+        assert_eq!(
+            "characterised:0.05".parse::<Chain>().unwrap(),
+            Chain::Characterised { sigma_px: 0.05 }
+        );
+        assert_eq!(
+            "printed:-1".parse::<Chain>().unwrap_err(),
+            "the chain's σ must be a positive number of mm, got '-1'"
+        );
+        assert!("ideal:3"
+            .parse::<Chain>()
+            .unwrap_err()
+            .starts_with("unknown chain"));
+        assert!("cast"
+            .parse::<Chain>()
+            .unwrap_err()
+            .starts_with("unknown chain"));
+    }
+
+    /// A printed chain reads projected centres (no ellipse bias) and adds
+    /// the part's covariance: with a vanishing σ it scores the centre
+    /// observation exactly; a characterised part lies between the ideal
+    /// part and a printed one.
+    #[test]
+    fn the_chain_adds_the_parts_error_and_reads_projected_centres() {
+        let base = evaluator("crlb");
+        let points = crate::synthetic::biprism_points(50.0);
+        let rotation = |chain: Chain, observation: Observation| {
+            let e = Evaluator::new(
+                base.camera,
+                base.scenarios.clone(),
+                ObjectiveSettings {
+                    chain,
+                    observation,
+                    ..base.settings.clone()
+                },
+                base.constraints,
+                &points,
+            );
+            e.evaluate(&points, &[None; 7]).terms[0]
+                .rotation_deg
+                .unwrap()
+        };
+        let centre = rotation(Chain::Ideal, Observation::Centre);
+        let ellipse = rotation(Chain::Ideal, Observation::EllipseCentre);
+        assert!(ellipse > centre, "{ellipse} vs {centre}");
+        let tiny = rotation(
+            Chain::Printed { sigma_mm: 1e-9 },
+            Observation::EllipseCentre,
+        );
+        assert!((tiny / centre - 1.0).abs() < 1e-9, "{tiny} vs {centre}");
+        let printed = rotation(Chain::Printed { sigma_mm: 0.1 }, Observation::EllipseCentre);
+        let characterised = rotation(
+            Chain::Characterised { sigma_px: 0.02 },
+            Observation::EllipseCentre,
+        );
+        assert!(printed > 1.01 * centre, "{printed} vs {centre}");
+        assert!(
+            characterised > centre && characterised < printed,
+            "{characterised} between {centre} and {printed}"
         );
     }
 

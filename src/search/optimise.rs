@@ -1110,6 +1110,7 @@ pub(crate) mod tests {
                 seed: 1,
                 noise: NoiseModel::default(),
                 observation: crate::sphere_image::Observation::default(),
+                chain: Default::default(),
             },
             Constraints {
                 envelope,

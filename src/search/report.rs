@@ -436,9 +436,9 @@ fn markdown(summary: &SearchSummary, table: &Table) -> String {
     );
     let _ = writeln!(
         out,
-        "| objective | `{}`, aggregate {:?}, translation weight {}, availability weight {}, noise {}, seed {} |",
+        "| objective | `{}`, aggregate {:?}, translation weight {}, availability weight {}, noise {}, seed {}; chain: {} |",
         h.objective.objective, h.objective.aggregate, h.objective.translation_weight, h.objective.availability_weight,
-        h.objective.noise.describe(), h.objective.seed
+        h.objective.noise.describe(), h.objective.seed, h.objective.chain.describe()
     );
     let floor = match (h.objective.min_availability, v.availability_floor) {
         (AvailabilityFloor::None, _) | (_, None) => {

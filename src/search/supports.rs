@@ -459,6 +459,7 @@ mod tests {
                 seed: 1,
                 noise: NoiseModel::default(),
                 observation: crate::sphere_image::Observation::default(),
+                chain: Default::default(),
             },
             Constraints {
                 envelope,

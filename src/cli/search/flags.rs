@@ -124,6 +124,14 @@ pub struct SearchArgs {
     /// bias) or `centre` (its projected centre). Noise is added on top.
     #[arg(long, default_value = "ellipse-centre")]
     pub(super) observation: Observation,
+    /// The chain the crlb term scores: ideal (the part is the layout, read
+    /// as --observation says), printed[:SIGMA_MM] (a part printed to σ per
+    /// centre coordinate, default 0.1 mm, read as projected centres, as
+    /// track reads it) or characterised[:SIGMA_PX] (printed, then
+    /// characterised from characterise --plan's views at σ px of centre
+    /// noise, default 0.02).
+    #[arg(long, default_value = "ideal", value_name = "CHAIN")]
+    pub(super) chain: layout_opt::search::Chain,
     /// Optimiser: nelder-mead, pso or annealing (the last two are followed by
     /// a Nelder–Mead polish).
     #[arg(long, default_value = "nelder-mead")]
