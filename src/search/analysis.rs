@@ -33,7 +33,7 @@ use super::front::{self, FrontFiles};
 use super::identify::{enforce_identifiability, Quiet, IDENTIFY_ROUNDS};
 use super::optimise::{self, Candidate, OptimiseOutcome, SearchObserver, SearchSettings};
 use super::summary::{
-    verdicts, HeldOutCheck, IdentifyBooks, SearchHeader, SearchSummary, SupportsBooks,
+    verdicts, ChainRow, HeldOutCheck, IdentifyBooks, SearchHeader, SearchSummary, SupportsBooks,
 };
 use super::supports::{enforce_supports, PrintedParts, RepairBudget, SUPPORT_ROUNDS};
 use super::{Evaluator, IdentifyScope};
@@ -43,6 +43,7 @@ use crate::montecarlo::{MonteCarloConfig, MonteCarloError, DEFAULT_GROSS_THRESHO
 use crate::observer::{watch, Observer};
 use crate::validate::{self, ValidateConfig, ValidateError};
 use crate::volume::WorkingVolume;
+use nalgebra::Vector3;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Arc;
 use std::time::Instant;
@@ -388,6 +389,7 @@ impl Run<'_, '_> {
         let winner = self.winner(observer, &outcome)?;
         let (rows, seeds, ranges) = self.compare(observer, &outcome, &winner)?;
         let held_out = self.held_out(&winner);
+        let chains = self.chains(&winner);
         let held_out_with_supports = printed
             .as_ref()
             .map(|(_, parts)| self.held_out_with_supports(&winner, parts));
@@ -425,6 +427,7 @@ impl Run<'_, '_> {
             supports: printed.map(|(books, _)| books),
             front: front.as_ref().map(|f| f.report.clone()),
             identifiability: identify_books,
+            chains,
         };
         let validation = self.validate(observer, &winner, &summary)?;
         Ok(Finished {
@@ -681,6 +684,56 @@ impl Run<'_, '_> {
 
     /// First-order figures of the winner and the paper's biprism on a
     /// held-out grid ([`held_out_check`]).
+    /// The winner and the paper's biprism under every chain
+    /// ([`super::Chain`]: ideal, printed to 0.1 mm, characterised from the
+    /// capture plan at 0.02 px), scored by the `crlb` term on the search's
+    /// scenarios, noise and weights, the objective's other settings kept.
+    fn chains(&self, winner: &Layout) -> Vec<ChainRow> {
+        let config = self.config();
+        let paper = self.hand[0].positions();
+        let chains = [
+            super::Chain::Ideal,
+            super::Chain::Printed {
+                sigma_mm: super::DEFAULT_PRINTED_SIGMA_MM,
+            },
+            super::Chain::Characterised {
+                sigma_px: crate::characterise::plan::DEFAULT_PLAN_SIGMA_PX,
+            },
+        ];
+        chains
+            .into_iter()
+            .map(|chain| {
+                let evaluator = Evaluator::new(
+                    config.camera,
+                    config.volume.scenarios(&config.camera),
+                    super::ObjectiveSettings {
+                        objective: "crlb".parse().expect("crlb is an objective"),
+                        chain,
+                        ..config.objective.clone()
+                    },
+                    config.constraints,
+                    &paper,
+                );
+                let rotation = |points: &[Vector3<f64>], sigmas: &[Option<f64>]| {
+                    let evaluation = evaluator.evaluate(points, sigmas);
+                    (
+                        evaluation.terms.first().and_then(|t| t.rotation_deg),
+                        evaluation.accuracy,
+                    )
+                };
+                let (winner_rotation_deg, winner_accuracy) =
+                    rotation(&winner.positions(), &winner.point_sigmas());
+                let (paper_rotation_deg, _) = rotation(&paper, &self.hand[0].point_sigmas());
+                ChainRow {
+                    chain,
+                    winner_rotation_deg,
+                    paper_rotation_deg,
+                    winner_accuracy,
+                }
+            })
+            .collect()
+    }
+
     fn held_out(&self, winner: &Layout) -> HeldOutCheck {
         held_out_check(self.config(), &self.evaluator, winner, &self.hand[0])
     }

@@ -225,6 +225,25 @@ pub struct SearchSummary {
     pub front: Option<FrontReport>,
     /// How the identifiability floor was enforced (None: no floor).
     pub identifiability: Option<IdentifyBooks>,
+    /// The winner and the paper's biprism under every chain
+    /// ([`super::Chain`]), on the search's own scenarios.
+    pub chains: Vec<ChainRow>,
+}
+
+/// The winner and the paper's biprism under one chain: the `crlb` term's
+/// aggregated RMS rotation of each, on the search's scenarios and noise.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ChainRow {
+    /// The chain.
+    pub chain: super::Chain,
+    /// The winner's aggregated RMS rotation, degrees.
+    pub winner_rotation_deg: Option<f64>,
+    /// The paper's biprism's, degrees.
+    pub paper_rotation_deg: Option<f64>,
+    /// The winner's accuracy: its objective's accuracy part relative to
+    /// the paper's biprism (1 = as good) under the chain, rotation and
+    /// translation weighed as the search weighs them.
+    pub winner_accuracy: f64,
 }
 
 /// Computes the verdicts: rows are winner, start, then the hand designs with

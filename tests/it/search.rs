@@ -75,6 +75,7 @@ fn search_writes_a_valid_layout_and_a_report() {
         "seven-cube-corners",
         "tetrahedron-with-centre",
         "## Verdicts",
+        "## Under every chain",
         "winner-validation/report.md",
     ] {
         assert!(report.contains(needle), "report.md lacks {needle:?}");
@@ -98,6 +99,25 @@ fn search_writes_a_valid_layout_and_a_report() {
         "winner {winner} worse than its start {start}"
     );
     assert!(summary["verdicts"]["winner_feasible"].as_bool().unwrap());
+    // The winner and the paper's biprism under every chain: the printed
+    // part adds error to both; the ideal chain scores the search's own
+    // objective, so the winner's accuracy there is its design row's.
+    let chains = summary["chains"].as_array().unwrap();
+    let kinds: Vec<&str> = chains
+        .iter()
+        .map(|c| c["chain"]["kind"].as_str().unwrap())
+        .collect();
+    assert_eq!(kinds, ["ideal", "printed", "characterised"]);
+    let rotation = |k: usize, who: &str| chains[k][who].as_f64().unwrap();
+    for who in ["winner_rotation_deg", "paper_rotation_deg"] {
+        assert!(rotation(1, who) > rotation(2, who), "{chains:?}");
+    }
+    let ideal_accuracy = chains[0]["winner_accuracy"].as_f64().unwrap();
+    let design_accuracy = designs[0]["evaluation"]["accuracy"].as_f64().unwrap();
+    assert!(
+        (ideal_accuracy - design_accuracy).abs() < 1e-9,
+        "{ideal_accuracy} vs {design_accuracy}"
+    );
     // The report leads with the answer, from the summary's figures: the
     // winner, its availability against the paper's biprism's, the command
     // and the layout file, all before the provenance table.
