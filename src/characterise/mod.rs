@@ -334,12 +334,23 @@ impl Characterisation {
         }
         layout.name = format!("{}-characterised", nominal.name);
         layout.family = None;
-        let sigma: serde_json::Map<String, serde_json::Value> = self
-            .names
-            .iter()
-            .zip(&self.covariance_mm2)
-            .map(|(name, c)| (name.clone(), serde_json::json!(c)))
-            .collect();
+        // A JSON object of one value per point, keyed by the point's name.
+        let per_point =
+            |values: Vec<serde_json::Value>| -> serde_json::Map<String, serde_json::Value> {
+                self.names.iter().cloned().zip(values).collect()
+            };
+        let largest_sigma = per_point(
+            self.sigma_axes_mm
+                .iter()
+                .map(|s| serde_json::json!(s[0]))
+                .collect(),
+        );
+        let covariances = per_point(
+            self.covariance_mm2
+                .iter()
+                .map(|c| serde_json::json!(c))
+                .collect(),
+        );
         layout.provenance = Some(serde_json::json!({
             "command": command,
             "version": env!("CARGO_PKG_VERSION"),
@@ -353,8 +364,8 @@ impl Characterisation {
                 "residual_rms_px": self.residual_rms_px,
                 "sigma_px": self.sigma_px,
                 "scale": self.scale,
-                "sigma_mm": self.names.iter().zip(&self.sigma_axes_mm).map(|(n, s)| (n.clone(), serde_json::json!(s[0]))).collect::<serde_json::Map<_, _>>(),
-                "covariance_mm2": sigma,
+                "sigma_mm": largest_sigma,
+                "covariance_mm2": covariances,
             }
         }));
         layout
