@@ -31,7 +31,7 @@
 //! not depend on the thread count.
 
 use super::fabrication::object_point_jacobian;
-use super::first_order::{pixel_jacobian, FirstOrderError};
+use super::first_order::{pixel_jacobian, pose_information, FirstOrderError};
 use crate::camera::Camera;
 use crate::noise::NoiseModel;
 use crate::pnp::Solver;
@@ -399,23 +399,13 @@ pub fn source_covariances(
     part: &[Matrix3<f64>],
     camera_sigma: IntrinsicSigma,
 ) -> Result<SourceCovariances, FirstOrderError> {
-    if sigmas.len() != object.len() || part.len() != object.len() {
+    if part.len() != object.len() {
         return Err(FirstOrderError::MismatchedLengths {
             points: object.len(),
-            sigmas: sigmas.len().min(part.len()),
+            sigmas: part.len(),
         });
     }
-    let mut information = SMatrix::<f64, 6, 6>::zeros();
-    for (index, (p, &sigma)) in object.iter().zip(sigmas).enumerate() {
-        if !(sigma > 0.0 && sigma.is_finite()) {
-            return Err(FirstOrderError::BadSigma(sigma));
-        }
-        if pose.transform(p).z <= 0.0 {
-            return Err(FirstOrderError::BehindCamera(index));
-        }
-        let j = pixel_jacobian(camera, pose, p);
-        information += j.transpose() * j / (sigma * sigma);
-    }
+    let information = pose_information(camera, pose, object, sigmas)?;
     let cholesky = information.cholesky().ok_or(FirstOrderError::Singular)?;
     let noise = cholesky.inverse();
     let mut part_covariance = SMatrix::<f64, 6, 6>::zeros();

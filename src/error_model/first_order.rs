@@ -90,14 +90,14 @@ pub fn pixel_jacobian(camera: &Camera, pose: &Pose, p: &Vector3<f64>) -> SMatrix
     }
 }
 
-/// The first-order pose covariance for per-point isotropic pixel noise
-/// `sigma_px[i]`.
-pub fn pose_covariance(
+/// The pose information `Σ Jᵢᵀ Jᵢ / σᵢ²` for per-point isotropic pixel
+/// noise `sigma_px[i]`, every σ positive and every point in front.
+pub fn pose_information(
     camera: &Camera,
     pose: &Pose,
     object: &[Vector3<f64>],
     sigma_px: &[f64],
-) -> Result<PoseCovariance, FirstOrderError> {
+) -> Result<SMatrix<f64, 6, 6>, FirstOrderError> {
     if sigma_px.len() != object.len() {
         return Err(FirstOrderError::MismatchedLengths {
             points: object.len(),
@@ -115,6 +115,18 @@ pub fn pose_covariance(
         let jacobian = pixel_jacobian(camera, pose, p);
         information += jacobian.transpose() * jacobian / (sigma * sigma);
     }
+    Ok(information)
+}
+
+/// The first-order pose covariance for per-point isotropic pixel noise
+/// `sigma_px[i]`.
+pub fn pose_covariance(
+    camera: &Camera,
+    pose: &Pose,
+    object: &[Vector3<f64>],
+    sigma_px: &[f64],
+) -> Result<PoseCovariance, FirstOrderError> {
+    let information = pose_information(camera, pose, object, sigma_px)?;
     let covariance = information
         .cholesky()
         .ok_or(FirstOrderError::Singular)?
