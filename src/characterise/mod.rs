@@ -624,33 +624,11 @@ fn finish(
     let focal_px = 0.5 * (config.camera.fx() + config.camera.fy());
     let spheres = nominal.len();
     let distances = config.resolve_distances()?;
-    // The gauge: overlay the nominal; then the distances' scale.
-    let mut overlay = Similarity::onto(&bundle.shape, nominal);
-    let mut shape = overlay.apply_all(&bundle.shape);
-    let mut poses: Vec<Pose> = bundle.poses.iter().map(|p| overlay.carry_pose(p)).collect();
-    let factor = if distances.is_empty() {
-        1.0
-    } else {
-        let factor = distance_scale(&shape, &distances);
-        if (factor - 1.0).abs() > MAX_SCALE_CHANGE {
-            return Err(CharacteriseError::Distance(format!(
-                "the distances make the part {:+.2}% the nominal's size, beyond the ±{}% a print shrinks or grows; check the spheres' names and the values",
-                100.0 * (factor - 1.0),
-                100.0 * MAX_SCALE_CHANGE
-            )));
-        }
-        let scaled: Vec<Vector3<f64>> = shape.iter().map(|x| x * factor).collect();
-        let scaling = Similarity {
-            scale: factor,
-            rotation: nalgebra::Rotation3::identity(),
-            translation: Vector3::zeros(),
-        };
-        poses = poses.iter().map(|p| scaling.carry_pose(p)).collect();
-        overlay = Similarity::rigid_onto(&scaled, nominal);
-        poses = poses.iter().map(|p| overlay.carry_pose(p)).collect();
-        shape = overlay.apply_all(&scaled);
-        factor
-    };
+    let Gauged {
+        shape,
+        poses,
+        factor,
+    } = in_gauge(&bundle, nominal, &distances)?;
     let information = shape_information(&shape, &poses, observations, &bundle.weights)?;
     check_observed(&information, &config.nominal)?;
     // σ² of a centre per axis, normalised units, from the weighted residuals.
@@ -760,6 +738,59 @@ fn finish(
         });
     }
     Ok(characterisation)
+}
+
+/// The adjusted shape and poses in the reported gauge, and the scale
+/// relative to the nominal's.
+struct Gauged {
+    shape: Vec<Vector3<f64>>,
+    poses: Vec<Pose>,
+    factor: f64,
+}
+
+/// The adjusted shape and poses in the reported gauge: overlaid on the
+/// nominal by a similarity, then, with distances, scaled to fit them and
+/// overlaid again by a rigid motion; with the scale relative to the
+/// nominal's.
+fn in_gauge(
+    bundle: &bundle::Bundle,
+    nominal: &[Vector3<f64>],
+    distances: &[Distance],
+) -> Result<Gauged, CharacteriseError> {
+    let overlay = Similarity::onto(&bundle.shape, nominal);
+    let shape = overlay.apply_all(&bundle.shape);
+    let poses: Vec<Pose> = bundle.poses.iter().map(|p| overlay.carry_pose(p)).collect();
+    if distances.is_empty() {
+        return Ok(Gauged {
+            shape,
+            poses,
+            factor: 1.0,
+        });
+    }
+    let factor = distance_scale(&shape, distances);
+    if (factor - 1.0).abs() > MAX_SCALE_CHANGE {
+        return Err(CharacteriseError::Distance(format!(
+            "the distances make the part {:+.2}% the nominal's size, beyond the ±{}% a print shrinks or grows; check the spheres' names and the values",
+            100.0 * (factor - 1.0),
+            100.0 * MAX_SCALE_CHANGE
+        )));
+    }
+    let scaling = Similarity {
+        scale: factor,
+        rotation: nalgebra::Rotation3::identity(),
+        translation: Vector3::zeros(),
+    };
+    let scaled = scaling.apply_all(&shape);
+    let rigid = Similarity::rigid_onto(&scaled, nominal);
+    let poses = poses
+        .iter()
+        .map(|p| rigid.carry_pose(&scaling.carry_pose(p)))
+        .collect();
+    Ok(Gauged {
+        shape: rigid.apply_all(&scaled),
+        poses,
+        factor,
+    })
 }
 
 /// The principal 1σ of a 3×3 covariance, largest first, and the largest's

@@ -2,7 +2,7 @@
 //! (or from `track`'s JSON lines), or with `--plan`, the views to record.
 
 use super::common::{command_line, naming_file};
-use super::track::{configure, refiner, ReadingArgs};
+use super::reading::{configure, refiner, ReadingArgs};
 use super::{progress, GlobalOptions};
 use anyhow::Context;
 use clap::Args;

@@ -228,3 +228,14 @@ impl std::str::FromStr for IdentifiabilityShare {
             })
     }
 }
+
+/// A probability strictly between 0 and 1, as `0.999` or `99.9%`.
+pub fn parse_probability(text: &str) -> anyhow::Result<f64> {
+    layout_opt::config::parse_share(text)
+        .filter(|&p| p > 0.0 && p < 1.0)
+        .ok_or_else(|| {
+            anyhow::anyhow!(
+                "'{text}' is not a probability strictly between 0 and 1 (0.999 or 99.9%)"
+            )
+        })
+}

@@ -8,6 +8,7 @@ mod export_set;
 mod look;
 mod noise_model;
 mod progress;
+mod reading;
 mod render;
 mod reproduce;
 mod search;

@@ -1,6 +1,8 @@
 //! `layout-opt validate`: a layout's sensitivity report.
 
-use super::common::{command_line, naming_file, parse_solvers, CameraArgs, GridArgs};
+use super::common::{
+    command_line, naming_file, parse_probability, parse_solvers, CameraArgs, GridArgs,
+};
 use super::noise_model::NoiseModelArg;
 use super::validate_images::{image_flag, ImageArgs};
 use super::volume::{volume_flag, VolumeArgs, VolumeDefaults};
@@ -87,17 +89,6 @@ pub struct ValidateArgs {
     pub(super) no_supports: bool,
     #[command(flatten)]
     pub(super) images: ImageArgs,
-}
-
-/// A probability strictly between 0 and 1, as `0.999` or `99.9%`.
-pub(super) fn parse_probability(text: &str) -> anyhow::Result<f64> {
-    layout_opt::config::parse_share(text)
-        .filter(|&p| p > 0.0 && p < 1.0)
-        .ok_or_else(|| {
-            anyhow::anyhow!(
-                "'{text}' is not a probability strictly between 0 and 1 (0.999 or 99.9%)"
-            )
-        })
 }
 
 /// The set file (`*.set.json`) the layout argument names, if it names one:

@@ -4,7 +4,8 @@
 //! within a poll while the set is analysed.
 
 use super::common::command_line;
-use super::validate::{parse_probability, protocol_volume, ValidateArgs, DEFAULT_TRIALS};
+use super::common::parse_probability;
+use super::validate::{protocol_volume, ValidateArgs, DEFAULT_TRIALS};
 use super::{progress, GlobalOptions};
 use anyhow::Context;
 use layout_opt::camera::Camera;
