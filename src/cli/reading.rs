@@ -45,8 +45,10 @@ pub struct ReadingArgs {
     /// others fit the projected sphere centres.
     #[arg(long, default_value = "ml")]
     pub(super) solver: Solver,
-    /// Pixel σ of the blob centres for the covariance. Default: estimated
-    /// from each frame's residuals.
+    /// Pixel σ of the blob centres for the covariance, one for all.
+    /// Default: each centre's own from its blob (its pixels' noise, grown
+    /// where the pose's residuals exceed it, and the mismatch between its
+    /// two centres).
     #[arg(long, value_name = "PX")]
     pub(super) sigma_px: Option<f64>,
     /// Identification gate, px.

@@ -22,7 +22,10 @@
 use super::config::{CentreMethod, TrackConfig};
 use super::detect::{detect, Blob, DetectError, Detection, Rejected};
 use super::frame::{FrameError, GreyFrame};
-use super::uncertainty::{model_pixel, pose_figures, wrong_label_probability, FiguresError};
+use super::uncertainty::{
+    model_pixel, pose_figures, wrong_label_probability, CentreEvidence, FiguresError,
+    MismatchShares, SigmaChoice,
+};
 use crate::pnp::unlabelled::{identify, Identification, LabellingError, UnlabelledOptions};
 use crate::pnp::{ml_sphere, Solver};
 use crate::pose::Pose;
@@ -147,10 +150,22 @@ pub struct FramedFigures {
     /// For each sphere of the layout, measured minus model centre, px;
     /// `null` for a sphere not in the pose.
     pub residuals_px: Vec<Option<[f64; 2]>>,
-    /// σ of the covariance, px.
+    /// σ of the covariance, px (from the blobs: the RMS of each centre's
+    /// own σ and the shared one together).
     pub sigma_px: f64,
     /// Where σ came from.
     pub sigma_source: super::uncertainty::SigmaSource,
+    /// From the blobs ([`super::uncertainty`]): for each sphere of the
+    /// layout, its centre's own σ, px; `null` for a sphere not in the pose.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub centre_sigma_px: Option<Vec<Option<f64>>>,
+    /// From the blobs: the σ every centre shares, px.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sigma_shared_px: Option<f64>,
+    /// From the blobs: how much the pose's residuals grew the centres'
+    /// noise (1: not at all).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub residual_inflation: Option<f64>,
     /// Covariance of (rvec rad, tvec mm), 6×6.
     pub covariance: [[f64; 6]; 6],
     /// 1σ rotation, degrees.
@@ -246,6 +261,114 @@ pub(super) fn measured_normalised(blob: &Blob, method: CentreMethod) -> Vector2<
 /// and the centre solvers fit.
 pub fn projected_centre_normalised(blob: &Blob, method: CentreMethod) -> Vector2<f64> {
     measured_normalised(blob, method) / blob.centre_shrink
+}
+
+/// The silhouette's ellipse centre of a shaded blob, normalised, for its
+/// sphere centred at `centre` (camera frame, mm) of radius `radius_mm`:
+/// what `ml`'s sphere model fits ([`ml_sphere`]). Under light from the
+/// camera a shaded sphere's radiance is symmetric about its centre ray
+/// ([`Blob::shaded`]), so its outline, a contour of the shading inside the
+/// limb, is a circular cone about that ray like the silhouette but
+/// narrower: its ellipse gives the projected centre `c` exactly
+/// ([`projected_centre_normalised`]) but an ellipse centre nearer `c`
+/// than the silhouette's (by 0.01–0.05 px at 300–550 mm, 150 px off the
+/// axis). The silhouette's is `c (1 + b²)`, with `b² = r² / (|C|² − r²)`
+/// its minor semi-axis on the normalised plane at the depth the pose
+/// gives.
+fn silhouette_centre(blob: &Blob, centre: &Vector3<f64>, radius_mm: f64) -> Vector2<f64> {
+    let b2 = radius_mm.powi(2) / (centre.norm_squared() - radius_mm.powi(2)).max(f64::EPSILON);
+    projected_centre_normalised(blob, CentreMethod::Ellipse) * (1.0 + b2)
+}
+
+/// For each of the `chosen` blobs, fitted to the `matched` object points,
+/// its silhouette's ellipse centre at `pose` where it is shaded
+/// ([`silhouette_centre`]); `None` where it is not.
+fn silhouettes(
+    config: &TrackConfig,
+    blobs: &[Blob],
+    chosen: &[usize],
+    matched: &[Vector3<f64>],
+    pose: &Pose,
+) -> Vec<Option<Vector2<f64>>> {
+    chosen
+        .iter()
+        .zip(matched)
+        .map(|(&i, p)| {
+            blobs[i]
+                .shaded
+                .then(|| silhouette_centre(&blobs[i], &pose.transform(p), config.radius_mm()))
+        })
+        .collect()
+}
+
+/// Whether the pose fits a shaded blob's silhouette centre in place of
+/// its measured centre: `ml` on ellipse centres ([`silhouette_centre`]).
+fn fits_silhouettes(config: &TrackConfig) -> bool {
+    config.solver == Solver::Ml && config.centre == CentreMethod::Ellipse
+}
+
+/// The pose figures of the `chosen` blobs fitted to the `matched` object
+/// points at `pose`: residuals of the centres the pose fitted, and the
+/// covariance at `--sigma-px` or at each centre's own σ from its blob
+/// ([`super::uncertainty`]; a shaded blob's disagreement is taken against
+/// its silhouette's centre, whatever the centre method).
+fn frame_figures(
+    config: &TrackConfig,
+    blobs: &[Blob],
+    chosen: &[usize],
+    matched: &[Vector3<f64>],
+    pose: &Pose,
+) -> Result<super::uncertainty::PoseFigures, TrackError> {
+    let radius_mm = config.radius_mm();
+    let silhouettes_px: Vec<Option<Vector2<f64>>> =
+        silhouettes(config, blobs, chosen, matched, pose)
+            .into_iter()
+            .map(|s| s.map(|c| config.camera.normalised_to_pixel(&c)))
+            .collect();
+    let pixels: Vec<Vector2<f64>> = chosen
+        .iter()
+        .zip(&silhouettes_px)
+        .map(|(&i, s)| match s {
+            Some(silhouette) if fits_silhouettes(config) => *silhouette,
+            _ => measured_px(&blobs[i], config.centre),
+        })
+        .collect();
+    let evidence: Vec<CentreEvidence> = chosen
+        .iter()
+        .zip(&silhouettes_px)
+        .map(|(&i, s)| {
+            let blob = &blobs[i];
+            CentreEvidence {
+                noise_px: match config.centre {
+                    CentreMethod::Ellipse => blob.centre_noise_px,
+                    CentreMethod::Centroid | CentreMethod::Window => blob.window_noise_px,
+                },
+                disagreement_px: s.map_or_else(
+                    || blob.disagreement_px(),
+                    |silhouette| blob.disagreement_with(&silhouette),
+                ),
+                disagreement_noise_px: blob.centre_noise_px.hypot(blob.window_noise_px),
+            }
+        })
+        .collect();
+    let sigma = match config.sigma_px {
+        Some(sigma) => SigmaChoice::Given(sigma),
+        None => SigmaChoice::Blobs(
+            &evidence,
+            match config.centre {
+                CentreMethod::Ellipse => MismatchShares::ELLIPSE,
+                CentreMethod::Centroid | CentreMethod::Window => MismatchShares::CENTROID,
+            },
+        ),
+    };
+    Ok(pose_figures(
+        &config.camera,
+        pose,
+        matched,
+        &pixels,
+        Some(radius_mm),
+        sigma,
+    )?)
 }
 
 /// [`measured_normalised`] in raw px.
@@ -370,7 +493,18 @@ pub(super) fn locate(
                     ml_sphere::SphereFitError::NotInFront { radius_mm }.to_string(),
                 ));
             }
-            ml_sphere::refine(&start, &matched, &measured, radius_mm)
+            let pose = ml_sphere::refine(&start, &matched, &measured, radius_mm);
+            let silhouettes = silhouettes(config, blobs, &chosen, &matched, &pose);
+            if fits_silhouettes(config) && silhouettes.iter().any(Option::is_some) {
+                let centres: Vec<Vector2<f64>> = measured
+                    .iter()
+                    .zip(&silhouettes)
+                    .map(|(m, s)| s.unwrap_or(*m))
+                    .collect();
+                ml_sphere::refine(&pose, &matched, &centres, radius_mm)
+            } else {
+                pose
+            }
         }
         solver => {
             let image: Vec<Vector2<f64>> = subset.iter().map(|&k| projected[k]).collect();
@@ -379,18 +513,7 @@ pub(super) fn locate(
                 .map_err(|e| TrackError::Pose(e.to_string()))?
         }
     };
-    let pixels: Vec<Vector2<f64>> = chosen
-        .iter()
-        .map(|&i| measured_px(&blobs[i], config.centre))
-        .collect();
-    let figures = pose_figures(
-        &config.camera,
-        &pose,
-        &matched,
-        &pixels,
-        Some(radius_mm),
-        config.sigma_px,
-    )?;
+    let figures = frame_figures(config, blobs, &chosen, &matched, &pose)?;
     for (&blob, &label) in chosen.iter().zip(&found.best.labels) {
         blobs[blob].label = Some(label);
     }
@@ -424,6 +547,13 @@ pub(super) fn locate(
     for (&label, r) in found.best.labels.iter().zip(&figures.residuals_px) {
         residuals_px[label] = Some(*r);
     }
+    let centre_sigma_px = figures.centre_sigmas.as_ref().map(|sigmas| {
+        let mut per_sphere = vec![None; spheres];
+        for (&label, s) in found.best.labels.iter().zip(&sigmas.own_px) {
+            per_sphere[label] = Some(*s);
+        }
+        per_sphere
+    });
     let mut used = vec![false; spheres];
     for &label in &found.best.labels {
         used[label] = true;
@@ -448,6 +578,9 @@ pub(super) fn locate(
             residuals_px,
             sigma_px: figures.sigma_px,
             sigma_source: figures.sigma_source,
+            centre_sigma_px,
+            sigma_shared_px: figures.centre_sigmas.as_ref().map(|s| s.shared_px),
+            residual_inflation: figures.centre_sigmas.as_ref().map(|s| s.inflation),
             covariance: figures.covariance,
             sigma_rot_deg: figures.sigma_rot_deg,
             sigma_trans_mm: figures.sigma_trans_mm,

@@ -287,8 +287,8 @@ pub struct TrackConfig {
     pub centre: CentreMethod,
     /// The solver of the final pose (`ml` fits the sphere model).
     pub solver: Solver,
-    /// Pixel noise σ of the blob centres, px; `None`: estimated from each
-    /// frame's residuals.
+    /// Pixel noise σ of the blob centres, px, one for all; `None`: each
+    /// centre's own from its blob ([`super::uncertainty`]).
     pub sigma_px: Option<f64>,
     /// Identification gate, px.
     pub gate_px: f64,

@@ -218,6 +218,19 @@ pub struct Blob {
     pub edge_points: usize,
     /// RMS distance of the kept edge points from the ellipse, px.
     pub fit_residual_px: f64,
+    /// The ellipse centre's σ per axis as its own edges give it: the fit
+    /// residual over the kept points, `fit_residual_px · √(2 / kept)`
+    /// (the centre of a circle fitted to `n` points of radial noise σ
+    /// has σ·√(2/n) per axis), px. What the covariance makes of it:
+    /// [`super::uncertainty`].
+    pub centre_noise_px: f64,
+    /// Whether the blob is a shaded sphere (its interior rises more than
+    /// [`SHADED_RISE`] of its height above its median): its outline is a
+    /// contour of the shading a little inside the limb, not the silhouette.
+    pub shaded: bool,
+    /// The windowed centroid's σ per axis from the pixel noise (the
+    /// background's and the plateau's, linear in the level between), px.
+    pub window_noise_px: f64,
     /// Share of edge points left out as off the ellipse (beyond their
     /// noise, either way), those cut away as a notch not counted.
     pub outlier_fraction: f64,
@@ -272,12 +285,36 @@ pub struct CentreBias {
     /// On the undistorted normalised plane.
     #[serde(skip)]
     pub normalised: Vector2<f64>,
+    /// The render's windowed centroid minus its ellipse centre, raw px:
+    /// how far apart the part itself sets the two centres, which the
+    /// frame's own [`Blob::disagreement_px`] is judged against.
+    pub disagreement_px: [f64; 2],
 }
 
 impl Blob {
     /// Whether the blob is flagged as partly hidden.
     pub fn hidden(&self) -> bool {
         !self.hidden_because.is_empty()
+    }
+
+    /// How far the windowed centroid lies from the ellipse centre, px,
+    /// beyond what the part itself does there when a refinement measured
+    /// it ([`CentreBias::disagreement_px`]): zero on a flat bright disc
+    /// but for noise, and the measure of how far the frame's look departs
+    /// from one ([`super::uncertainty`]).
+    pub fn disagreement_px(&self) -> f64 {
+        self.disagreement_with(&Vector2::from(self.ellipse_centre_px))
+    }
+
+    /// [`Blob::disagreement_px`] against `ellipse_centre_px` (raw px) in
+    /// place of the blob's own ellipse centre: a shaded sphere's
+    /// silhouette centre, which its outline does not give directly.
+    pub fn disagreement_with(&self, ellipse_centre_px: &Vector2<f64>) -> f64 {
+        let apart = Vector2::from(self.window_centroid_px) - ellipse_centre_px;
+        let expected = self
+            .bias
+            .map_or(Vector2::zeros(), |b| Vector2::from(b.disagreement_px));
+        (apart - expected).norm()
     }
 }
 
@@ -964,7 +1001,30 @@ struct WindowAccess<'a> {
     ideal: &'a dyn Fn(&Vector2<f64>) -> Option<Vector2<f64>>,
 }
 
-/// The windowed centroid of [`Blob::window_centroid_px`], undistorted px:
+/// The pixel noise [`window_centroid`] propagates: σ at the background
+/// and on the plateau (shot noise grows with the level), and the step
+/// between them, in the frame's levels.
+struct LevelNoise {
+    background: f64,
+    plateau: f64,
+    step: f64,
+}
+
+impl LevelNoise {
+    /// The variance of a pixel `above` the background: the two ends'
+    /// variances, linear in the level between them (shot noise).
+    fn variance(&self, above: f64) -> f64 {
+        let share = if self.step > 0.0 {
+            (above / self.step).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        self.background.powi(2) + share * (self.plateau.powi(2) - self.background.powi(2))
+    }
+}
+
+/// The windowed centroid of [`Blob::window_centroid_px`], undistorted px,
+/// and its σ per axis from `noise` ([`Blob::window_noise_px`]):
 /// over the usable pixels inside `ellipse` (undistorted px, about
 /// `raw_centre` in the frame) grown by [`WINDOW_MARGIN_PX`] along its minor
 /// axis, each weighing its level above `background` (none below it),
@@ -975,7 +1035,8 @@ fn window_centroid(
     (width, height): (usize, usize),
     access: &WindowAccess<'_>,
     background: f64,
-) -> Option<Vector2<f64>> {
+    noise: &LevelNoise,
+) -> Option<(Vector2<f64>, f64)> {
     let (major, minor, _) = ellipse.axes();
     let scale = 1.0 + WINDOW_MARGIN_PX / minor;
     let reach = scale * major + 1.0;
@@ -985,23 +1046,42 @@ fn window_centroid(
         low..=high
     };
     let (mut sum, mut moment) = (0.0, Vector2::zeros());
+    // Σ σᵢ², Σ σᵢ² pᵢ and Σ σᵢ² pᵢ² per axis: the centroid's variance
+    // Σ σᵢ² (pᵢ − c)² / sum² once c is known. A pixel at the background
+    // counts too: its noise decides whether it weighs in.
+    let (mut variance, mut variance_moment, mut variance_square) =
+        (0.0, Vector2::zeros(), Vector2::zeros());
     for y in span(raw_centre.y, height) {
         for x in span(raw_centre.x, width) {
-            let w = (access.value)(x, y) - background;
-            if w <= 0.0 || !(access.usable)(x, y) {
+            if !(access.usable)(x, y) {
                 continue;
             }
             let Some(p) = (access.ideal)(&Vector2::new(x as f64, y as f64)) else {
                 continue;
             };
             let d = p - ellipse.centre;
-            if d.dot(&(ellipse.shape * d)) <= scale * scale {
+            if d.dot(&(ellipse.shape * d)) > scale * scale {
+                continue;
+            }
+            let w = (access.value)(x, y) - background;
+            let v = noise.variance(w);
+            variance += v;
+            variance_moment += v * p;
+            variance_square += v * p.component_mul(&p);
+            if w > 0.0 {
                 sum += w;
                 moment += w * p;
             }
         }
     }
-    (sum > 0.0).then(|| moment / sum)
+    if sum <= 0.0 {
+        return None;
+    }
+    let c = moment / sum;
+    let spread =
+        variance_square - 2.0 * variance_moment.component_mul(&c) + variance * c.component_mul(&c);
+    let sigma = (0.5 * spread.map(|s| s.max(0.0)).sum()).sqrt() / sum;
+    Some((c, sigma))
 }
 
 /// Measures component `id` of the window's labels (module docs, step 3).
@@ -1324,7 +1404,7 @@ fn measure(
     let usable = |x: usize, y: usize| {
         (window.x0..window.x1).contains(&x) && (window.y0..window.y1).contains(&y) && !foreign(x, y)
     };
-    let window_ideal = window_centroid(
+    let (window_ideal, window_noise_px) = window_centroid(
         &ellipse,
         camera.normalised_to_pixel(&(ellipse.centre - principal).component_div(&focal)),
         (width, height),
@@ -1334,6 +1414,11 @@ fn measure(
             ideal: &ideal,
         },
         background,
+        &LevelNoise {
+            background: noise,
+            plateau: plateau_noise,
+            step,
+        },
     )
     .ok_or(Reason::Shape)?;
     let window_centroid_normalised = (window_ideal - principal).component_div(&focal);
@@ -1371,6 +1456,9 @@ fn measure(
         depth_mm: sphere.depth_mm(context.radius_mm),
         edge_points: points.len(),
         fit_residual_px,
+        centre_noise_px: fit_residual_px * (2.0 / kept.max(1) as f64).sqrt(),
+        shaded,
+        window_noise_px,
         outlier_fraction,
         outline_dropped,
         edge_dip_px,

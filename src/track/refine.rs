@@ -188,6 +188,9 @@ impl Refiner {
                 Some(CentreBias {
                     px: (measured_px - exact_px).into(),
                     normalised: measured - exact,
+                    disagreement_px: (Vector2::from(blob.window_centroid_px)
+                        - Vector2::from(blob.ellipse_centre_px))
+                    .into(),
                 })
             })
             .collect();

@@ -424,9 +424,12 @@ fn noisy_frames(
 
 /// Noisy 8-bit renders at 400 mm (a 1,000-electron full well: 3 % shot
 /// noise at full scale, so that the noise, not the edge model's residual
-/// bias, sets the error), σ estimated from each frame's residuals: each of the six pose components lies within its predicted 1σ
-/// in about 68% of the frames (±5 points; with σ estimated on 2n − 6 = 8
-/// degrees of freedom the Student-t expectation is 65%).
+/// bias, sets the error), σ from each frame's blobs: each of the six pose
+/// components lies within its predicted 1σ in 66–80% of the frames
+/// (68% for an exact σ; the residuals only ever grow the blobs' σ, which
+/// leaves it about 10% wide where the model holds: 72% when written.
+/// The 1σ share of σ estimated from the residuals alone was 65%, its
+/// Student-t expectation on 2n − 6 = 8 degrees of freedom).
 #[test]
 fn predicted_one_sigma_brackets_the_actual_error() {
     const POSES: usize = 24;
@@ -466,7 +469,7 @@ fn predicted_one_sigma_brackets_the_actual_error() {
         tracked.len(),
         100.0 * share
     );
-    assert!((0.63..=0.73).contains(&share), "{share}");
+    assert!((0.66..=0.80).contains(&share), "{share}");
 }
 
 /// Noisy 8-bit renders of clean views the identifiability model calls

@@ -241,3 +241,91 @@ fn refinement_takes_no_correction_where_the_render_is_not_the_frame() {
         }
     }
 }
+
+/// The normalised squared error `eᵀ Σ⁻¹ e` of a tracked pose against the
+/// truth, by the covariance `track` reports: `e` is the rotation error in
+/// rvec's coordinates (the left perturbation ω through the inverse left
+/// Jacobian at rvec, as the covariance is written) and the translation
+/// error, mm. χ² with 6 degrees of freedom for an honest covariance.
+fn normalised_squared_error(
+    tracked: &layout_opt::track::TrackedFrame,
+    truth: &layout_opt::pose::Pose,
+) -> f64 {
+    use layout_opt::track::uncertainty::inverse_left_jacobian;
+    use nalgebra::{SMatrix, SVector, Vector3};
+    let estimate = pose_of(tracked);
+    let omega = (estimate.rotation * truth.rotation.inverse()).scaled_axis();
+    let mut e = SVector::<f64, 6>::zeros();
+    e.fixed_rows_mut::<3>(0)
+        .copy_from(&(inverse_left_jacobian(&Vector3::from(tracked.figures.rvec)) * omega));
+    e.fixed_rows_mut::<3>(3)
+        .copy_from(&(estimate.translation - truth.translation));
+    let covariance = SMatrix::<f64, 6, 6>::from_fn(|i, j| tracked.figures.covariance[i][j]);
+    let inverse = covariance.try_inverse().expect("a covariance of full rank");
+    (e.transpose() * inverse * e)[0]
+}
+
+/// The covariance `track` reports is honest in every look: over the views
+/// of [`views`], each read 3 times under seeded sensor noise, the mean
+/// normalised squared pose error lies within 0.4–1.5 of its ideal 6 (χ²
+/// of 6 degrees of freedom; over 54 frames its sampling σ is about 0.5),
+/// for the ellipse centre and the windowed centroid, in the
+/// retroreflective, Lambertian and diffuse presets; the windowed centroid
+/// of Lambertian spheres within 2. Each frame's σ came from its blobs. σ
+/// from the residuals alone, as before, gave 11–12 on `render`'s own flat
+/// discs and 20–75 in the diffuse scene (docs/commands.md, "An honest
+/// covariance").
+#[test]
+fn the_covariance_is_honest_in_every_look() {
+    use layout_opt::track::{uncertainty::SigmaSource, CentreMethod};
+    let views = views();
+    let part = winner();
+    for lighting in [
+        Lighting::Retroreflective,
+        Lighting::Lambertian,
+        Lighting::Diffuse,
+    ] {
+        let appearance = Appearance::preset(lighting);
+        let frames: Vec<_> = (0..views.len() * 3)
+            .into_par_iter()
+            .map(|k| {
+                let (pose, truth) = &views[k % views.len()];
+                let (frame, window) = noisy_frame(&appearance, pose, truth, 0x5E5, k);
+                (*pose, frame, window)
+            })
+            .collect();
+        for centre in [CentreMethod::Ellipse, CentreMethod::Window] {
+            let errors: Vec<f64> = frames
+                .par_iter()
+                .filter_map(|(pose, frame, window)| {
+                    let mut config = TrackConfig::new(&part.layout, *window);
+                    config.centre = centre;
+                    let analysis = analyse(&config, frame);
+                    let tracked = analysis.outcome.ok()?;
+                    assert_eq!(tracked.figures.sigma_source, SigmaSource::Blobs);
+                    Some(normalised_squared_error(&tracked, pose))
+                })
+                .collect();
+            let mean = errors.iter().sum::<f64>() / errors.len() as f64;
+            eprintln!(
+                "{lighting:?}, {} centres: {} of {} frames posed, mean normalised squared error {mean:.2} (6 if honest)",
+                centre.name(),
+                errors.len(),
+                frames.len()
+            );
+            assert!(errors.len() * 5 >= frames.len() * 4, "{}", errors.len());
+            // The windowed centroid of a shaded sphere is pulled by its
+            // shading in a way the evidence sees only in part: the one
+            // case above 1.5× (9.4 when written).
+            let most = if (lighting, centre) == (Lighting::Lambertian, CentreMethod::Window) {
+                12.0
+            } else {
+                9.0
+            };
+            assert!(
+                (2.4..=most).contains(&mean),
+                "{lighting:?} {centre:?}: {mean}"
+            );
+        }
+    }
+}
