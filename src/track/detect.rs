@@ -30,18 +30,23 @@
 //!      edge places it poorly), the six samples from two inside to two
 //!      outside the crossing are normalised to their own inside and outside
 //!      levels, and their sum places the edge: a box-filtered step (and a
-//!      symmetrically blurred one) keeps its area, so the normalised
-//!      samples add up to the bright run's length, whatever the edge's
-//!      subpixel phase; linear interpolation of the half level would be off
-//!      by up to a tenth of a pixel, periodically in the phase, which a
-//!      small disc does not average away. On a **shaded** blob (a matte
-//!      sphere darkening towards its limb: its interior's top stands above
-//!      its median by more than [`SHADED_RISE`] of its height) no sample
-//!      inside holds a level of its own, and the edge is the half level's
-//!      own crossing, interpolated between the two pixels that straddle
-//!      it: a contour of the shading, an outline of the silhouette's centre
-//!      a little inside its limb (the pixels a contour crosses hold a
-//!      smooth ramp, which linear interpolation follows closely). The
+//!      narrowly blurred one) keeps its area, so the normalised samples add
+//!      up to the bright run's length, whatever the edge's subpixel phase;
+//!      linear interpolation of the half level would be off by up to a
+//!      tenth of a pixel, periodically in the phase, which a small disc
+//!      does not average away. On a **shaded** blob (a matte sphere
+//!      darkening towards its limb: its interior's top stands above its
+//!      median by more than [`SHADED_RISE`] of its height) no sample inside
+//!      holds a level of its own, and the edge is the half level's own
+//!      crossing, interpolated between the two pixels that straddle it: a
+//!      contour of the shading, a little inside its limb (the pixels a
+//!      contour crosses hold a smooth ramp, which linear interpolation
+//!      follows closely; its ellipse gives the projected centre exactly,
+//!      [`super::analysis`] the silhouette's ellipse centre from that). So
+//!      is a flat disc's edge blurred wider than the samples (a lens blur
+//!      of about 1 px: the median drop between the two pixels that
+//!      straddle the half level below [`SHARP_FALL_SHARE`] of the step),
+//!      whose samples would hold neither level. The
 //!      local levels also take out a
 //!      dimmer support beside the sphere and the limb's darkening. The
 //!      outside level is the one under the edge ([`TAIL_SHARE`]): where a
@@ -138,6 +143,14 @@ pub const MIN_LOCAL_STEP: f64 = 0.5;
 /// step: four normalised samples add up (√4), and the inside and outside
 /// levels that normalise them add their own share.
 pub const EDGE_SUM_NOISE: f64 = 2.5;
+/// Below this median share of the local step between the two pixels that
+/// straddle a flat disc's half level, its step is blurred wider than the
+/// samples the sum reads, and the half level's crossing places its edge.
+/// An area-sampled step under a Gaussian blur of σ 0.5 px falls by up to
+/// 0.69 of itself from one pixel to the next, under σ 1 px by up to 0.38,
+/// and by less where the scan crosses the edge obliquely; on `render`'s
+/// frames no blob at σ 0.5 px has its median below this share.
+pub const SHARP_FALL_SHARE: f64 = 0.42;
 /// The arc, degrees of the ellipse's parametric angle, over which
 /// [`edge_dip`] averages the edge points' distances: a support's notch in
 /// a disc spans tens of degrees; the edge model's own errors on a whole
@@ -1084,6 +1097,59 @@ fn window_centroid(
     Some((c, sigma))
 }
 
+/// One half-level crossing of a blob's edge (module docs): the brighter
+/// pixel, the unit step from it to the darker one, the six samples at
+/// −2…3 steps from it, and the local outside level and step there.
+struct Crossing {
+    bright: (f64, f64),
+    step: (f64, f64),
+    samples: [f64; 6],
+    outside_level: f64,
+    local_step: f64,
+}
+
+impl Crossing {
+    /// The edge point and its position noise over the pixel noise: at the
+    /// `half` level's own crossing, interpolated between the two pixels
+    /// that straddle it, where the step is `wide` (a shaded sphere, or a
+    /// blur wider than the samples); else where the samples' shares of
+    /// the local step put it.
+    fn placed(&self, wide: bool, half: f64) -> (Vector2<f64>, f64) {
+        let samples = &self.samples;
+        let (t, noise_gain) = if wide {
+            // A shaded sphere's radiance rises all the way in from its
+            // limb, and a widely blurred step's samples hold no level of
+            // their own: a step placed against one would sit deeper or
+            // shallower with the edge's subpixel phase and the scan's
+            // angle to the outline (a ripple of a few tenths of a pixel
+            // that reads as notches). The half level's crossing is a
+            // contour of the profile: on a shaded sphere an outline of the
+            // silhouette's centre a little inside its limb, on a blurred
+            // flat disc the limb itself.
+            let fall = samples[2] - samples[3];
+            let t = (samples[2] - half) / fall;
+            (t, ((1.0 - t).powi(2) + t * t).sqrt() / fall)
+        } else {
+            // A box-filtered (and narrowly blurred) step: the samples'
+            // shares of the local step add up to the bright run's length,
+            // so the edge lies Σ u − 1.5 steps beyond `bright` (exact for
+            // an area-sampled straight edge, whatever its phase).
+            let run: f64 = samples[1..5]
+                .iter()
+                .map(|v| ((v - self.outside_level) / self.local_step).clamp(0.0, 1.0))
+                .sum();
+            (run - 1.5, EDGE_SUM_NOISE / self.local_step)
+        };
+        (
+            Vector2::new(
+                self.bright.0 + t * self.step.0,
+                self.bright.1 + t * self.step.1,
+            ),
+            noise_gain,
+        )
+    }
+}
+
 /// Measures component `id` of the window's labels (module docs, step 3).
 fn measure(
     context: &Context,
@@ -1224,7 +1290,7 @@ fn measure(
     // the scan crosses the half-way level between its own inside and
     // outside levels.
     let inside = |x: usize, y: usize| x >= x0 && x <= x1 && y >= y0 && y <= y1;
-    let mut edges: Vec<(Vector2<f64>, f64)> = Vec::new();
+    let mut crossings: Vec<Crossing> = Vec::new();
     let mut crossing = |a: (usize, usize), b: (usize, usize)| {
         if foreign(a.0, a.1) || foreign(b.0, b.1) {
             return;
@@ -1279,36 +1345,13 @@ fn measure(
         if local_step < MIN_LOCAL_STEP * step {
             return;
         }
-        // Where the edge lies along the scan, in steps beyond `bright`, and
-        // its position noise over the pixel noise.
-        let (t, noise_gain) = if shaded {
-            // A shaded sphere's radiance rises all the way in from its
-            // limb: no sample inside holds a level of its own, and a step
-            // placed against one would sit deeper or shallower with the
-            // edge's subpixel phase and the scan's angle to the outline (a
-            // ripple of a few tenths of a pixel that reads as notches). The
-            // half level's crossing, interpolated between the two pixels
-            // that straddle it, is a contour of the shading: an outline of
-            // the silhouette's centre, a little inside its limb.
-            let fall = samples[2] - samples[3];
-            let t = (samples[2] - half) / fall;
-            (t, ((1.0 - t).powi(2) + t * t).sqrt() / fall)
-        } else {
-            // A box-filtered (and symmetrically blurred) step: the samples'
-            // shares of the local step add up to the bright run's length,
-            // so the edge lies Σ u − 1.5 steps beyond `bright` (exact for
-            // an area-sampled straight edge, whatever its phase).
-            let run: f64 = samples[1..5]
-                .iter()
-                .map(|v| ((v - outside_level) / local_step).clamp(0.0, 1.0))
-                .sum();
-            (run - 1.5, EDGE_SUM_NOISE / local_step)
-        };
-        let p = Vector2::new(
-            bright.0 as f64 + t * dx as f64,
-            bright.1 as f64 + t * dy as f64,
-        );
-        edges.push((p, noise_gain));
+        crossings.push(Crossing {
+            bright: (bright.0 as f64, bright.1 as f64),
+            step: (dx as f64, dy as f64),
+            samples,
+            outside_level,
+            local_step,
+        });
     };
     for y in y0..=y1 {
         for x in x0..=x1 {
@@ -1320,6 +1363,16 @@ fn measure(
             }
         }
     }
+    // A flat disc's step blurred wider than the six samples (the lens's
+    // blur about 1 px or more) leaves too little of the step inside them
+    // for the sum; its half level's crossing is the edge then, as on a
+    // shaded sphere (module docs).
+    let mut falls: Vec<f64> = crossings
+        .iter()
+        .map(|c| (c.samples[2] - c.samples[3]) / c.local_step)
+        .collect();
+    let wide = shaded || (!falls.is_empty() && median(&mut falls) < SHARP_FALL_SHARE);
+    let edges: Vec<(Vector2<f64>, f64)> = crossings.iter().map(|c| c.placed(wide, half)).collect();
     // Undistorted pixels: K · undistort(p).
     let camera = context.camera;
     let focal = Vector2::new(camera.fx(), camera.fy());

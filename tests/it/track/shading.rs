@@ -12,11 +12,16 @@ use layout_opt::render::{Appearance, Lighting};
 use layout_opt::track::{analyse, Threshold, TrackConfig};
 use rayon::prelude::*;
 
-/// `pose` rendered with `appearance` through the window round its discs
-/// ([`frames::crop`]), read by the 8-bit sensor with its default noise
-/// (seeded by `seed`, realisation `k`); and that window's camera.
+/// The lens blur of the tests' frames, σ px (`render`'s default).
+const BLUR_PX: f64 = 0.5;
+
+/// `pose` rendered with `appearance` and a Gaussian lens blur of σ
+/// `blur_px` through the window round its discs ([`frames::crop`]), read
+/// by the 8-bit sensor with its default noise (seeded by `seed`,
+/// realisation `k`); and that window's camera.
 fn noisy_frame(
     appearance: &Appearance,
+    blur_px: f64,
     pose: &layout_opt::pose::Pose,
     truth: &layout_opt::render::FrameTruth,
     seed: u64,
@@ -26,6 +31,7 @@ fn noisy_frame(
     let window = frames::crop(&camera, truth, CROP_MARGIN_PX, |_| true);
     let mut render = frames::noisy(window, 4);
     render.appearance = appearance.clone();
+    render.optics.blur = layout_opt::render::Blur::Gaussian { sigma_px: blur_px };
     let frame = winner()
         .render_window(&render, pose, &camera, truth)
         .expose(seed, k as u64);
@@ -36,6 +42,7 @@ fn noisy_frame(
 /// partly hidden, and the rotation errors of the posed frames, degrees.
 fn read_views(
     appearance: &Appearance,
+    blur_px: f64,
     threshold: Threshold,
     views: &[(layout_opt::pose::Pose, layout_opt::render::FrameTruth)],
 ) -> (usize, usize, Vec<f64>) {
@@ -44,7 +51,7 @@ fn read_views(
         .par_iter()
         .enumerate()
         .map(|(k, (pose, truth))| {
-            let (frame, window) = noisy_frame(appearance, pose, truth, 0x5AD, k);
+            let (frame, window) = noisy_frame(appearance, blur_px, pose, truth, 0x5AD, k);
             let mut config = TrackConfig::new(&part.layout, window);
             config.detector.threshold = threshold;
             let analysis = analyse(&config, &frame);
@@ -92,11 +99,13 @@ fn lambertian_spheres_are_whole_and_posed_as_often_as_flat_discs() {
     let views = views();
     let (flat_posed, flat_flagged, flat_errors) = read_views(
         &Appearance::preset(Lighting::Retroreflective),
+        BLUR_PX,
         Threshold::Auto,
         &views,
     );
     let (shaded_posed, shaded_flagged, shaded_errors) = read_views(
         &Appearance::preset(Lighting::Lambertian),
+        BLUR_PX,
         Threshold::Auto,
         &views,
     );
@@ -111,6 +120,30 @@ fn lambertian_spheres_are_whole_and_posed_as_often_as_flat_discs() {
     assert_eq!(flat_posed, views.len());
     assert_eq!(shaded_posed, views.len());
     assert!(rms(&shaded_errors) <= 1.5 * rms(&flat_errors));
+}
+
+/// The same views behind a softer lens (σ 1 px of blur, as a real lens a
+/// little out of focus gives): every frame is posed and no whole sphere
+/// flagged, and the rotation RMS is at most twice the sharp frames'.
+/// (While every flat disc's edge was placed by the sum of six samples, the
+/// blurred step reached beyond them, its edge rippled with the subpixel
+/// phase, and notches were cut from whole spheres: 76 of 240 views of the
+/// render grid were posed, against 170 at σ 0.5 px.)
+#[test]
+fn a_blurred_lens_poses_as_often_as_a_sharp_one() {
+    let views = views();
+    let look = Appearance::preset(Lighting::Retroreflective);
+    let (sharp_posed, _, sharp_errors) = read_views(&look, BLUR_PX, Threshold::Auto, &views);
+    let (posed, flagged, errors) = read_views(&look, 1.0, Threshold::Auto, &views);
+    eprintln!(
+        "{} views, σ 1 px of blur: {posed} posed, {flagged} flagged, rotation RMS {:.4}° (σ 0.5 px: {sharp_posed} posed, {:.4}°)",
+        views.len(),
+        rms(&errors),
+        rms(&sharp_errors)
+    );
+    assert_eq!(flagged, 0);
+    assert_eq!(posed, views.len());
+    assert!(rms(&errors) <= 2.0 * rms(&sharp_errors));
 }
 
 /// The same views in a diffuse scene (white spheres in front of a grey
@@ -128,7 +161,7 @@ fn diffuse_scenes_are_posed_with_the_default_threshold() {
     let views = views();
     let mut grey = Appearance::preset(Lighting::Diffuse);
     grey.background_radiance = 0.45;
-    let (posed, flagged, errors) = read_views(&grey, Threshold::Auto, &views);
+    let (posed, flagged, errors) = read_views(&grey, BLUR_PX, Threshold::Auto, &views);
     eprintln!(
         "diffuse on grey, auto: {posed} of {} posed, {flagged} flagged, rotation RMS {:.4}°",
         views.len(),
@@ -139,7 +172,7 @@ fn diffuse_scenes_are_posed_with_the_default_threshold() {
 
     let dark = Appearance::preset(Lighting::Diffuse);
     let [auto, fixed, otsu] = [Threshold::Auto, Threshold::Fixed(0.55), Threshold::Otsu].map(|t| {
-        let (posed, flagged, errors) = read_views(&dark, t, &views);
+        let (posed, flagged, errors) = read_views(&dark, BLUR_PX, t, &views);
         eprintln!(
             "diffuse on dark, {t}: {posed} of {} posed, {flagged} flagged, rotation RMS {:.4}°",
             views.len(),
@@ -166,7 +199,7 @@ fn refined_errors(
         .par_iter()
         .enumerate()
         .filter_map(|(k, (pose, truth))| {
-            let (frame, window) = noisy_frame(appearance, pose, truth, 0x4EF, k);
+            let (frame, window) = noisy_frame(appearance, BLUR_PX, pose, truth, 0x4EF, k);
             let config = TrackConfig::new(&part.layout, window);
             let first = analyse(&config, &frame);
             let before = rotation_error_deg(&pose.rotation, &first.pose?.rotation);
@@ -290,7 +323,7 @@ fn the_covariance_is_honest_in_every_look() {
             .into_par_iter()
             .map(|k| {
                 let (pose, truth) = &views[k % views.len()];
-                let (frame, window) = noisy_frame(&appearance, pose, truth, 0x5E5, k);
+                let (frame, window) = noisy_frame(&appearance, BLUR_PX, pose, truth, 0x5E5, k);
                 (*pose, frame, window)
             })
             .collect();
