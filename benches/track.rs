@@ -71,6 +71,13 @@ fn bench(c: &mut Criterion<CpuTime>) {
         "track --refine: one round (render 8x8, detect, pose)",
         |b| b.iter(|| refiner.refine(&config, &frame, std::hint::black_box(analysis.clone()))),
     );
+    // `track --refine`'s default: the frame's levels fitted first, over
+    // three renders (the sphere, the supports and the background alone).
+    let fitted = refiner.clone().with_fitted_levels(true);
+    c.bench_function(
+        "track --refine: one round with the levels fitted (3 renders 8x8, detect, pose)",
+        |b| b.iter(|| fitted.refine(&config, &frame, std::hint::black_box(analysis.clone()))),
+    );
     c.bench_function("track: PNG decode, 1280x720 8-bit", |b| {
         b.iter(|| GreyFrame::from_png(std::hint::black_box(&png)).unwrap())
     });

@@ -61,6 +61,14 @@ impl LookArgs {
             || self.aperture.is_some()
     }
 
+    /// Whether a level was given: a radiance or the exposure.
+    pub fn levels_given(&self) -> bool {
+        self.sphere_radiance.is_some()
+            || self.support_radiance.is_some()
+            || self.background_radiance.is_some()
+            || self.exposure.is_some()
+    }
+
     /// The appearance: the preset with the radiances given.
     pub fn appearance(&self) -> Appearance {
         let preset = Appearance::preset(self.preset.unwrap_or(Lighting::Retroreflective));

@@ -158,6 +158,7 @@ pub(super) fn refiner(
     render.appearance = args.look.appearance();
     render.optics = args.look.optics(refine::DEFAULT_SUPERSAMPLING);
     let refiner = Refiner::new(Scene::from_marker(marker), render, args.refine_rounds)
-        .map_err(|e| anyhow::anyhow!("{}: {}", flag(e.field), e.reason))?;
+        .map_err(|e| anyhow::anyhow!("{}: {}", flag(e.field), e.reason))?
+        .with_fitted_levels(!args.look.levels_given());
     Ok(Some(refiner))
 }

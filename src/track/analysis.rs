@@ -125,6 +125,8 @@ pub struct TrackedFrame {
 pub struct Refinement {
     /// Rounds run.
     pub rounds: u32,
+    /// The levels the last round drew the part with.
+    pub levels: RenderLevels,
     /// For each sphere of the layout, the bias taken off its centre in the
     /// last round, raw px; `null` where none was (not in the pose, or not
     /// whole in the render).
@@ -138,6 +140,24 @@ pub struct Refinement {
     pub rotation_change_deg: f64,
     /// Distance between their translations, mm.
     pub translation_change_mm: f64,
+}
+
+/// The levels a refinement's last round drew the part with
+/// ([`super::refine`], "Levels"): fitted to the frame or as given;
+/// radiances as fractions of full scale.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct RenderLevels {
+    /// The spheres' radiance (where a shaded sphere faces the camera).
+    pub sphere: f64,
+    /// The supports' (plate, pillars, cones) radiance.
+    pub support: f64,
+    /// The background's radiance.
+    pub background: f64,
+    /// The spheres' shading law: the look's name (`retroreflective`,
+    /// `lambertian` or `diffuse`).
+    pub shading: &'static str,
+    /// Whether the levels were fitted to the frame.
+    pub fitted: bool,
 }
 
 /// [`super::uncertainty::PoseFigures`] with residuals per sphere.
@@ -343,10 +363,12 @@ fn frame_figures(
                     CentreMethod::Ellipse => blob.centre_noise_px,
                     CentreMethod::Centroid | CentreMethod::Window => blob.window_noise_px,
                 },
-                disagreement_px: s.map_or_else(
-                    || blob.disagreement_px(),
-                    |silhouette| blob.disagreement_with(&silhouette),
-                ),
+                // Refined, the render's own gap stands against the frame's,
+                // both about the contour's ellipse centre.
+                disagreement_px: match s {
+                    Some(silhouette) if blob.bias.is_none() => blob.disagreement_with(silhouette),
+                    _ => blob.disagreement_px(),
+                },
                 disagreement_noise_px: blob.centre_noise_px.hypot(blob.window_noise_px),
             }
         })

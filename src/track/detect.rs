@@ -1212,7 +1212,8 @@ fn measure(
     // Plateau: the component's interior (all four neighbours in it).
     let mut interior = Vec::new();
     let mut interior_steps = Vec::new();
-    let mut previous_interior: Option<(usize, usize, f64)> = None;
+    let mut interior_curvatures = Vec::new();
+    let mut previous_interior: Option<(usize, usize, f64, Option<f64>)> = None;
     let mut peak = f64::MIN;
     for y in stats.min.1..=stats.max.1 {
         for x in stats.min.0..=stats.max.0 {
@@ -1231,12 +1232,14 @@ fn measure(
                 && label(x, y + 1) == id;
             if inside {
                 interior.push(v);
-                if let Some((px, py, pv)) = previous_interior {
-                    if py == y && px + 1 == x {
-                        interior_steps.push((v - pv).abs());
+                let left = previous_interior.filter(|&(px, py, _, _)| py == y && px + 1 == x);
+                if let Some((_, _, pv, before)) = left {
+                    interior_steps.push((v - pv).abs());
+                    if let Some(w) = before {
+                        interior_curvatures.push((v - 2.0 * pv + w).abs());
                     }
                 }
-                previous_interior = Some((x, y, v));
+                previous_interior = Some((x, y, v, left.map(|(_, _, pv, _)| pv)));
             }
         }
     }
@@ -1469,7 +1472,15 @@ fn measure(
         background,
         &LevelNoise {
             background: noise,
-            plateau: plateau_noise,
+            // Second differences along the rows: a shaded sphere's radiance
+            // slopes across its interior, which a first difference counts
+            // as noise (a second difference has three times a first
+            // difference's variance).
+            plateau: if interior_curvatures.len() >= 8 {
+                neighbour_noise(&mut interior_curvatures) / 3f64.sqrt()
+            } else {
+                plateau_noise
+            },
             step,
         },
     )

@@ -15,7 +15,8 @@
 //!
 //! **Each round** ([`Refiner::refine`]):
 //! 1. renders the part (as `export` builds it) at the current pose without
-//!    noise, with the appearance and optics given ([`crate::render`]);
+//!    noise, with the optics given and the appearance given or, by
+//!    default in `track`, with the frame's own levels ("Levels");
 //! 2. reads the render with the frame's own detector and centre method;
 //! 3. takes as each sphere's bias the centre read there minus the exact
 //!    ellipse centre at that pose ([`crate::sphere_image`]), from the
@@ -26,6 +27,19 @@
 //!    left uncorrected errs by 0.3 px;
 //! 4. takes each labelled unflagged blob's bias off its measured centre
 //!    and locates the marker again: identification, pose and covariance.
+//!
+//! **Levels** ([`Refiner::with_fitted_levels`]). A render drawn with
+//! levels other than the frame's (brighter supports, dimmer spheres, matte
+//! spheres drawn as discs) puts its own bias on every centre. So before
+//! each round's render, the levels are fitted to the frame: the render is
+//! linear in the sphere's, the supports' and the background's radiance,
+//! so the part is drawn three times at the pose, each of the three alone
+//! at 1, and the three radiances that make the sum closest to the frame
+//! over the blobs' regions (least squares, none below zero) draw the
+//! render. Where most of the frame's blobs are shaded
+//! ([`super::detect::Blob::shaded`]), the retroreflective look's spheres
+//! are drawn as Lambertian ones. The record's `refinement.levels` gives
+//! what was drawn. It costs two more renders a round.
 //!
 //! **The likeness check.** After the rounds, the last round's render is
 //! compared with the frame around each corrected blob ([`Likeness`]: the
@@ -47,7 +61,7 @@
 //! 4×4); docs/commands.md gives what a mismatch costs.
 
 use super::analysis::{
-    detect_blobs, locate, measured_normalised, FrameAnalysis, Refinement, TrackError,
+    detect_blobs, locate, measured_normalised, FrameAnalysis, Refinement, RenderLevels, TrackError,
 };
 use super::config::TrackConfig;
 use super::detect::{Blob, CentreBias, WINDOW_PAD_PX};
@@ -55,9 +69,11 @@ use super::frame::GreyFrame;
 use super::likeness::Likeness;
 use crate::config::ConfigError;
 use crate::pose::{rotation_error_deg, Pose};
-use crate::render::{expose, render_radiance_within, RenderConfig, Scene, Sensor};
+use crate::render::{
+    expose, render_radiance_within, Lighting, Radiance, RenderConfig, Scene, Sensor,
+};
 use crate::sphere_image::ellipse_centre_normalised;
-use nalgebra::Vector2;
+use nalgebra::{Matrix3, Vector2, Vector3};
 
 /// The most rounds of refinement.
 pub const MAX_ROUNDS: u32 = 5;
@@ -75,6 +91,7 @@ pub struct Refiner {
     scene: Scene,
     render: RenderConfig,
     rounds: u32,
+    fit_levels: bool,
 }
 
 impl Refiner {
@@ -98,7 +115,16 @@ impl Refiner {
             scene,
             render,
             rounds,
+            fit_levels: false,
         })
+    }
+
+    /// The refiner drawing the part with the levels of each frame, fitted
+    /// before each round's render (module docs, "Levels"), instead of the
+    /// appearance's.
+    pub fn with_fitted_levels(mut self, fit: bool) -> Self {
+        self.fit_levels = fit;
+        self
     }
 
     /// Checks that the part is rendered through `config`'s camera (the
@@ -118,12 +144,15 @@ impl Refiner {
     /// around the frame's `blobs` (their ellipse's box, grown by the
     /// detector's window padding, the blur's reach and
     /// [`REGION_MARGIN_PX`]): a blob's centre depends on no pixel beyond.
+    /// With fitted levels ([`Refiner::with_fitted_levels`]), drawn with the
+    /// levels of `frame` there; and the levels it was drawn with.
     pub fn render_around(
         &self,
         config: &TrackConfig,
         pose: &Pose,
         blobs: &[Blob],
-    ) -> Result<GreyFrame, String> {
+        frame: &GreyFrame,
+    ) -> Result<(GreyFrame, RenderLevels), String> {
         let camera = &config.camera;
         let blur = self
             .render
@@ -146,16 +175,125 @@ impl Refiner {
                 )
             })
             .collect();
-        let radiance = render_radiance_within(&self.scene, pose, &self.render, Some(&regions))
-            .map_err(|e| e.to_string())?;
+        let fitted = if self.fit_levels {
+            self.fitted(pose, blobs, &regions, frame)?
+        } else {
+            None
+        };
+        let (radiance, levels) = match fitted {
+            Some(fitted) => fitted,
+            None => {
+                let appearance = &self.render.appearance;
+                (
+                    render_radiance_within(&self.scene, pose, &self.render, Some(&regions))
+                        .map_err(|e| e.to_string())?,
+                    RenderLevels {
+                        sphere: appearance.sphere_radiance * appearance.exposure,
+                        support: appearance.support_radiance * appearance.exposure,
+                        background: appearance.background_radiance * appearance.exposure,
+                        shading: appearance.lighting.name(),
+                        fitted: false,
+                    },
+                )
+            }
+        };
         let digital = expose(&radiance, &self.render.sensor, 0, 0, 0);
-        GreyFrame::new(
+        let render = GreyFrame::new(
             digital.width as u32,
             digital.height as u32,
             digital.bit_depth,
             digital.values,
         )
-        .map_err(|e| e.to_string())
+        .map_err(|e| e.to_string())?;
+        Ok((render, levels))
+    }
+
+    /// The part's radiance at `pose` within `regions`, with the levels of
+    /// `frame` there (module docs, "Levels"): the retroreflective look's
+    /// spheres shaded as Lambertian ones where most of the frame's `blobs`
+    /// are shaded, and
+    /// the sphere's, the supports' and the background's radiances fitted
+    /// to the frame's pixels by least squares over the three renders of
+    /// each alone (the render is linear in each). `None` where the fit is
+    /// degenerate (no sphere radiance above zero, or too few pixels): the
+    /// appearance given stands then.
+    fn fitted(
+        &self,
+        pose: &Pose,
+        blobs: &[Blob],
+        regions: &[(usize, usize, usize, usize)],
+        frame: &GreyFrame,
+    ) -> Result<Option<(Radiance, RenderLevels)>, String> {
+        let mut base = self.render.clone();
+        let shaded = 2 * blobs.iter().filter(|b| b.shaded).count() > blobs.len();
+        if shaded && base.appearance.lighting == Lighting::Retroreflective {
+            base.appearance.lighting = Lighting::Lambertian;
+            base.appearance.sphere_limb_falloff = 1.0;
+            base.appearance.ambient = 0.0;
+        }
+        base.appearance.exposure = 1.0;
+        let alone = |sphere: f64, support: f64, background: f64| {
+            let mut config = base.clone();
+            config.appearance.sphere_radiance = sphere;
+            config.appearance.support_radiance = support;
+            config.appearance.background_radiance = background;
+            render_radiance_within(&self.scene, pose, &config, Some(regions))
+                .map_err(|e| e.to_string())
+        };
+        let parts = [
+            alone(1.0, 0.0, 0.0)?,
+            alone(0.0, 1.0, 0.0)?,
+            alone(0.0, 0.0, 1.0)?,
+        ];
+        let width = parts[0].width;
+        if (frame.width() as usize, frame.height() as usize) != (width, parts[0].height) {
+            return Ok(None);
+        }
+        let full_scale = f64::from(frame.full_scale());
+        let mut seen = vec![false; parts[0].values.len()];
+        let (mut normal, mut right, mut count) = (Matrix3::zeros(), Vector3::zeros(), 0usize);
+        for &(x0, y0, x1, y1) in regions {
+            for y in y0..y1 {
+                for x in x0..x1 {
+                    let i = y * width + x;
+                    if std::mem::replace(&mut seen[i], true) {
+                        continue;
+                    }
+                    let row = Vector3::from_fn(|k, _| f64::from(parts[k].values[i]));
+                    normal += row * row.transpose();
+                    right += row * (f64::from(frame.pixels()[i]) / full_scale);
+                    count += 1;
+                }
+            }
+        }
+        let Some(levels) = (count >= 3).then(|| normal.cholesky()).flatten() else {
+            return Ok(None);
+        };
+        let levels = levels.solve(&right).map(|v| v.max(0.0));
+        if !(levels.x > 0.0 && levels.iter().all(|v| v.is_finite())) {
+            return Ok(None);
+        }
+        let values = (0..parts[0].values.len())
+            .map(|i| {
+                (0..3)
+                    .map(|k| levels[k] * f64::from(parts[k].values[i]))
+                    .sum::<f64>() as f32
+            })
+            .collect();
+        Ok(Some((
+            Radiance {
+                width,
+                height: parts[0].height,
+                values,
+            },
+            RenderLevels {
+                sphere: levels.x,
+                support: levels.y,
+                background: levels.z,
+                shading: base.appearance.lighting.name(),
+                fitted: true,
+            },
+        )))
     }
 
     /// For each sphere of `config`'s layout, the bias of `config`'s centre
@@ -224,14 +362,16 @@ impl Refiner {
         let mut last = None;
         for _ in 0..self.rounds {
             let around = whole_labelled(&detection.blobs);
-            let measured = self
-                .render_around(config, &pose, &around)
-                .and_then(|render| Ok((self.biases(config, &pose, &render)?, render)));
-            let (biases, render) = match measured {
+            let measured =
+                self.render_around(config, &pose, &around, frame)
+                    .and_then(|(render, levels)| {
+                        Ok((self.biases(config, &pose, &render)?, render, levels))
+                    });
+            let (biases, render, levels) = match measured {
                 Ok(measured) => measured,
                 Err(reason) => return failed(detection, reason),
             };
-            last = Some((around, render));
+            last = Some((around, render, levels));
             for blob in &mut detection.blobs {
                 blob.bias = blob
                     .label
@@ -251,7 +391,7 @@ impl Refiner {
         // is not the camera's and the bias measured on it is the wrong
         // one: that sphere keeps its measured centre, and the marker is
         // located again.
-        let (around, render) = last.expect("at least one round");
+        let (around, render, levels) = last.expect("at least one round");
         let mut likeness = vec![None; config.object.len()];
         for blob in &around {
             if let Some(k) = blob.label {
@@ -287,6 +427,7 @@ impl Refiner {
         }
         tracked.refinement = Some(Refinement {
             rounds: self.rounds,
+            levels,
             bias_px,
             likeness,
             rotation_change_deg: rotation_error_deg(&first.rotation, &pose.rotation),

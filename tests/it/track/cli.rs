@@ -219,11 +219,14 @@ fn solve_reports_rvec_covariance_and_untrusted_labels() {
     }
 }
 
-/// `render --preset lambertian` draws white matte spheres; `track --refine`
-/// with the default (retroreflective) look finds its render unlike the
-/// frame around every sphere, keeps the measured centres and says so on
-/// stderr; with `--preset lambertian` the render is the frame's look and
-/// nothing is said.
+/// `render --preset lambertian` draws white matte spheres. `track --refine`
+/// with levels given (the retroreflective look at `--sphere-radiance
+/// 0.85`) finds its render unlike the frame around every sphere, keeps the
+/// measured centres and says so on stderr. With the levels fitted (the
+/// default: flat discs drawn shaded where the frame's blobs are, the
+/// sphere's radiance near the render's 0.85), or with `--preset
+/// lambertian`, the render is the frame's look: every centre corrected,
+/// nothing said.
 #[test]
 fn refine_warns_when_its_render_is_unlike_the_frames() {
     let dir = tempfile::tempdir().unwrap();
@@ -258,15 +261,23 @@ fn refine_warns_when_its_render_is_unlike_the_frames() {
         let line: serde_json::Value = serde_json::from_slice(&output.stdout).unwrap();
         (line, String::from_utf8_lossy(&output.stderr).into_owned())
     };
-    let (line, stderr) = track(&[]);
+    let (line, stderr) = track(&["--sphere-radiance", "0.85"]);
     assert!(
         stderr.contains("warning: --refine: the render was unlike the frame around 7 of 7 spheres"),
         "{stderr}"
     );
     let biases = line["refinement"]["bias_px"].as_array().unwrap();
     assert!(biases.iter().all(|b| b.is_null()), "{line}");
-    let (line, stderr) = track(&["--preset", "lambertian"]);
-    assert!(!stderr.contains("warning"), "{stderr}");
-    let biases = line["refinement"]["bias_px"].as_array().unwrap();
-    assert!(biases.iter().all(|b| !b.is_null()), "{line}");
+    assert_eq!(line["refinement"]["levels"]["fitted"], false, "{line}");
+    for look in [&[][..], &["--preset", "lambertian"][..]] {
+        let (line, stderr) = track(look);
+        assert!(!stderr.contains("warning"), "{look:?}: {stderr}");
+        let refinement = &line["refinement"];
+        let biases = refinement["bias_px"].as_array().unwrap();
+        assert!(biases.iter().all(|b| !b.is_null()), "{line}");
+        assert_eq!(refinement["levels"]["fitted"], true, "{line}");
+        assert_eq!(refinement["levels"]["shading"], "lambertian", "{line}");
+        let sphere = refinement["levels"]["sphere"].as_f64().unwrap();
+        assert!((0.75..0.95).contains(&sphere), "{line}");
+    }
 }
