@@ -90,6 +90,24 @@ pub fn pixel_jacobian(camera: &Camera, pose: &Pose, p: &Vector3<f64>) -> SMatrix
     }
 }
 
+/// [`pixel_jacobian`] of point `index` at `p`, once its σ is a positive
+/// number and the point is in front of the camera.
+fn checked_jacobian(
+    camera: &Camera,
+    pose: &Pose,
+    index: usize,
+    p: &Vector3<f64>,
+    sigma: f64,
+) -> Result<SMatrix<f64, 2, 6>, FirstOrderError> {
+    if !(sigma > 0.0 && sigma.is_finite()) {
+        return Err(FirstOrderError::BadSigma(sigma));
+    }
+    if pose.transform(p).z <= 0.0 {
+        return Err(FirstOrderError::BehindCamera(index));
+    }
+    Ok(pixel_jacobian(camera, pose, p))
+}
+
 /// The pose information `Σ Jᵢᵀ Jᵢ / σᵢ²` for per-point isotropic pixel
 /// noise `sigma_px[i]`, every σ positive and every point in front.
 pub fn pose_information(
@@ -106,13 +124,7 @@ pub fn pose_information(
     }
     let mut information = SMatrix::<f64, 6, 6>::zeros();
     for (index, (p, &sigma)) in object.iter().zip(sigma_px).enumerate() {
-        if !(sigma > 0.0 && sigma.is_finite()) {
-            return Err(FirstOrderError::BadSigma(sigma));
-        }
-        if pose.transform(p).z <= 0.0 {
-            return Err(FirstOrderError::BehindCamera(index));
-        }
-        let jacobian = pixel_jacobian(camera, pose, p);
+        let jacobian = checked_jacobian(camera, pose, index, p, sigma)?;
         information += jacobian.transpose() * jacobian / (sigma * sigma);
     }
     Ok(information)
@@ -163,13 +175,7 @@ pub fn pose_covariance_sandwich(
     let (mut design, mut spread) = (SMatrix::<f64, 6, 6>::zeros(), SMatrix::<f64, 6, 6>::zeros());
     let mut shared = SMatrix::<f64, 2, 6>::zeros();
     for (index, (p, &sigma)) in object.iter().zip(sigma_px).enumerate() {
-        if !(sigma > 0.0 && sigma.is_finite()) {
-            return Err(FirstOrderError::BadSigma(sigma));
-        }
-        if pose.transform(p).z <= 0.0 {
-            return Err(FirstOrderError::BehindCamera(index));
-        }
-        let jacobian = pixel_jacobian(camera, pose, p);
+        let jacobian = checked_jacobian(camera, pose, index, p, sigma)?;
         let normal = jacobian.transpose() * jacobian;
         design += normal;
         spread += normal * (sigma * sigma);
@@ -333,15 +339,20 @@ mod tests {
     /// takes from the truth on biased pixels: checked against LM on
     /// pixels biased by a tiny fixed offset (where second-order terms are
     /// negligible), and zero without bias.
-    #[test]
-    fn bias_matches_the_refined_pose_on_slightly_biased_pixels() {
-        // fx = fy, so that ML's normalised-plane fit is the pixel fit.
+    /// A camera with fx = fy (so that ML's normalised-plane fit is the
+    /// pixel fit), the paper's biprism and a tilted pose of it.
+    fn square_pixel_view() -> (Camera, Pose, Vec<Vector3<f64>>) {
         let camera = Camera::new(1300.0, 1300.0, 653.0, 508.0, 1280, 720, [0.0; 5]).unwrap();
         let pose = Pose::new(
             Rotation3::from_euler_angles(0.3, -0.2, 0.1),
             Vector3::new(40.0, -20.0, 400.0),
         );
-        let object = crate::synthetic::biprism_points(50.0);
+        (camera, pose, crate::synthetic::biprism_points(50.0))
+    }
+
+    #[test]
+    fn bias_matches_the_refined_pose_on_slightly_biased_pixels() {
+        let (camera, pose, object) = square_pixel_view();
         let bias: Vec<Vector2<f64>> = (0..object.len())
             .map(|i| Vector2::new(1e-3 * (i as f64 - 3.0), 5e-4 * (i % 3) as f64))
             .collect();
@@ -392,12 +403,7 @@ mod tests {
     fn sandwich_is_the_spread_of_an_unweighted_fit() {
         use rand::SeedableRng;
         use rand_distr::{Distribution, StandardNormal};
-        let camera = Camera::new(1300.0, 1300.0, 653.0, 508.0, 1280, 720, [0.0; 5]).unwrap();
-        let pose = Pose::new(
-            Rotation3::from_euler_angles(0.3, -0.2, 0.1),
-            Vector3::new(40.0, -20.0, 400.0),
-        );
-        let object = crate::synthetic::biprism_points(50.0);
+        let (camera, pose, object) = square_pixel_view();
         let same = pose_covariance_sandwich(&camera, &pose, &object, &[0.3; 7], 0.0).unwrap();
         let reference = pose_covariance(&camera, &pose, &object, &[0.3; 7]).unwrap();
         assert_relative_eq!(same.covariance, reference.covariance, max_relative = 1e-9);

@@ -511,18 +511,28 @@ mod tests {
         }
     }
 
-    #[test]
-    fn figures_of_an_exact_fit_and_given_sigma() {
-        let camera = Camera::paper_with_distortion();
+    /// The paper's biprism at a tilted pose through `camera`, and each
+    /// sphere's exact ellipse centre (5 mm spheres) moved by `offset`.
+    fn biprism_view(
+        camera: &Camera,
+        offset: Vector2<f64>,
+    ) -> (Pose, Vec<Vector3<f64>>, Vec<Vector2<f64>>) {
         let object = crate::layout::biprism_points(50.0);
         let pose = Pose::new(
             Rotation3::from_euler_angles(0.3, -0.2, 0.5),
             Vector3::new(30.0, -20.0, 500.0),
         );
-        let pixels: Vec<Vector2<f64>> = object
+        let pixels = object
             .iter()
-            .map(|p| model_pixel(&camera, &pose, p, Some(5.0)).unwrap())
+            .map(|p| model_pixel(camera, &pose, p, Some(5.0)).unwrap() + offset)
             .collect();
+        (pose, object, pixels)
+    }
+
+    #[test]
+    fn figures_of_an_exact_fit_and_given_sigma() {
+        let camera = Camera::paper_with_distortion();
+        let (pose, object, pixels) = biprism_view(&camera, Vector2::zeros());
         let figures = pose_figures(
             &camera,
             &pose,
@@ -621,16 +631,7 @@ mod tests {
         assert_relative_eq!(ellipse.shared_px, 0.15 * excess, epsilon = 1e-12);
 
         let camera = Camera::paper();
-        let object = crate::layout::biprism_points(50.0);
-        let pose = Pose::new(
-            Rotation3::from_euler_angles(0.3, -0.2, 0.5),
-            Vector3::new(30.0, -20.0, 500.0),
-        );
-        let pixels: Vec<Vector2<f64>> = object
-            .iter()
-            .zip(&small)
-            .map(|(p, r)| model_pixel(&camera, &pose, p, Some(5.0)).unwrap() + r)
-            .collect();
+        let (pose, object, pixels) = biprism_view(&camera, small[0]);
         let figures = pose_figures(
             &camera,
             &pose,

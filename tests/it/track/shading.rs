@@ -185,6 +185,23 @@ fn diffuse_scenes_are_posed_with_the_default_threshold() {
     assert!(auto * 5 >= views.len() * 4, "auto {auto}");
 }
 
+/// The looks the refinement meets: its own (retroreflective), Lambertian
+/// spheres, and brighter supports and background with a dimmer sphere.
+fn refined_looks() -> [(&'static str, Appearance); 3] {
+    let own = Appearance::preset(Lighting::Retroreflective);
+    let other_levels = Appearance {
+        sphere_radiance: 0.7,
+        support_radiance: 0.4,
+        background_radiance: 0.1,
+        ..own.clone()
+    };
+    [
+        ("retroreflective", own),
+        ("lambertian", Appearance::preset(Lighting::Lambertian)),
+        ("other levels", other_levels),
+    ]
+}
+
 /// Rotation errors (degrees) before and after `track --refine` with the
 /// retroreflective preset's look, over `views` rendered with `appearance`
 /// (noisy, 8 bit), and the share of the spheres whose render matched the
@@ -242,18 +259,7 @@ fn refined_errors(
 #[test]
 fn refinement_takes_no_correction_where_the_render_is_not_the_frame() {
     let views = views();
-    let own = Appearance::preset(Lighting::Retroreflective);
-    let other_levels = Appearance {
-        sphere_radiance: 0.7,
-        support_radiance: 0.4,
-        background_radiance: 0.1,
-        ..own.clone()
-    };
-    for (name, appearance) in [
-        ("retroreflective", own),
-        ("lambertian", Appearance::preset(Lighting::Lambertian)),
-        ("other levels", other_levels),
-    ] {
+    for (name, appearance) in refined_looks() {
         let (before, after, matched) = refined_errors(&appearance, &views, false);
         eprintln!(
             "{name}: {} posed, rotation RMS {:.4}° unrefined, {:.4}° refined; {:.0}% of spheres matched",
@@ -374,19 +380,12 @@ fn the_covariance_is_honest_in_every_look() {
 #[test]
 fn fitted_levels_make_the_refinement_work_on_other_looks() {
     let views = views();
-    let own = Appearance::preset(Lighting::Retroreflective);
-    let other_levels = Appearance {
-        sphere_radiance: 0.7,
-        support_radiance: 0.4,
-        background_radiance: 0.1,
-        ..own.clone()
-    };
-    let (_, given, _) = refined_errors(&own, &views, false);
-    for (name, appearance) in [
-        ("retroreflective", own),
-        ("lambertian", Appearance::preset(Lighting::Lambertian)),
-        ("other levels", other_levels),
-    ] {
+    let (_, given, _) = refined_errors(
+        &Appearance::preset(Lighting::Retroreflective),
+        &views,
+        false,
+    );
+    for (name, appearance) in refined_looks() {
         let (before, after, matched) = refined_errors(&appearance, &views, true);
         eprintln!(
             "{name}, fitted levels: {} posed, rotation RMS {:.4}° unrefined, {:.4}° refined; {:.0}% of spheres matched",
