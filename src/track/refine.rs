@@ -266,7 +266,15 @@ impl Refiner {
                 }
             }
         }
-        let Some(levels) = (count >= 3).then(|| normal.cholesky()).flatten() else {
+        // A ridge a billionth of the mean diagonal: where a part does not
+        // show in the regions (no support behind any limb), its level
+        // comes out zero instead of leaving the fit undetermined.
+        let ridge = 1e-9 * normal.trace() / 3.0;
+        normal += Matrix3::identity() * ridge;
+        let Some(levels) = (count >= 3 && ridge > 0.0)
+            .then(|| normal.cholesky())
+            .flatten()
+        else {
             return Ok(None);
         };
         let levels = levels.solve(&right).map(|v| v.max(0.0));
