@@ -47,7 +47,7 @@
 //!
 //! The shares were measured on `render`'s noisy frames in its three
 //! presets (docs/commands.md, "An honest covariance"): the mean
-//! normalised squared pose error came within 0.6–1.2 of its ideal 6 in
+//! normalised squared pose error came within 0.7–1.2 of its ideal 6 in
 //! each, for both centre methods, with and without `--refine`; σ from the
 //! residuals alone gave 11–75.
 //!

@@ -357,7 +357,7 @@ fn the_covariance_is_honest_in_every_look() {
             assert!(errors.len() * 5 >= frames.len() * 4, "{}", errors.len());
             // The windowed centroid of a shaded sphere is pulled by its
             // shading in a way the evidence sees only in part: the one
-            // case above 1.5× (9.4 when written).
+            // case above 1.5× (9.3 when written).
             let most = if (lighting, centre) == (Lighting::Lambertian, CentreMethod::Window) {
                 12.0
             } else {
