@@ -86,6 +86,9 @@ enum Kind {
     /// A file inside a declared directory: checked against the inputs and
     /// the other outputs, covered by its directory's lock.
     InDir,
+    /// A file the run writes as it goes (a stream's lines), not staged:
+    /// checked and locked like a file, opened by [`Outputs::open_stream`].
+    Stream,
 }
 
 #[derive(Debug, Clone)]
@@ -142,6 +145,13 @@ impl OutputPlan {
     /// its directory.
     pub fn file_in_dir(&mut self, what: impl Into<String>, path: impl AsRef<Path>) -> &mut Self {
         self.output(what, path, Kind::InDir)
+    }
+
+    /// The run writes the file `path` as it goes, every line kept when it
+    /// stops ([`Outputs::open_stream`]): checked and locked like a file,
+    /// never staged.
+    pub fn stream(&mut self, what: impl Into<String>, path: impl AsRef<Path>) -> &mut Self {
+        self.output(what, path, Kind::Stream)
     }
 
     fn output(&mut self, what: impl Into<String>, path: impl AsRef<Path>, kind: Kind) -> &mut Self {
@@ -273,7 +283,7 @@ fn check_kind(entry: &Entry) -> Result<(), OutputError> {
     }
     let first_dir = match entry.kind {
         Kind::Dir => path.clone(),
-        Kind::File | Kind::InDir => directory_of(path),
+        Kind::File | Kind::InDir | Kind::Stream => directory_of(path),
     };
     let mut dir = Some(first_dir.as_path());
     while let Some(d) = dir.filter(|d| !d.as_os_str().is_empty()) {
@@ -395,6 +405,7 @@ impl Outputs {
             .find(|e| match e.kind {
                 Kind::File | Kind::InDir => e.path == path,
                 Kind::Dir => directory_of(path) == e.path,
+                Kind::Stream => false,
             })
             .ok_or_else(|| OutputError::Undeclared {
                 path: path.to_path_buf(),
@@ -422,6 +433,23 @@ impl Outputs {
             path: path.to_path_buf(),
             resolved: target.to_path_buf(),
         });
+    }
+
+    /// Creates (or empties) `path`, declared with [`OutputPlan::stream`],
+    /// for the run to write as it goes. What is written stays when the run
+    /// fails or stops: a stream's file is not staged.
+    pub fn open_stream(&self, path: &Path) -> Result<std::fs::File, OutputError> {
+        let declared = self
+            .plan
+            .outputs
+            .iter()
+            .any(|e| e.kind == Kind::Stream && e.path == path);
+        if !declared {
+            return Err(OutputError::Undeclared {
+                path: path.to_path_buf(),
+            });
+        }
+        std::fs::File::create(path).map_err(write_error(path))
     }
 
     /// Moves every staged file into place, in the order of their paths.
@@ -625,6 +653,41 @@ mod tests {
         assert!(!OutputLock::held_here(&out));
         assert!(!crate::files::lock_path(&out).exists());
         plan.open().unwrap();
+    }
+
+    /// A stream's file is checked and locked like a file, written as the
+    /// run goes, and kept when the run ends without a commit; it cannot be
+    /// staged, and only a declared stream can be opened.
+    #[test]
+    fn a_stream_is_written_as_it_goes_and_kept_without_a_commit() {
+        let dir = tempfile::tempdir().unwrap();
+        let layout = dir.path().join("layout.json");
+        std::fs::write(&layout, "{}").unwrap();
+        let mut plan = OutputPlan::new();
+        plan.input("LAYOUT", &layout).stream("--output", &layout);
+        assert!(matches!(
+            plan.open().unwrap_err(),
+            OutputError::Clash { .. }
+        ));
+        let lines = dir.path().join("lines.jsonl");
+        std::fs::write(&lines, "an earlier run's\n").unwrap();
+        let mut plan = OutputPlan::new();
+        plan.input("LAYOUT", &layout).stream("--output", &lines);
+        let outputs = plan.open().unwrap();
+        assert!(OutputLock::held_here(&lines));
+        let mut file = outputs.open_stream(&lines).unwrap();
+        std::io::Write::write_all(&mut file, b"{\"index\":0}\n").unwrap();
+        assert!(matches!(
+            outputs.stage(&lines, b"x").unwrap_err(),
+            OutputError::Undeclared { .. }
+        ));
+        assert!(matches!(
+            outputs.open_stream(&layout).unwrap_err(),
+            OutputError::Undeclared { .. }
+        ));
+        drop(outputs);
+        assert_eq!(std::fs::read_to_string(&lines).unwrap(), "{\"index\":0}\n");
+        assert!(!OutputLock::held_here(&lines));
     }
 
     #[test]
