@@ -240,17 +240,40 @@ pub(super) fn detect_blobs(
 
 /// Tracks one frame (module docs). `config` must have been validated.
 pub fn analyse(config: &TrackConfig, frame: &GreyFrame) -> FrameAnalysis {
-    let mut detection = match detect_blobs(config, frame) {
+    analyse_timed(config, frame).0
+}
+
+/// How long the two steps of [`analyse`] took on one frame.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct StageTimes {
+    /// Threshold, components, blob figures and centres.
+    pub detect: std::time::Duration,
+    /// Identification, the pose and its covariance.
+    pub solve: std::time::Duration,
+}
+
+/// [`analyse`], with the time each step took (a stream's latency).
+pub fn analyse_timed(config: &TrackConfig, frame: &GreyFrame) -> (FrameAnalysis, StageTimes) {
+    let start = std::time::Instant::now();
+    let detected = detect_blobs(config, frame);
+    let mut times = StageTimes {
+        detect: start.elapsed(),
+        ..StageTimes::default()
+    };
+    let mut detection = match detected {
         Ok(detection) => detection,
         Err(error) => {
-            return FrameAnalysis {
+            let analysis = FrameAnalysis {
                 outcome: Err(error.into()),
                 detection: None,
                 pose: None,
-            }
+            };
+            return (analysis, times);
         }
     };
-    match locate(config, &mut detection.blobs, &detection.rejected) {
+    let located = locate(config, &mut detection.blobs, &detection.rejected);
+    times.solve = start.elapsed() - times.detect;
+    let analysis = match located {
         Ok((tracked, pose)) => FrameAnalysis {
             outcome: Ok(tracked),
             detection: Some(detection),
@@ -261,7 +284,8 @@ pub fn analyse(config: &TrackConfig, frame: &GreyFrame) -> FrameAnalysis {
             detection: Some(detection),
             pose: None,
         },
-    }
+    };
+    (analysis, times)
 }
 
 /// The measured centre of a blob, normalised, by the configured method,
