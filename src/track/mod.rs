@@ -13,6 +13,8 @@
 //! * [`uncertainty`]: rvec/tvec, residuals, σ, covariance and label trust,
 //!   shared with `solve`;
 //! * [`report`]: JSON lines, CSV, overlay PNGs;
+//! * [`stream`]: frames from standard input or a directory that fills,
+//!   each line written as its frame is done;
 //! * [`workflow`]: files and directories, parallel frames, progress,
 //!   atomic writes.
 //!
@@ -27,6 +29,7 @@ pub mod likeness;
 pub mod refine;
 pub mod report;
 pub mod set;
+pub mod stream;
 pub mod uncertainty;
 pub mod workflow;
 
