@@ -15,6 +15,7 @@ mod search;
 mod solve;
 mod track;
 mod track_set;
+mod track_stream;
 mod validate;
 mod validate_images;
 mod validate_set;

@@ -2,6 +2,7 @@
 //! in each frame, named by its number and layout
 //! ([`layout_opt::track::set`]).
 
+use super::track_stream::{self, StreamArgs, StreamJob};
 use super::{progress, GlobalOptions};
 use anyhow::Context;
 use layout_opt::kernel::Interrupted;
@@ -9,6 +10,7 @@ use layout_opt::layout::Layout;
 use layout_opt::set::MarkerSet;
 use layout_opt::track::refine::Refiner;
 use layout_opt::track::set::SetTrackConfig;
+use layout_opt::track::stream::SetTracker;
 use layout_opt::track::workflow::{run_set, TrackOutputs, WorkflowError};
 use layout_opt::track::TrackConfig;
 use std::path::{Path, PathBuf};
@@ -20,6 +22,7 @@ pub fn run(
     set_path: &Path,
     frames: &[PathBuf],
     output: Option<&Path>,
+    stream: &StreamArgs,
     global: &GlobalOptions,
     configure: &dyn Fn(&Layout) -> anyhow::Result<TrackConfig>,
     refiner: &dyn Fn(&Layout, &TrackConfig) -> anyhow::Result<Option<Refiner>>,
@@ -38,6 +41,18 @@ pub fn run(
         .map(|(m, (_, config))| refiner(&m.layout, config))
         .collect::<anyhow::Result<Option<Vec<Refiner>>>>()?;
     let config = SetTrackConfig { markers, refiners };
+    if let Some(input) = stream.input(frames)? {
+        config.validate()?;
+        let camera = &config.markers[0].1.camera;
+        let job = StreamJob {
+            sources: vec![("--set", set_path)],
+            output,
+            tracker: &SetTracker { config: &config },
+            camera_size: (camera.width(), camera.height()),
+            describe: format!("the set {} ({} markers)", set.name, set.members.len()),
+        };
+        return track_stream::run(stream, &input, job);
+    }
     let outputs = TrackOutputs {
         sources: vec![("--set".into(), set_path.to_path_buf())],
         json_lines: output.map(Path::to_path_buf),

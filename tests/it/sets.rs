@@ -954,6 +954,7 @@ fn track_set_names_the_marker_each_frame_shows() {
         );
     }
     // Unrefined, then refined (each marker found rendered alone).
+    let mut batch = Vec::new();
     for refine in [false, true] {
         let output = assert_cmd::Command::cargo_bin("layout-opt")
             .unwrap()
@@ -1008,6 +1009,53 @@ fn track_set_names_the_marker_each_frame_shows() {
                 "marker {} found in none of its frames:\n{stdout}",
                 k + 1
             );
+        }
+        if !refine {
+            batch = records;
+        }
+    }
+    // The same frames as a YUV4MPEG2 stream on standard input: the same
+    // markers and poses, frame by frame, each line with its index.
+    let mut y4m = Vec::new();
+    let mut encoder = y4m::encode(1280, 720, y4m::Ratio::new(30, 1))
+        .with_colorspace(y4m::Colorspace::Cmono)
+        .write_header(&mut y4m)
+        .unwrap();
+    let names: Vec<String> = frames
+        .iter()
+        .flatten()
+        .map(|f| f.display().to_string())
+        .collect();
+    for frame in frames.iter().flatten() {
+        let grey = layout_opt::track::GreyFrame::from_png(&std::fs::read(frame).unwrap()).unwrap();
+        let luma: Vec<u8> = grey.pixels().iter().map(|&v| v as u8).collect();
+        encoder
+            .write_frame(&y4m::Frame::new([&luma, &[], &[]], None))
+            .unwrap();
+    }
+    let output = assert_cmd::Command::cargo_bin("layout-opt")
+        .unwrap()
+        .args(["track", "--quiet", "--set"])
+        .arg(&set_path)
+        .arg("-")
+        .write_stdin(y4m)
+        .assert()
+        .success()
+        .get_output()
+        .stdout
+        .clone();
+    let streamed: Vec<serde_json::Value> = String::from_utf8(output)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(streamed.len(), batch.len());
+    for (line, record) in streamed.iter().zip(&batch) {
+        let index = line["index"].as_u64().unwrap() as usize;
+        assert_eq!(record["frame"], names[index].as_str());
+        assert_eq!(line["frame"], format!("stdin:{index}"));
+        for field in ["marker", "layout", "t", "covariance"] {
+            assert_eq!(line[field], record[field], "{field}: {line}");
         }
     }
 }

@@ -9,6 +9,7 @@
 mod cli;
 pub mod frames;
 mod shading;
+mod stream;
 
 use frames::{blob_of_sphere, clean_view, ellipse_centre, hidden_fraction, Part};
 use layout_opt::camera::Camera;
