@@ -253,9 +253,7 @@ fn centroid_sigmas(
     truth
         .spheres
         .iter()
-        .filter(|s| {
-            s.hidden.by_support + s.hidden.by_sphere + s.hidden.outside_image < WHOLE_SPHERE_HIDDEN
-        })
+        .filter(|s| s.hidden.total() < WHOLE_SPHERE_HIDDEN)
         .filter_map(|s| {
             let radius = 0.5 * (s.semi_axes_px[0] + s.semi_axes_px[1]);
             let centres: Vec<[f64; 2]> = frames

@@ -67,6 +67,42 @@ pub fn render_radiance(
     render_radiance_within(scene, pose, config, None)
 }
 
+/// A part placed in the camera's view: one marker of a scene.
+#[derive(Debug, Clone, Copy)]
+pub struct Placed<'a> {
+    /// The part.
+    pub scene: &'a Scene,
+    /// Marker → camera.
+    pub pose: &'a Pose,
+}
+
+/// Renders several parts in one frame without noise, each at its own pose
+/// and each hiding what lies behind it of the others (module docs). The
+/// blur is one for the frame: none or a fixed Gaussian ([`Blur`]); a
+/// defocus, which differs from part to part, is refused.
+///
+/// [`Blur`]: super::config::Blur
+pub fn render_scene(parts: &[Placed], config: &RenderConfig) -> Result<Radiance, RenderError> {
+    let sigma_px = scene_blur_px(config, parts)?;
+    render_parts(parts, sigma_px, config, None)
+}
+
+/// The one blur of a frame of `parts`, px (σ): a lone part's as
+/// [`blur_at`]; for several, a fixed Gaussian or none, and a defocus,
+/// which differs from part to part, refused.
+pub fn scene_blur_px(config: &RenderConfig, parts: &[Placed]) -> Result<f64, RenderError> {
+    match (parts, config.optics.blur) {
+        ([one], _) => blur_at(config, one.pose, 0),
+        (_, super::config::Blur::Defocus { .. }) => {
+            Err(RenderError::Config(crate::config::ConfigError::new(
+                "blur",
+                "a frame of several markers takes one blur (a Gaussian of fixed σ, or none); a defocus differs from marker to marker",
+            )))
+        }
+        (_, blur) => Ok(blur.sigma_px(config.camera.fx(), 1.0)),
+    }
+}
+
 /// [`render_radiance`] traced only in the tiles that meet one of the
 /// `regions` (`(x0, y0, x1, y1)`, px, ends excluded) when given; the rest
 /// of the image is left at the background's radiance. Within a region,
@@ -78,8 +114,19 @@ pub fn render_radiance_within(
     config: &RenderConfig,
     regions: Option<&[(usize, usize, usize, usize)]>,
 ) -> Result<Radiance, RenderError> {
-    let camera = &config.camera;
     let sigma_px = blur_at(config, pose, 0)?;
+    render_parts(&[Placed { scene, pose }], sigma_px, config, regions)
+}
+
+/// The render of `parts`, blurred by `sigma_px` (see
+/// [`render_radiance_within`] for `regions`).
+pub(super) fn render_parts(
+    parts: &[Placed],
+    sigma_px: f64,
+    config: &RenderConfig,
+    regions: Option<&[(usize, usize, usize, usize)]>,
+) -> Result<Radiance, RenderError> {
+    let camera = &config.camera;
     let appearance = &config.appearance;
     let (width, height) = (camera.width() as usize, camera.height() as usize);
     let background = (appearance.background_radiance * appearance.exposure) as f32;
@@ -88,22 +135,27 @@ pub fn render_radiance_within(
         height,
         values: vec![background; width * height],
     };
-    let tiles = tile_candidates(scene, pose, camera);
+    let tiles = tile_candidates(parts, camera);
     let tiles_x = width.div_ceil(TILE_PX);
-    let inverse = pose.rotation.inverse();
-    let origin = -(inverse * pose.translation);
-    let light = inverse * appearance.light_direction_camera();
     let shader = Shader {
-        scene,
         camera,
         appearance,
-        inverse_rotation: inverse.into_inner(),
-        origin,
-        light,
+        parts: parts
+            .iter()
+            .map(|part| {
+                let inverse = part.pose.rotation.inverse();
+                PartView {
+                    scene: part.scene,
+                    inverse_rotation: inverse.into_inner(),
+                    origin: -(inverse * part.pose.translation),
+                    light: inverse * appearance.light_direction_camera(),
+                }
+            })
+            .collect(),
     };
     let mut active: Option<(usize, usize, usize, usize)> = None;
     for (index, candidates) in tiles.iter().enumerate() {
-        if candidates.is_empty() {
+        if candidates.shapes.is_empty() {
             continue;
         }
         let (x0, y0) = ((index % tiles_x) * TILE_PX, (index / tiles_x) * TILE_PX);
@@ -150,37 +202,74 @@ pub fn blur_at(config: &RenderConfig, pose: &Pose, frame: usize) -> Result<f64, 
     Ok(sigma_px)
 }
 
+/// The primitives that may meet a tile: their indices, part after part,
+/// and where each part's run of them ends.
+#[derive(Debug, Clone, Default)]
+struct TileList {
+    shapes: Vec<u32>,
+    /// (part, end of its run in `shapes`), parts in order.
+    parts: Vec<(usize, usize)>,
+}
+
+impl TileList {
+    fn push(&mut self, part: usize, shape: u32) {
+        match self.parts.last_mut() {
+            Some((last, end)) if *last == part => {
+                if self.shapes.last() != Some(&shape) {
+                    self.shapes.push(shape);
+                    *end += 1;
+                }
+            }
+            _ => {
+                self.shapes.push(shape);
+                self.parts.push((part, self.shapes.len()));
+            }
+        }
+    }
+
+    /// Each part with its primitives.
+    fn runs(&self) -> impl Iterator<Item = (usize, &[u32])> {
+        let mut start = 0;
+        self.parts.iter().map(move |&(part, end)| {
+            let run = &self.shapes[start..end];
+            start = end;
+            (part, run)
+        })
+    }
+}
+
 /// For each tile, row-major, the primitives whose bounding balls' outlines
 /// reach it.
-fn tile_candidates(scene: &Scene, pose: &Pose, camera: &Camera) -> Vec<Vec<u32>> {
+fn tile_candidates(parts: &[Placed], camera: &Camera) -> Vec<TileList> {
     let (width, height) = (camera.width() as usize, camera.height() as usize);
     let (tiles_x, tiles_y) = (width.div_ceil(TILE_PX), height.div_ceil(TILE_PX));
-    let mut tiles = vec![Vec::<u32>::new(); tiles_x * tiles_y];
-    for (shape, centre, radius) in scene.bounding_balls() {
-        let Some((lo, hi)) = outline_box(camera, &pose.transform(&centre), radius) else {
-            continue;
-        };
-        let clamp_tile = |value: f64, tiles: usize| -> Option<usize> {
-            if value < 0.0 {
-                Some(0)
-            } else {
-                let t = (value / TILE_PX as f64) as usize;
-                (t < tiles).then_some(t)
+    let mut tiles = vec![TileList::default(); tiles_x * tiles_y];
+    for (part, placed) in parts.iter().enumerate() {
+        for (shape, centre, radius) in placed.scene.bounding_balls() {
+            let Some((lo, hi)) = outline_box(camera, &placed.pose.transform(&centre), radius)
+            else {
+                continue;
+            };
+            let clamp_tile = |value: f64, tiles: usize| -> Option<usize> {
+                if value < 0.0 {
+                    Some(0)
+                } else {
+                    let t = (value / TILE_PX as f64) as usize;
+                    (t < tiles).then_some(t)
+                }
+            };
+            if hi.x < 0.0 || hi.y < 0.0 {
+                continue;
             }
-        };
-        if hi.x < 0.0 || hi.y < 0.0 {
-            continue;
-        }
-        let (Some(tx0), Some(ty0)) = (clamp_tile(lo.x, tiles_x), clamp_tile(lo.y, tiles_y)) else {
-            continue;
-        };
-        let tx1 = clamp_tile(hi.x, tiles_x).unwrap_or(tiles_x - 1);
-        let ty1 = clamp_tile(hi.y, tiles_y).unwrap_or(tiles_y - 1);
-        for ty in ty0..=ty1 {
-            for tx in tx0..=tx1 {
-                let list = &mut tiles[ty * tiles_x + tx];
-                if list.last() != Some(&(shape as u32)) {
-                    list.push(shape as u32);
+            let (Some(tx0), Some(ty0)) = (clamp_tile(lo.x, tiles_x), clamp_tile(lo.y, tiles_y))
+            else {
+                continue;
+            };
+            let tx1 = clamp_tile(hi.x, tiles_x).unwrap_or(tiles_x - 1);
+            let ty1 = clamp_tile(hi.y, tiles_y).unwrap_or(tiles_y - 1);
+            for ty in ty0..=ty1 {
+                for tx in tx0..=tx1 {
+                    tiles[ty * tiles_x + tx].push(part, shape as u32);
                 }
             }
         }
@@ -225,53 +314,72 @@ fn outline_box(
     Some((lo - margin, hi + margin))
 }
 
-/// Everything a sample needs: the scene, the camera, the lighting and the
-/// pose's inverse.
-struct Shader<'a> {
+/// One part as the rays meet it: its scene, and the camera's centre and
+/// the light in its frame.
+struct PartView<'a> {
     scene: &'a Scene,
-    camera: &'a Camera,
-    appearance: &'a Appearance,
     inverse_rotation: nalgebra::Matrix3<f64>,
     origin: Vector3<f64>,
     light: Vector3<f64>,
 }
 
+/// Everything a sample needs: the parts, the camera and the lighting.
+struct Shader<'a> {
+    camera: &'a Camera,
+    appearance: &'a Appearance,
+    parts: Vec<PartView<'a>>,
+}
+
+/// Bits of a surface id that name the primitive within its part.
+const SHAPE_BITS: u32 = 20;
+
 impl Shader<'_> {
-    /// The ray through pixel position `(u, v)`, marker frame.
-    fn ray(&self, u: f64, v: f64) -> Result<Ray, RenderError> {
+    /// The ray through pixel position `(u, v)`, camera frame.
+    fn direction(&self, u: f64, v: f64) -> Result<Vector3<f64>, RenderError> {
         let m = self
             .camera
             .pixel_to_normalised(&Vector2::new(u, v))
             .map_err(RenderError::Camera)?;
-        let direction = self.inverse_rotation * Vector3::new(m.x, m.y, 1.0).normalize();
-        Ok(Ray {
-            origin: self.origin,
-            direction,
-        })
+        Ok(Vector3::new(m.x, m.y, 1.0).normalize())
     }
 
-    /// The surface id and radiance seen at pixel position `(u, v)`.
-    fn sample(&self, u: f64, v: f64, candidates: &[u32]) -> Result<(u32, f32), RenderError> {
-        let ray = self.ray(u, v)?;
-        Ok(match self.scene.first_hit(&ray, candidates) {
+    /// The surface id and radiance seen at pixel position `(u, v)`: the
+    /// nearest hit over the parts.
+    fn sample(&self, u: f64, v: f64, candidates: &TileList) -> Result<(u32, f32), RenderError> {
+        let direction = self.direction(u, v)?;
+        let mut nearest: Option<(usize, Hit, Vector3<f64>)> = None;
+        for (part, shapes) in candidates.runs() {
+            let view = &self.parts[part];
+            let ray = Ray {
+                origin: view.origin,
+                direction: view.inverse_rotation * direction,
+            };
+            if let Some(hit) = view.scene.first_hit(&ray, shapes) {
+                if nearest.is_none_or(|(_, best, _)| hit.t < best.t) {
+                    nearest = Some((part, hit, ray.direction));
+                }
+            }
+        }
+        Ok(match nearest {
             None => (
                 BACKGROUND,
                 (self.appearance.background_radiance * self.appearance.exposure) as f32,
             ),
-            Some(hit) => (
-                2 * hit.shape as u32 + u32::from(hit.sphere.is_some()),
-                self.shade(&hit, &ray.direction) as f32,
+            Some((part, hit, direction)) => (
+                2 * (((part as u32) << SHAPE_BITS) | hit.shape as u32)
+                    + u32::from(hit.sphere.is_some()),
+                self.shade(&self.parts[part], &hit, &direction) as f32,
             ),
         })
     }
 
-    /// Radiance of a hit seen along `direction` (module docs of
-    /// [`Lighting`]).
-    fn shade(&self, hit: &Hit, direction: &Vector3<f64>) -> f64 {
+    /// Radiance of a hit on `part` seen along `direction` (its frame;
+    /// module docs of [`Lighting`]).
+    fn shade(&self, part: &PartView, hit: &Hit, direction: &Vector3<f64>) -> f64 {
         let a = self.appearance;
         let facing = (-hit.normal.dot(direction)).max(0.0);
         let lit = |radiance: f64| {
-            radiance * (a.ambient + (1.0 - a.ambient) * hit.normal.dot(&self.light).max(0.0))
+            radiance * (a.ambient + (1.0 - a.ambient) * hit.normal.dot(&part.light).max(0.0))
         };
         let radiance = match (a.lighting, hit.sphere.is_some()) {
             (Lighting::Retroreflective | Lighting::Lambertian, true) => {
@@ -290,7 +398,7 @@ impl Shader<'_> {
 /// Renders one tile into `image` (module docs).
 fn render_tile(
     shader: &Shader,
-    candidates: &[u32],
+    candidates: &TileList,
     x0: usize,
     y0: usize,
     supersampling: usize,
@@ -344,7 +452,7 @@ fn render_tile(
 /// The mean radiance of pixel `(x, y)` over an n × n grid of samples.
 fn supersample(
     shader: &Shader,
-    candidates: &[u32],
+    candidates: &TileList,
     x: usize,
     y: usize,
     supersampling: usize,
@@ -516,13 +624,16 @@ mod tests {
             ..Appearance::preset(Lighting::Diffuse)
         };
         let light = Vector3::new(0.0, 0.0, -1.0);
-        let shader = Shader {
+        let part = PartView {
             scene: &scene,
-            camera: &camera,
-            appearance: &appearance,
             inverse_rotation: nalgebra::Matrix3::identity(),
             origin: Vector3::zeros(),
             light,
+        };
+        let shader = Shader {
+            camera: &camera,
+            appearance: &appearance,
+            parts: Vec::new(),
         };
         let hit = |normal: Vector3<f64>, sphere: Option<usize>| Hit {
             t: 95.0,
@@ -531,14 +642,14 @@ mod tests {
             normal,
         };
         let (l, a) = (appearance.sphere_radiance, appearance.support_radiance);
-        let facing = shader.shade(&hit(light, Some(0)), &Vector3::z());
+        let facing = shader.shade(&part, &hit(light, Some(0)), &Vector3::z());
         assert!((facing - l).abs() < 1e-12, "{facing}");
         // Turned 60° from the lamp: the ambient share and half the lamp.
         let turned = Vector3::new(60f64.to_radians().sin(), 0.0, -0.5);
-        let side = shader.shade(&hit(turned, Some(0)), &Vector3::z());
+        let side = shader.shade(&part, &hit(turned, Some(0)), &Vector3::z());
         assert!((side - l * (0.4 + 0.6 * 0.5)).abs() < 1e-12, "{side}");
         // Facing away: the ambient share alone, for a support as well.
-        let away = shader.shade(&hit(Vector3::x(), None), &Vector3::z());
+        let away = shader.shade(&part, &hit(Vector3::x(), None), &Vector3::z());
         assert!((away - a * 0.4).abs() < 1e-12, "{away}");
     }
 }

@@ -9,20 +9,25 @@
 //! - [`sensor`]: shot and read noise, quantisation, seeded;
 //! - [`truth`]: exact sphere images and hidden fractions per frame;
 //! - [`workflow`]: the run: checks, staging, PNG and JSON files renamed
-//!   into place as a set, progress and interruption.
+//!   into place as a set, progress and interruption;
+//! - [`scenes`]: the same run for frames of several markers, each at its
+//!   own pose, hiding one another.
 
 pub mod analysis;
 pub mod config;
 pub mod scene;
+pub mod scenes;
 pub mod sensor;
 pub mod truth;
 pub mod workflow;
 
-pub use analysis::{render_radiance, render_radiance_within, Radiance};
+pub use analysis::{
+    render_radiance, render_radiance_within, render_scene, scene_blur_px, Placed, Radiance,
+};
 pub use config::{Appearance, Blur, Lighting, Noise, Optics, RenderConfig, Sensor};
 pub use scene::Scene;
 pub use sensor::{expose, Digital};
-pub use truth::{frame_truth, FrameTruth, Hidden, SphereTruth};
+pub use truth::{frame_truth, part_truth, FrameTruth, Hidden, HiddenBy, SphereTruth};
 
 use crate::pose::Pose;
 use nalgebra::{Matrix3, Rotation3, Vector3};
@@ -174,21 +179,88 @@ pub fn poses_from_json(text: &str) -> Result<Vec<Pose>, RenderError> {
         .iter()
         .enumerate()
         .map(|(k, record)| {
-            let r = Matrix3::from_fn(|i, j| record.rotation[i][j]);
-            let t = Vector3::from(record.translation);
-            if !(r.iter().all(|v| v.is_finite()) && t.iter().all(|v| v.is_finite())) {
-                return Err(RenderError::Poses(format!(
-                    "pose {k}: R and t must be finite"
-                )));
+            checked_pose(&record.rotation, &record.translation)
+                .map_err(|why| RenderError::Poses(format!("pose {k}: {why}")))
+        })
+        .collect()
+}
+
+/// The pose of `R` (rows, marker → camera) and `t` (mm), or why they make
+/// none: not finite, or R not a rotation to within
+/// [`ROTATION_TOLERANCE`].
+fn checked_pose(rotation: &[[f64; 3]; 3], translation: &[f64; 3]) -> Result<Pose, String> {
+    let r = Matrix3::from_fn(|i, j| rotation[i][j]);
+    let t = Vector3::from(*translation);
+    if !(r.iter().all(|v| v.is_finite()) && t.iter().all(|v| v.is_finite())) {
+        return Err("R and t must be finite".into());
+    }
+    let off = (r.transpose() * r - Matrix3::identity()).abs().max();
+    if off > ROTATION_TOLERANCE || r.determinant() <= 0.0 {
+        return Err(format!(
+            "R is not a rotation (RᵀR differs from I by {off:.2e}, det {:.3})",
+            r.determinant()
+        ));
+    }
+    Ok(Pose::new(Rotation3::from_matrix_unchecked(r), t))
+}
+
+/// One marker's pose in a frame of a scenes file.
+#[derive(Debug, Clone, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MarkerPoseRecord {
+    marker: usize,
+    #[serde(rename = "R")]
+    rotation: [[f64; 3]; 3],
+    #[serde(rename = "t")]
+    translation: [f64; 3],
+}
+
+/// The frames of a scenes file for a set of `markers` markers: a JSON
+/// array of frames, each an array of `{"marker": N, "R": [[…], […], […]],
+/// "t": […]}`, N the marker's number in the set (from 1), each marker at
+/// most once a frame (docs/formats.md, "Render scenes file"). Each frame
+/// is its markers' `(index from 0, pose)`, in the file's order.
+///
+/// ```
+/// let frames = layout_opt::render::scenes_from_json(
+///     r#"[[{"marker": 2, "R": [[1,0,0],[0,1,0],[0,0,1]], "t": [0, 0, 500]}]]"#,
+///     2,
+/// ).unwrap();
+/// assert_eq!(frames[0][0].0, 1);
+/// ```
+pub fn scenes_from_json(
+    text: &str,
+    markers: usize,
+) -> Result<Vec<Vec<(usize, Pose)>>, RenderError> {
+    let frames: Vec<Vec<MarkerPoseRecord>> =
+        serde_json::from_str(text).map_err(|e| RenderError::Poses(e.to_string()))?;
+    if frames.is_empty() {
+        return Err(RenderError::NoPoses);
+    }
+    frames
+        .iter()
+        .enumerate()
+        .map(|(k, frame)| {
+            let bad = |why: String| RenderError::Poses(format!("frame {k}: {why}"));
+            if frame.is_empty() {
+                return Err(bad("no markers".into()));
             }
-            let off = (r.transpose() * r - Matrix3::identity()).abs().max();
-            if off > ROTATION_TOLERANCE || r.determinant() <= 0.0 {
-                return Err(RenderError::Poses(format!(
-                    "pose {k}: R is not a rotation (RᵀR differs from I by {off:.2e}, det {:.3})",
-                    r.determinant()
-                )));
+            let mut placed: Vec<(usize, Pose)> = Vec::with_capacity(frame.len());
+            for record in frame {
+                let n = record.marker;
+                if n == 0 || n > markers {
+                    return Err(bad(format!(
+                        "marker {n}: the set's markers are numbered 1 to {markers}"
+                    )));
+                }
+                if placed.iter().any(|(index, _)| *index == n - 1) {
+                    return Err(bad(format!("marker {n} is placed twice")));
+                }
+                let pose = checked_pose(&record.rotation, &record.translation)
+                    .map_err(|why| bad(format!("marker {n}: {why}")))?;
+                placed.push((n - 1, pose));
             }
-            Ok(Pose::new(Rotation3::from_matrix_unchecked(r), t))
+            Ok(placed)
         })
         .collect()
 }
@@ -196,6 +268,50 @@ pub fn poses_from_json(text: &str) -> Result<Vec<Pose>, RenderError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_scenes_file_names_each_marker_of_the_set_once() {
+        let i = r#""R": [[1,0,0],[0,1,0],[0,0,1]]"#;
+        let two = format!(
+            r#"[[{{"marker": 1, {i}, "t": [0,0,500]}}, {{"marker": 2, {i}, "t": [50,0,600]}}]]"#
+        );
+        let frames = scenes_from_json(&two, 2).unwrap();
+        assert_eq!(frames[0].len(), 2);
+        assert_eq!(frames[0][1].0, 1);
+        assert_eq!(frames[0][1].1.translation.x, 50.0);
+        for (text, needle) in [
+            (
+                format!(r#"[[{{"marker": 3, {i}, "t": [0,0,500]}}]]"#),
+                "numbered 1 to 2",
+            ),
+            (
+                format!(r#"[[{{"marker": 0, {i}, "t": [0,0,500]}}]]"#),
+                "numbered 1 to 2",
+            ),
+            (
+                format!(
+                    r#"[[{{"marker": 1, {i}, "t": [0,0,500]}}, {{"marker": 1, {i}, "t": [0,0,600]}}]]"#
+                ),
+                "placed twice",
+            ),
+            (
+                r#"[[{"marker": 1, "R": [[1,0,0],[0,1,0],[0,0,-1]], "t": [0,0,500]}]]"#.to_string(),
+                "not a rotation",
+            ),
+            ("[[]]".to_string(), "frame 0: no markers"),
+            (
+                format!(r#"[[{{"marker": 1, {i}, "t": [0,0,500], "x": 1}}]]"#),
+                "unknown field",
+            ),
+        ] {
+            let error = scenes_from_json(&text, 2).unwrap_err().to_string();
+            assert!(error.contains(needle), "{text}: {error}");
+        }
+        assert!(matches!(
+            scenes_from_json("[]", 2),
+            Err(RenderError::NoPoses)
+        ));
+    }
 
     #[test]
     fn a_poses_file_must_hold_rotations() {

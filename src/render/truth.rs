@@ -8,9 +8,12 @@
 //! point projects outside the image counts as *outside the image*; one
 //! that meets another sphere's coating first, as hidden *by a sphere*; one
 //! that meets anything else of the part first (a pillar, a strut, the
-//! plate, a fillet, the sphere's own cone), as hidden *by the support*.
+//! plate, a fillet, the sphere's own cone), as hidden *by the support*;
+//! in a frame of several markers, one that meets another marker's part
+//! first, as hidden *by another marker*, counted per marker.
 //! The rays are cast on the same scene as the image's.
 
+use super::analysis::Placed;
 use super::scene::{Ray, Scene};
 use super::RenderError;
 use crate::camera::Camera;
@@ -36,6 +39,25 @@ pub struct Hidden {
     pub by_sphere: f64,
     /// Outside the image.
     pub outside_image: f64,
+    /// Behind another marker's part (spheres or supports), in a frame of
+    /// several markers.
+    pub by_other_marker: f64,
+}
+
+impl Hidden {
+    /// The silhouette hidden, whatever hides it.
+    pub fn total(&self) -> f64 {
+        (self.by_support + self.by_sphere + self.outside_image + self.by_other_marker).min(1.0)
+    }
+}
+
+/// How much of a sphere's silhouette one other marker of the frame hides.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct HiddenBy {
+    /// The marker, as the frame numbers them (from 1).
+    pub marker: usize,
+    /// Fraction of the silhouette.
+    pub fraction: f64,
 }
 
 /// What an image shows of one sphere, exactly.
@@ -61,6 +83,10 @@ pub struct SphereTruth {
     pub projected_centre_px: [f64; 2],
     /// Hidden fractions of the silhouette.
     pub hidden: Hidden,
+    /// In a frame of several markers: each other marker that hides some of
+    /// the silhouette, and how much.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub hidden_by_markers: Vec<HiddenBy>,
 }
 
 /// The ground truth of one frame.
@@ -85,6 +111,19 @@ pub fn frame_truth(
     pose: &Pose,
     camera: &Camera,
 ) -> Result<FrameTruth, RenderError> {
+    part_truth(&[Placed { scene, pose }], 0, names, camera)
+}
+
+/// The truth of part `part` of a frame of several `parts` (markers), its
+/// spheres named by `names`: as [`frame_truth`], with what the other parts
+/// hide of each sphere.
+pub fn part_truth(
+    parts: &[Placed],
+    part: usize,
+    names: &[String],
+    camera: &Camera,
+) -> Result<FrameTruth, RenderError> {
+    let Placed { scene, pose } = parts[part];
     let mut spheres = Vec::with_capacity(scene.spheres().len());
     for (index, &(centre, radius)) in scene.spheres().iter().enumerate() {
         let name = names
@@ -112,6 +151,7 @@ pub fn frame_truth(
             camera.fy() * m0.y + camera.cy(),
         );
         let projected = camera.project(&c).unwrap_or(Vector2::repeat(f64::NAN));
+        let (hidden, by_part) = hidden_among(parts, part, camera, index, SILHOUETTE_RAYS);
         spheres.push(SphereTruth {
             name,
             centre_camera_mm: c.into(),
@@ -121,7 +161,16 @@ pub fn frame_truth(
             ellipse_centre_undistorted_px: undistorted.into(),
             semi_axes_px: ellipse.map_or([f64::NAN; 2], |e| [e.semi_major, e.semi_minor]),
             projected_centre_px: projected.into(),
-            hidden: hidden_fractions(scene, pose, camera, index, SILHOUETTE_RAYS),
+            hidden,
+            hidden_by_markers: by_part
+                .iter()
+                .enumerate()
+                .filter(|&(_, &fraction)| fraction > 0.0)
+                .map(|(other, &fraction)| HiddenBy {
+                    marker: other + 1,
+                    fraction,
+                })
+                .collect(),
         });
     }
     Ok(FrameTruth {
@@ -165,34 +214,67 @@ pub fn hidden_fractions(
     index: usize,
     rays: usize,
 ) -> Hidden {
+    hidden_among(&[Placed { scene, pose }], 0, camera, index, rays).0
+}
+
+/// The hidden fractions of sphere `index` of part `part` among `parts`,
+/// and the fraction each part hides (zero for `part` itself).
+fn hidden_among(
+    parts: &[Placed],
+    part: usize,
+    camera: &Camera,
+    index: usize,
+    rays: usize,
+) -> (Hidden, Vec<f64>) {
+    let Placed { scene, pose } = parts[part];
     let (centre, radius) = scene.spheres()[index];
     let c = pose.transform(&centre);
-    let inverse = pose.rotation.inverse();
-    let origin = -(inverse * pose.translation);
-    let all = scene.all_shapes();
+    let views: Vec<(Vector3<f64>, nalgebra::Rotation3<f64>, Vec<u32>)> = parts
+        .iter()
+        .map(|p| {
+            let inverse = p.pose.rotation.inverse();
+            (
+                -(inverse * p.pose.translation),
+                inverse,
+                p.scene.all_shapes(),
+            )
+        })
+        .collect();
     let mut counts = [0usize; 3];
+    let mut by_part = vec![0usize; parts.len()];
     for limb in limb_points(&c, radius, rays) {
         let visible_on_image = camera.project(&limb).is_some_and(|p| on_image(camera, &p));
         if !visible_on_image {
             counts[2] += 1;
             continue;
         }
-        let aim = c + (limb - c) * (1.0 - LIMB_INSET);
-        let ray = Ray {
-            origin,
-            direction: inverse * aim.normalize(),
-        };
-        match scene.first_hit(&ray, &all) {
-            Some(hit) if hit.sphere == Some(index) => {}
-            Some(hit) if hit.sphere.is_some() => counts[1] += 1,
+        let aim = (c + (limb - c) * (1.0 - LIMB_INSET)).normalize();
+        let nearest = parts
+            .iter()
+            .zip(&views)
+            .enumerate()
+            .filter_map(|(k, (p, (origin, inverse, all)))| {
+                let ray = Ray {
+                    origin: *origin,
+                    direction: inverse * aim,
+                };
+                p.scene.first_hit(&ray, all).map(|hit| (k, hit))
+            })
+            .min_by(|a, b| a.1.t.total_cmp(&b.1.t));
+        match nearest {
+            Some((k, _)) if k != part => by_part[k] += 1,
+            Some((_, hit)) if hit.sphere == Some(index) => {}
+            Some((_, hit)) if hit.sphere.is_some() => counts[1] += 1,
             Some(_) => counts[0] += 1,
             None => {}
         }
     }
     let n = rays as f64;
-    Hidden {
+    let hidden = Hidden {
         by_support: counts[0] as f64 / n,
         by_sphere: counts[1] as f64 / n,
         outside_image: counts[2] as f64 / n,
-    }
+        by_other_marker: by_part.iter().sum::<usize>() as f64 / n,
+    };
+    (hidden, by_part.iter().map(|&k| k as f64 / n).collect())
 }

@@ -184,7 +184,13 @@ pub fn run(job: &RenderJob, observer: &mut impl Observer) -> Result<RenderReport
     }
     let checked = check(job, observer)?;
     let stem = file_stem(&job.layout.name);
-    let files = open_outputs(job, &stem)?;
+    let files = open_frame_outputs(
+        &job.sources,
+        &job.out_dir,
+        &stem,
+        job.poses.len(),
+        job.config.realisations,
+    )?;
     let stop = AtomicBool::new(false);
     let done = AtomicU64::new(0);
     let total = job.poses.len() as u64;
@@ -221,7 +227,7 @@ pub fn run(job: &RenderJob, observer: &mut impl Observer) -> Result<RenderReport
 
 /// The names of frame `frame`'s images (one per realisation) and of its
 /// record.
-fn frame_names(stem: &str, frame: usize, realisations: u32) -> (Vec<String>, String) {
+pub(super) fn frame_names(stem: &str, frame: usize, realisations: u32) -> (Vec<String>, String) {
     let images = (0..realisations)
         .map(|realisation| match realisations {
             1 => format!("{stem}-{frame:03}.png"),
@@ -232,17 +238,24 @@ fn frame_names(stem: &str, frame: usize, realisations: u32) -> (Vec<String>, Str
 }
 
 /// The run's outputs, checked against its sources and locked before any
-/// frame is rendered ([`crate::kernel::outputs`]).
-fn open_outputs(job: &RenderJob, stem: &str) -> Result<Outputs, RenderError> {
+/// frame is rendered ([`crate::kernel::outputs`]): the images and record
+/// of each of `frames` frames in `out_dir`.
+pub(super) fn open_frame_outputs(
+    sources: &[(String, PathBuf)],
+    out_dir: &Path,
+    stem: &str,
+    frames: usize,
+    realisations: u32,
+) -> Result<Outputs, RenderError> {
     let mut plan = OutputPlan::new();
-    for (what, path) in &job.sources {
+    for (what, path) in sources {
         plan.input(what.as_str(), path);
     }
-    plan.dir("--out", &job.out_dir);
-    for frame in 0..job.poses.len() {
-        let (images, record) = frame_names(stem, frame, job.config.realisations);
+    plan.dir("--out", out_dir);
+    for frame in 0..frames {
+        let (images, record) = frame_names(stem, frame, realisations);
         for name in images.iter().chain([&record]) {
-            plan.file_in_dir("--out", job.out_dir.join(name));
+            plan.file_in_dir("--out", out_dir.join(name));
         }
     }
     Ok(plan.open()?)
@@ -262,19 +275,7 @@ fn write_frame(
     let config = &job.config;
     let pose = &job.poses[frame].pose;
     let radiance = render_radiance(&checked.scene, pose, config).map_err(|e| e.in_frame(frame))?;
-    let mut images = Vec::new();
-    for (realisation, name) in (0..config.realisations).zip(names) {
-        let digital = expose(
-            &radiance,
-            &config.sensor,
-            config.seed,
-            frame as u64,
-            u64::from(realisation),
-        );
-        let path = dir.join(name);
-        files.stage(&path, &encode_png(&path, &digital)?)?;
-        images.push(path);
-    }
+    let images = stage_images(&radiance, config, files, dir, names, frame)?;
     let truth = &checked.truths[frame];
     let blur_sigma_px = config
         .optics
@@ -283,15 +284,7 @@ fn write_frame(
     let record = FrameRecord {
         frame,
         layout: &job.layout.name,
-        images: images
-            .iter()
-            .map(|p| {
-                p.file_name()
-                    .unwrap_or_default()
-                    .to_string_lossy()
-                    .into_owned()
-            })
-            .collect(),
+        images: file_names(&images),
         width: config.camera.width(),
         height: config.camera.height(),
         bit_depth: config.sensor.bit_depth,
@@ -314,6 +307,45 @@ fn write_frame(
         truth: truth.clone(),
         blur_sigma_px,
     })
+}
+
+/// Exposes `radiance` once per realisation of frame `frame` and stages
+/// each image in `dir` under its name of `names`.
+pub(super) fn stage_images(
+    radiance: &super::Radiance,
+    config: &RenderConfig,
+    files: &Outputs,
+    dir: &Path,
+    names: Vec<String>,
+    frame: usize,
+) -> Result<Vec<PathBuf>, RenderError> {
+    let mut images = Vec::new();
+    for (realisation, name) in (0..config.realisations).zip(names) {
+        let digital = expose(
+            radiance,
+            &config.sensor,
+            config.seed,
+            frame as u64,
+            u64::from(realisation),
+        );
+        let path = dir.join(name);
+        files.stage(&path, &encode_png(&path, &digital)?)?;
+        images.push(path);
+    }
+    Ok(images)
+}
+
+/// The file names of `paths`, for a record beside them.
+pub(super) fn file_names(paths: &[PathBuf]) -> Vec<String> {
+    paths
+        .iter()
+        .map(|p| {
+            p.file_name()
+                .unwrap_or_default()
+                .to_string_lossy()
+                .into_owned()
+        })
+        .collect()
 }
 
 /// Encodes a grey PNG of the image's bit depth.

@@ -175,11 +175,7 @@ pub fn check_pose(
         .iter()
         .map(|s| Vector2::from(s.projected_centre_px))
         .collect();
-    let hidden: Vec<f64> = truth
-        .spheres
-        .iter()
-        .map(|s| (s.hidden.by_support + s.hidden.by_sphere + s.hidden.outside_image).min(1.0))
-        .collect();
+    let hidden: Vec<f64> = truth.spheres.iter().map(|s| s.hidden.total()).collect();
     let mut outcome = PoseImages {
         frame,
         trials,
@@ -510,10 +506,11 @@ pub fn first_whole_view(
                 Vector3::new(0.0, 0.0, depth_mm),
             );
             let truth = frame_truth(scene, names, &pose, camera)?;
-            if truth.spheres.iter().all(|s| {
-                s.hidden.by_support + s.hidden.by_sphere + s.hidden.outside_image
-                    < WHOLE_SPHERE_HIDDEN
-            }) {
+            if truth
+                .spheres
+                .iter()
+                .all(|s| s.hidden.total() < WHOLE_SPHERE_HIDDEN)
+            {
                 return Ok(Some(pose));
             }
         }

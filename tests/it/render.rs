@@ -224,6 +224,7 @@ fn marched_fractions(marker: &Marker, pose: &Pose, camera: &Camera, index: usize
         by_support: counts[0] as f64 / n,
         by_sphere: counts[1] as f64 / n,
         outside_image: counts[2] as f64 / n,
+        by_other_marker: 0.0,
     }
 }
 

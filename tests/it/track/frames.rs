@@ -289,7 +289,7 @@ pub fn ellipse_centre(sphere: &SphereTruth) -> Vector2<f64> {
 
 /// Share of a sphere's silhouette hidden, any cause.
 pub fn hidden_fraction(sphere: &SphereTruth) -> f64 {
-    sphere.hidden.by_support + sphere.hidden.by_sphere + sphere.hidden.outside_image
+    sphere.hidden.total()
 }
 
 /// Whether every sphere is whole, inside the frame with a margin, and no
