@@ -42,7 +42,11 @@
 //! *placement*. The joint fit is then chosen greedily: placements ranked
 //! by blobs explained (most first), then reprojection RMS, are accepted
 //! when their marker is not yet placed and they share no blob with an
-//! accepted one. Blobs no placement claims are reported as unexplained.
+//! accepted one. A placement that shares blobs with an accepted one (a
+//! sphere hidden behind another marker's sphere projects into that
+//! sphere's blob, the nearest one) is refitted without them and ranked
+//! again, when enough blobs are left. Blobs no placement claims are
+//! reported as unexplained.
 
 // `!(x > 0.0)` is deliberate: it is true for NaN as well.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
@@ -1224,6 +1228,20 @@ fn place(
         .map(|(point, &blob)| (blob, point))
         .collect();
     pairs.sort_unstable();
+    fitted(marker, object, image, pose, &pairs, gate_sq)
+}
+
+/// The placement of marker `marker` on the (blob, point) `pairs`,
+/// ascending by blob: the pose refitted from `pose` and every pair within
+/// the gate, or None.
+fn fitted(
+    marker: usize,
+    object: &[Vector3<f64>],
+    image: &[Vector2<f64>],
+    pose: &Pose,
+    pairs: &[(usize, usize)],
+    gate_sq: f64,
+) -> Option<Placement> {
     let matched: Vec<Vector3<f64>> = pairs.iter().map(|&(_, point)| object[point]).collect();
     let blobs: Vec<Vector2<f64>> = pairs.iter().map(|&(blob, _)| image[blob]).collect();
     let refined = ml::refine(pose, &matched, &blobs);
@@ -1276,20 +1294,54 @@ pub fn group_blobs(
         .into_iter()
         .flatten()
         .collect();
-    candidates.sort_by(|a, b| {
+    let rank = |a: &Placement, b: &Placement| {
         b.blobs
             .len()
             .cmp(&a.blobs.len())
             .then(a.rms.total_cmp(&b.rms))
             .then(a.marker.cmp(&b.marker))
             .then(a.labels.cmp(&b.labels))
-    });
+    };
+    candidates.sort_by(rank);
+    let gate_sq = options.gate * options.gate;
     let mut chosen: Vec<Placement> = Vec::new();
     let mut used = vec![false; image.len()];
-    for candidate in candidates {
-        if chosen.iter().any(|c| c.marker == candidate.marker)
-            || candidate.blobs.iter().any(|&b| used[b])
-        {
+    let mut next = 0;
+    while next < candidates.len() {
+        let candidate = candidates[next].clone();
+        next += 1;
+        if chosen.iter().any(|c| c.marker == candidate.marker) {
+            continue;
+        }
+        if candidate.blobs.iter().any(|&b| used[b]) {
+            // A point of this marker took a blob an accepted marker
+            // explains (a sphere hidden behind the other marker's sphere
+            // projects into its blob): the placement without those blobs,
+            // refitted, joins the ranking where it belongs.
+            let object = &objects[candidate.marker];
+            let pairs: Vec<(usize, usize)> = candidate
+                .blobs
+                .iter()
+                .zip(&candidate.labels)
+                .filter(|&(&blob, _)| !used[blob])
+                .map(|(&blob, &point)| (blob, point))
+                .collect();
+            let enough = MIN_POINTS.max(object.len().saturating_sub(options.max_missing));
+            if pairs.len() >= enough {
+                let reduced = fitted(
+                    candidate.marker,
+                    object,
+                    image,
+                    &candidate.pose,
+                    &pairs,
+                    gate_sq,
+                );
+                if let Some(reduced) = reduced {
+                    let at =
+                        next + candidates[next..].partition_point(|c| rank(c, &reduced).is_le());
+                    candidates.insert(at, reduced);
+                }
+            }
             continue;
         }
         for &b in &candidate.blobs {
