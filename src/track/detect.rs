@@ -358,6 +358,19 @@ pub struct Detection {
     /// Threshold level used (global) or the local offset, fraction of full
     /// scale.
     pub threshold_level: f64,
+    /// Where the components rejected as no sphere's disc lie (two discs
+    /// that touch and merge, a blob cut by something in front).
+    pub misshapen: Vec<Misshapen>,
+}
+
+/// A component above the threshold that no sphere casts: rejected, not
+/// measured, and said where it is.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Misshapen {
+    /// Its pixels' box: first column, first row, last column, last row.
+    pub box_px: [usize; 4],
+    /// Pixels above the threshold.
+    pub area_px: usize,
 }
 
 /// The threshold as applied: a level per coarse cell, raw units.
@@ -626,6 +639,7 @@ pub fn detect(
         rejected: Rejected::default(),
         threshold: config.threshold,
         threshold_level,
+        misshapen: Vec::new(),
     };
     let mut order: Vec<(usize, Blob)> = Vec::new();
     for (index, b) in boxes.iter().enumerate() {
@@ -697,7 +711,13 @@ pub fn detect(
                         Reason::Small => detection.rejected.small += 1,
                         Reason::Large => detection.rejected.large += 1,
                         Reason::Contrast => detection.rejected.contrast += 1,
-                        Reason::Shape => detection.rejected.shape += 1,
+                        Reason::Shape => {
+                            detection.rejected.shape += 1;
+                            detection.misshapen.push(Misshapen {
+                                box_px: [stats.min.0, stats.min.1, stats.max.0, stats.max.1],
+                                area_px: stats.count,
+                            });
+                        }
                     },
                 }
             }

@@ -9,7 +9,7 @@ use super::analysis::{
     locate, max_blobs, projected_centre_normalised, FrameAnalysis, TrackedFrame,
 };
 use super::config::TrackConfig;
-use super::detect::{detect, Blob, Detection, Rejected};
+use super::detect::{detect, Blob, Detection, Misshapen, Rejected};
 use super::frame::GreyFrame;
 use super::refine::Refiner;
 use crate::config::ConfigError;
@@ -78,6 +78,28 @@ pub struct SetFrameAnalysis {
     pub error: Option<String>,
     /// Every blob the detector accepted.
     pub blobs: Vec<Blob>,
+    /// The blobs (indices into `blobs`) that no marker found explains:
+    /// clutter, the blobs of a marker that could not be posed, and those
+    /// flagged as partly hidden, such as two spheres of different markers
+    /// whose discs touch and merge into one blob.
+    pub unclaimed: Vec<usize>,
+    /// The components rejected as no sphere's disc, where they are (two
+    /// discs that merged and could not be parted).
+    pub misshapen: Vec<Misshapen>,
+}
+
+impl SetFrameAnalysis {
+    /// A frame with no marker and no blob, for `error` (a frame that could
+    /// not be read).
+    pub fn unread(error: String) -> Self {
+        SetFrameAnalysis {
+            markers: Vec::new(),
+            error: Some(error),
+            blobs: Vec::new(),
+            unclaimed: Vec::new(),
+            misshapen: Vec::new(),
+        }
+    }
 }
 
 /// Tracks every marker of the set in one frame (module docs). `config`
@@ -89,7 +111,9 @@ pub fn analyse_set(config: &SetTrackConfig, frame: &GreyFrame) -> SetFrameAnalys
     let failed = |error: String, blobs: Vec<Blob>| SetFrameAnalysis {
         markers: Vec::new(),
         error: Some(error),
+        unclaimed: (0..blobs.len()).collect(),
         blobs,
+        misshapen: Vec::new(),
     };
     let detection = match detect(
         frame,
@@ -118,6 +142,7 @@ pub fn analyse_set(config: &SetTrackConfig, frame: &GreyFrame) -> SetFrameAnalys
     let placements = group_blobs(&objects, &image, &options);
     let mut markers = Vec::new();
     let mut errors = Vec::new();
+    let mut claimed = vec![false; detection.blobs.len()];
     for placement in placements {
         let (layout, marker_config) = &config.markers[placement.marker];
         let mut blobs: Vec<Blob> = placement
@@ -134,6 +159,7 @@ pub fn analyse_set(config: &SetTrackConfig, frame: &GreyFrame) -> SetFrameAnalys
                     rejected,
                     threshold: detection.threshold,
                     threshold_level: detection.threshold_level,
+                    misshapen: detection.misshapen.clone(),
                 }),
                 pose: Some(pose),
             },
@@ -148,6 +174,9 @@ pub fn analyse_set(config: &SetTrackConfig, frame: &GreyFrame) -> SetFrameAnalys
                 errors.push(format!("marker {}: {error}", placement.marker + 1));
                 continue;
             }
+        }
+        for &k in &placement.blobs {
+            claimed[usable[k]] = true;
         }
         markers.push(MarkerTrack {
             number: placement.marker + 1,
@@ -168,7 +197,9 @@ pub fn analyse_set(config: &SetTrackConfig, frame: &GreyFrame) -> SetFrameAnalys
     SetFrameAnalysis {
         markers,
         error,
+        unclaimed: (0..claimed.len()).filter(|&i| !claimed[i]).collect(),
         blobs: detection.blobs,
+        misshapen: detection.misshapen,
     }
 }
 
@@ -192,6 +223,11 @@ pub enum SetRecord<'a> {
         blobs: &'a [Blob],
         /// Components rejected in the frame, by reason.
         rejected: &'a Rejected,
+        /// The frame's blobs that no marker found explains
+        /// ([`SetFrameAnalysis::unclaimed`]).
+        unclaimed_blobs: Vec<&'a Blob>,
+        /// The frame's components rejected as no sphere's disc.
+        misshapen: &'a [Misshapen],
     },
     /// A frame in which no marker was found.
     Failed {
@@ -201,6 +237,8 @@ pub enum SetRecord<'a> {
         error: &'a str,
         /// Every blob the detector accepted.
         blobs: &'a [Blob],
+        /// The frame's components rejected as no sphere's disc.
+        misshapen: &'a [Misshapen],
     },
 }
 
@@ -218,6 +256,12 @@ pub fn set_records<'a>(name: &'a str, analysis: &'a SetFrameAnalysis) -> Vec<Set
                 tracked,
                 blobs: &detection.blobs,
                 rejected: &detection.rejected,
+                unclaimed_blobs: analysis
+                    .unclaimed
+                    .iter()
+                    .map(|&i| &analysis.blobs[i])
+                    .collect(),
+                misshapen: &analysis.misshapen,
             });
         }
     }
@@ -226,6 +270,7 @@ pub fn set_records<'a>(name: &'a str, analysis: &'a SetFrameAnalysis) -> Vec<Set
             frame: name,
             error: analysis.error.as_deref().unwrap_or("no marker found"),
             blobs: &analysis.blobs,
+            misshapen: &analysis.misshapen,
         });
     }
     records

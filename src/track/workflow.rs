@@ -236,11 +236,7 @@ pub fn run_set(
                     .map_err(|e| e.to_string())
             }) {
             Ok(frame) => analyse_set(config, &frame),
-            Err(error) => SetFrameAnalysis {
-                markers: Vec::new(),
-                error: Some(error),
-                blobs: Vec::new(),
-            },
+            Err(error) => SetFrameAnalysis::unread(error),
         };
         (name, analysis)
     })?;

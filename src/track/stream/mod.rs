@@ -163,11 +163,7 @@ impl StreamTracker for SetTracker<'_> {
         let start = Instant::now();
         let analysis = match &frame.frame {
             Ok(grey) => analyse_set(self.config, grey),
-            Err(error) => SetFrameAnalysis {
-                markers: Vec::new(),
-                error: Some(error.to_string()),
-                blobs: Vec::new(),
-            },
+            Err(error) => SetFrameAnalysis::unread(error.to_string()),
         };
         latency.analyse = ms(start.elapsed());
         latency.total = latency.decode + latency.analyse;
