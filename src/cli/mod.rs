@@ -10,6 +10,7 @@ mod noise_model;
 mod progress;
 mod reading;
 mod render;
+mod render_scenes;
 mod reproduce;
 mod search;
 mod solve;

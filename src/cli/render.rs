@@ -2,6 +2,7 @@
 //! the ground truth of each frame beside it.
 
 use super::common::{naming_file, CameraArgs, GridArgs, StructureArgs};
+use super::export_set::is_set_file;
 use super::look::{flag, LookArgs};
 use super::{progress, GlobalOptions};
 use anyhow::Context;
@@ -16,7 +17,9 @@ use std::path::PathBuf;
 /// Flags of `render`.
 #[derive(Debug, Args)]
 pub struct RenderArgs {
-    /// Layout file (JSON). Without it, the paper's biprism.
+    /// Layout file (JSON), or a set file (layout-opt-set) with --poses
+    /// SCENES.json: frames of several markers. Without it, the paper's
+    /// biprism.
     #[arg(value_name = "LAYOUT")]
     layout: Option<PathBuf>,
     /// Output directory (created if missing).
@@ -29,7 +32,9 @@ pub struct RenderArgs {
     #[command(flatten)]
     grid: GridArgs,
     /// Poses file: a JSON array of {"R": [[..],[..],[..]], "t": [x, y, z]}
-    /// (marker → camera, mm), instead of the scenario flags.
+    /// (marker → camera, mm), instead of the scenario flags. With a set:
+    /// an array of frames, each an array of {"marker": N, "R": …, "t": …},
+    /// N the marker's number in the set.
     #[arg(long, value_name = "FILE")]
     poses: Option<PathBuf>,
     #[command(flatten)]
@@ -53,7 +58,7 @@ pub struct RenderArgs {
     realisations: u32,
 }
 
-fn config(args: &RenderArgs, global: &GlobalOptions) -> anyhow::Result<RenderConfig> {
+pub(super) fn config(args: &RenderArgs, global: &GlobalOptions) -> anyhow::Result<RenderConfig> {
     let config = RenderConfig {
         camera: args.camera.camera()?,
         appearance: args.look.appearance(),
@@ -117,6 +122,20 @@ fn poses(args: &RenderArgs) -> anyhow::Result<Vec<FramePose>> {
 }
 
 pub fn run(args: RenderArgs, global: &GlobalOptions) -> anyhow::Result<()> {
+    if let Some(set) = args.layout.as_deref().filter(|p| is_set_file(p)) {
+        let poses = args.poses.as_deref().with_context(|| {
+            format!(
+                "{} is a set: give each frame's markers with --poses SCENES.json",
+                set.display()
+            )
+        })?;
+        anyhow::ensure!(
+            !args.grid.any_given(),
+            "--poses replaces the scenario flags (--depth, --tilt, …); give one or the other"
+        );
+        let config = config(&args, global)?;
+        return super::render_scenes::run(set, poses, &args.out, &args.structure, config, global);
+    }
     let layout = match &args.layout {
         Some(path) => naming_file(Layout::load(path), "layout", path)?,
         None => Layout::paper_biprism(),

@@ -45,6 +45,8 @@ mod reproduce;
 #[cfg(feature = "cli")]
 mod run_kernel;
 #[cfg(feature = "cli")]
+mod scenes;
+#[cfg(feature = "cli")]
 mod search;
 #[cfg(feature = "cli")]
 mod search_runs;

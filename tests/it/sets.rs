@@ -760,7 +760,7 @@ fn near_viewpoints_are_tried_with_the_worst_cases_blob_left_out() {
 }
 
 /// A set file of markers 1 and 2 of [`four_markers`] in `dir`.
-fn two_marker_set(dir: &std::path::Path) -> (std::path::PathBuf, Vec<Layout>) {
+pub(crate) fn two_marker_set(dir: &std::path::Path) -> (std::path::PathBuf, Vec<Layout>) {
     let markers = four_markers();
     let layouts = vec![layout("pair-a", &markers[0]), layout("pair-b", &markers[1])];
     // The set file names its layouts <set>-k.
