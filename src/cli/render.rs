@@ -4,11 +4,13 @@
 use super::common::{naming_file, CameraArgs, GridArgs, StructureArgs};
 use super::export_set::is_set_file;
 use super::look::{flag, LookArgs};
+use super::render_scenes::Placing;
 use super::{progress, GlobalOptions};
 use anyhow::Context;
 use clap::Args;
 use layout_opt::layout::Layout;
 use layout_opt::mesh::routed_as_recorded;
+use layout_opt::render::scenes::FixedMarker;
 use layout_opt::render::workflow::{self, FramePose, RenderJob};
 use layout_opt::render::{poses_from_json, Noise, RenderConfig, RenderError, Sensor};
 use layout_opt::scenario::{Range, ScenarioGrid};
@@ -37,6 +39,16 @@ pub struct RenderArgs {
     /// N the marker's number in the set.
     #[arg(long, value_name = "FILE")]
     poses: Option<PathBuf>,
+    /// With a set and the scenario flags: the marker the scenarios move
+    /// (its number in the set).
+    #[arg(long, value_name = "N", default_value_t = 1)]
+    moving: usize,
+    /// With a set and the scenario flags: a marker held still in every
+    /// frame, N:X,Y,Z (its number; its origin in the camera frame, mm) or
+    /// N:X,Y,Z:TILT,PAN,ROLL (degrees, as the scenario flags turn). Repeat
+    /// for more markers.
+    #[arg(long, value_name = "N:X,Y,Z[:TILT,PAN,ROLL]")]
+    fixed: Vec<FixedMarker>,
     #[command(flatten)]
     structure: StructureArgs,
     #[command(flatten)]
@@ -123,19 +135,34 @@ fn poses(args: &RenderArgs) -> anyhow::Result<Vec<FramePose>> {
 
 pub fn run(args: RenderArgs, global: &GlobalOptions) -> anyhow::Result<()> {
     if let Some(set) = args.layout.as_deref().filter(|p| is_set_file(p)) {
-        let poses = args.poses.as_deref().with_context(|| {
-            format!(
-                "{} is a set: give each frame's markers with --poses SCENES.json",
-                set.display()
-            )
-        })?;
-        anyhow::ensure!(
-            !args.grid.any_given(),
-            "--poses replaces the scenario flags (--depth, --tilt, …); give one or the other"
-        );
+        let placing = match &args.poses {
+            Some(file) => {
+                anyhow::ensure!(
+                    !args.grid.any_given() && args.fixed.is_empty() && args.moving == 1,
+                    "--poses SCENES.json places every marker; the scenario flags, --moving and --fixed place them otherwise: give one or the other"
+                );
+                Placing::File(file.clone())
+            }
+            None => {
+                anyhow::ensure!(args.moving >= 1, "--moving counts the set's markers from 1");
+                let scenarios = poses(&args)?
+                    .into_iter()
+                    .filter_map(|frame| frame.scenario)
+                    .collect();
+                Placing::Grid {
+                    moving: args.moving - 1,
+                    scenarios,
+                    fixed: args.fixed.clone(),
+                }
+            }
+        };
         let config = config(&args, global)?;
-        return super::render_scenes::run(set, poses, &args.out, &args.structure, config, global);
+        return super::render_scenes::run(set, placing, &args.out, &args.structure, config, global);
     }
+    anyhow::ensure!(
+        args.fixed.is_empty() && args.moving == 1,
+        "--moving and --fixed place the markers of a set: give a set file (layout-opt-set)"
+    );
     let layout = match &args.layout {
         Some(path) => naming_file(Layout::load(path), "layout", path)?,
         None => Layout::paper_biprism(),

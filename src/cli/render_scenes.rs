@@ -1,4 +1,5 @@
-//! `layout-opt render SET.json --poses SCENES.json`: frames of several
+//! `layout-opt render SET.json --poses SCENES.json`, or `render SET.json`
+//! with the scenario flags, `--moving` and `--fixed`: frames of several
 //! markers of a set, each at its own pose, hiding one another
 //! ([`layout_opt::render::scenes`]).
 
@@ -6,26 +7,55 @@ use super::common::{naming_file, StructureArgs};
 use super::{progress, GlobalOptions};
 use anyhow::Context;
 use layout_opt::mesh::routed_as_recorded;
-use layout_opt::render::scenes::{run_scenes, ScenesJob};
+use layout_opt::render::scenes::{run_scenes, scenario_frames, FixedMarker, ScenesJob};
 use layout_opt::render::{scenes_from_json, RenderConfig, RenderError};
-use std::path::Path;
+use layout_opt::scenario::Scenario;
+use std::path::{Path, PathBuf};
 
-/// Renders the frames `poses` places the set's markers in, into `out`.
+/// How the frames place the set's markers.
+pub enum Placing {
+    /// A scenes file (`--poses`).
+    File(PathBuf),
+    /// The scenario flags move one marker (index from 0); the others stand
+    /// still.
+    Grid {
+        moving: usize,
+        scenarios: Vec<Scenario>,
+        fixed: Vec<FixedMarker>,
+    },
+}
+
+/// Renders the frames `placing` places the set's markers in, into `out`.
 pub fn run(
     set_path: &Path,
-    poses: &Path,
+    placing: Placing,
     out: &Path,
     structure: &StructureArgs,
     config: RenderConfig,
     global: &GlobalOptions,
 ) -> anyhow::Result<()> {
     let set = super::export_set::load(set_path)?;
-    let text = naming_file(std::fs::read_to_string(poses), "scenes file", poses)?;
-    let frames = naming_file(
-        scenes_from_json(&text, set.members.len()),
-        "scenes file",
-        poses,
-    )?;
+    let mut sources = vec![("SET".to_string(), set_path.to_path_buf())];
+    let (frames, scenarios) = match placing {
+        Placing::File(poses) => {
+            let text = naming_file(std::fs::read_to_string(&poses), "scenes file", &poses)?;
+            let frames = naming_file(
+                scenes_from_json(&text, set.members.len()),
+                "scenes file",
+                &poses,
+            )?;
+            sources.push(("--poses".to_string(), poses));
+            (frames, Vec::new())
+        }
+        Placing::Grid {
+            moving,
+            scenarios,
+            fixed,
+        } => (
+            scenario_frames(set.members.len(), moving, &scenarios, &fixed)?,
+            scenarios,
+        ),
+    };
     let markers = set
         .members
         .iter()
@@ -39,12 +69,10 @@ pub fn run(
         name: set.name.clone(),
         markers,
         frames,
+        scenarios,
         config,
         out_dir: out.to_path_buf(),
-        sources: vec![
-            ("SET".to_string(), set_path.to_path_buf()),
-            ("--poses".to_string(), poses.to_path_buf()),
-        ],
+        sources,
     };
     let mut bars = progress::Bars::new(global.quiet);
     let result = run_scenes(&job, &mut bars);

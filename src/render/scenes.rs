@@ -20,6 +20,7 @@ use crate::layout::Layout;
 use crate::mesh::{file_stem, Marker, MarkerOptions};
 use crate::observer::{watch, Observer};
 use crate::pose::Pose;
+use crate::scenario::Scenario;
 use rayon::prelude::*;
 use serde::Serialize;
 use std::path::PathBuf;
@@ -36,6 +37,9 @@ pub struct ScenesJob {
     pub markers: Vec<(Layout, MarkerOptions)>,
     /// Each frame's markers: (index into `markers`, marker → camera).
     pub frames: Vec<Vec<(usize, Pose)>>,
+    /// Each frame's scenario-grid point, when the scenario flags placed its
+    /// moving marker ([`scenario_frames`]); empty otherwise.
+    pub scenarios: Vec<Scenario>,
     /// Appearance, optics, sensor, seed.
     pub config: RenderConfig,
     /// Directory the images go into (created if missing).
@@ -55,6 +59,100 @@ pub struct MarkerTruth {
     /// Its pose and spheres.
     #[serde(flatten)]
     pub truth: FrameTruth,
+}
+
+/// A marker held still in every frame of a scenario grid: `N:X,Y,Z` or
+/// `N:X,Y,Z:TILT,PAN,ROLL` (its number in the set; its origin in the
+/// camera frame, mm; its turn in degrees, as a scenario's).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FixedMarker {
+    /// Index in the set (from 0).
+    pub marker: usize,
+    /// Marker → camera.
+    pub pose: Pose,
+}
+
+impl std::str::FromStr for FixedMarker {
+    type Err = String;
+
+    fn from_str(text: &str) -> Result<Self, String> {
+        let usage = || {
+            format!("{text:?}: give N:X,Y,Z or N:X,Y,Z:TILT,PAN,ROLL (the marker's number, its origin in mm, its turn in degrees)")
+        };
+        let mut parts = text.split(':');
+        let marker: usize = parts
+            .next()
+            .and_then(|n| n.trim().parse().ok())
+            .filter(|&n| n > 0)
+            .ok_or_else(usage)?;
+        let numbers = |part: Option<&str>| -> Result<Vec<f64>, String> {
+            let values: Option<Vec<f64>> = part
+                .ok_or_else(usage)?
+                .split(',')
+                .map(|v| v.trim().parse::<f64>().ok().filter(|v| v.is_finite()))
+                .collect();
+            values.filter(|v| v.len() == 3).ok_or_else(usage)
+        };
+        let at = numbers(parts.next())?;
+        let turn = match parts.next() {
+            Some(turn) => numbers(Some(turn))?,
+            None => vec![0.0; 3],
+        };
+        if parts.next().is_some() {
+            return Err(usage());
+        }
+        let pose = Scenario {
+            index: 0,
+            depth_mm: at[2],
+            offset_x_mm: at[0],
+            offset_y_mm: at[1],
+            tilt_deg: turn[0],
+            pan_deg: turn[1],
+            roll_deg: turn[2],
+            sigma_px: 0.0,
+        }
+        .pose();
+        Ok(FixedMarker {
+            marker: marker - 1,
+            pose,
+        })
+    }
+}
+
+/// The frames of a scenario grid for a set of `markers` markers: marker
+/// `moving` (index from 0) at each scenario's pose, the `fixed` ones where
+/// they stand; each marker at most once.
+pub fn scenario_frames(
+    markers: usize,
+    moving: usize,
+    scenarios: &[Scenario],
+    fixed: &[FixedMarker],
+) -> Result<Vec<Vec<(usize, Pose)>>, RenderError> {
+    let mut placed = vec![moving];
+    for f in fixed {
+        if placed.contains(&f.marker) {
+            return Err(RenderError::Poses(format!(
+                "marker {} is placed twice (the moving marker is {})",
+                f.marker + 1,
+                moving + 1
+            )));
+        }
+        placed.push(f.marker);
+    }
+    if let Some(&out) = placed.iter().find(|&&m| m >= markers) {
+        return Err(RenderError::Poses(format!(
+            "marker {}: the set's markers are numbered 1 to {markers}",
+            out + 1
+        )));
+    }
+    Ok(scenarios
+        .iter()
+        .map(|scenario| {
+            std::iter::once((moving, scenario.pose()))
+                .chain(fixed.iter().map(|f| (f.marker, f.pose)))
+                .collect()
+        })
+        .collect())
 }
 
 /// The files of one frame.
@@ -91,6 +189,7 @@ struct SceneRecord<'a> {
     height: u32,
     bit_depth: u8,
     markers: &'a [MarkerTruth],
+    scenario: Option<&'a Scenario>,
     blur_sigma_px: f64,
     seed: u64,
     camera: &'a Camera,
@@ -255,6 +354,7 @@ pub fn run_scenes(
             height: config.camera.height(),
             bit_depth: config.sensor.bit_depth,
             markers: truths,
+            scenario: job.scenarios.get(frame),
             blur_sigma_px: *blur_sigma_px,
             seed: config.seed,
             camera: &config.camera,
@@ -301,4 +401,61 @@ pub fn run_scenes(
         frames,
         seconds: start.elapsed().as_secs_f64(),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_fixed_marker_reads_its_number_place_and_turn() {
+        let fixed: FixedMarker = "2:10,-20,600:0,30,0".parse().unwrap();
+        assert_eq!(fixed.marker, 1);
+        assert_eq!(
+            fixed.pose.translation,
+            nalgebra::Vector3::new(10.0, -20.0, 600.0)
+        );
+        let turned = fixed.pose.rotation * nalgebra::Vector3::z();
+        assert!((turned.z - 30f64.to_radians().cos()).abs() < 1e-12);
+        let still: FixedMarker = "1:0,0,500".parse().unwrap();
+        assert_eq!(still.pose.rotation, nalgebra::Rotation3::identity());
+        for bad in [
+            "0:0,0,500",
+            "x:0,0,500",
+            "1:0,0",
+            "1:0,0,500:1,2",
+            "1:0,0,inf",
+            "1:0,0,1:0,0,0:9",
+        ] {
+            assert!(bad.parse::<FixedMarker>().is_err(), "{bad}");
+        }
+    }
+
+    #[test]
+    fn scenario_frames_move_one_marker_and_hold_the_others() {
+        let scenarios: Vec<Scenario> = [400.0, 800.0]
+            .iter()
+            .enumerate()
+            .map(|(index, &depth_mm)| Scenario {
+                index,
+                depth_mm,
+                offset_x_mm: 0.0,
+                offset_y_mm: 0.0,
+                tilt_deg: 10.0,
+                pan_deg: 0.0,
+                roll_deg: 0.0,
+                sigma_px: 0.5,
+            })
+            .collect();
+        let fixed: FixedMarker = "3:100,0,700".parse().unwrap();
+        let frames = scenario_frames(3, 1, &scenarios, &[fixed]).unwrap();
+        assert_eq!(frames.len(), 2);
+        assert_eq!(frames[1][0].0, 1);
+        assert_eq!(frames[1][0].1.translation.z, 800.0);
+        assert_eq!(frames[1][1], (2, fixed.pose));
+        let twice = scenario_frames(3, 2, &scenarios, &[fixed]).unwrap_err();
+        assert!(twice.to_string().contains("placed twice"), "{twice}");
+        let beyond = scenario_frames(2, 0, &scenarios, &[fixed]).unwrap_err();
+        assert!(beyond.to_string().contains("numbered 1 to 2"), "{beyond}");
+    }
 }

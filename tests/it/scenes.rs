@@ -273,3 +273,49 @@ fn touching_blobs_of_two_markers_are_flagged_and_both_markers_posed() {
         }
     }
 }
+
+/// The scenario flags move one marker of a set and `--fixed` holds
+/// another still: each frame's record gives both poses and the scenario.
+#[test]
+fn scenario_flags_move_one_marker_past_a_fixed_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let (set_path, _) = two_marker_set(dir.path());
+    let out = dir.path().join("grid");
+    assert_cmd::Command::cargo_bin("layout-opt")
+        .unwrap()
+        .args([
+            "render",
+            "--quiet",
+            "--depth",
+            "450..650:200",
+            "--tilt",
+            "20",
+        ])
+        .args([
+            "--offset-x=-80",
+            "--moving",
+            "2",
+            "--fixed",
+            "1:90,-40,700:10,-15,30",
+        ])
+        .arg(&set_path)
+        .arg("--out")
+        .arg(&out)
+        .assert()
+        .success();
+    for (frame, depth) in [(0, 450.0), (1, 650.0)] {
+        let record: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(out.join(format!("pair-{frame:03}.json"))).unwrap(),
+        )
+        .unwrap();
+        let markers = record["markers"].as_array().unwrap();
+        assert_eq!(markers[0]["marker"], 2);
+        assert_eq!(translation_of(&markers[0]), Vector3::new(-80.0, 0.0, depth));
+        assert_eq!(markers[1]["marker"], 1);
+        assert_eq!(
+            translation_of(&markers[1]),
+            Vector3::new(90.0, -40.0, 700.0)
+        );
+        assert_eq!(record["scenario"]["depth_mm"].as_f64(), Some(depth));
+    }
+}
