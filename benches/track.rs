@@ -77,7 +77,7 @@ fn bench(c: &mut Criterion<CpuTime>) {
     // three renders (the sphere, the supports and the background alone).
     let fitted = refiner.clone().with_fitted_levels(true);
     c.bench_function(
-        "track --refine: one round with the levels fitted (3 renders 8x8, detect, pose)",
+        "track --refine: one round with the levels fitted (one three-channel render 8x8, detect, pose)",
         |b| b.iter(|| fitted.refine(&config, &frame, std::hint::black_box(analysis.clone()))),
     );
     c.bench_function("track: PNG decode, 1280x720 8-bit", |b| {

@@ -42,6 +42,10 @@ const OUTLINE_MARGIN_PX: f64 = 2.0;
 /// full scale); across a rounded edge, where the shading falls steeply
 /// within a pixel, it is supersampled.
 const SHADE_SPREAD: f32 = 1.0 / 16.0;
+/// The least radiance a unit channel's shading spread is weighed at when
+/// deciding to supersample a pixel ([`render_channels_within`]): the
+/// brightest support of the presets (the diffuse one's grey body).
+const CHANNEL_SPREAD_FLOOR: f64 = 0.5;
 /// A surface id for "no surface".
 const BACKGROUND: u32 = u32::MAX;
 
@@ -126,14 +130,66 @@ pub(super) fn render_parts(
     config: &RenderConfig,
     regions: Option<&[(usize, usize, usize, usize)]>,
 ) -> Result<Radiance, RenderError> {
-    let camera = &config.camera;
-    let appearance = &config.appearance;
-    let (width, height) = (camera.width() as usize, camera.height() as usize);
-    let background = (appearance.background_radiance * appearance.exposure) as f32;
+    let (width, height, values) = trace_parts::<f32>(parts, config, regions)?;
     let mut image = Radiance {
         width,
         height,
-        values: vec![background; width * height],
+        values: values.pixels,
+    };
+    if let Some(region) = values.active {
+        gaussian_blur(&mut image, sigma_px, region);
+    }
+    Ok(image)
+}
+
+/// The render of one part at `pose` within `regions` (as
+/// [`render_radiance_within`]), in three images at once: the sphere's
+/// coating alone, the supports alone and the background alone, each at
+/// unit radiance, so that the render with radiances `(a, b, c)` is
+/// `a·[0] + b·[1] + c·[2]` (the lighting, the shading and the exposure
+/// as `config` gives them). One tracing pass: an edge pixel is
+/// supersampled where any of the three needs it.
+pub fn render_channels_within(
+    scene: &Scene,
+    pose: &Pose,
+    config: &RenderConfig,
+    regions: Option<&[(usize, usize, usize, usize)]>,
+) -> Result<[Radiance; 3], RenderError> {
+    let sigma_px = blur_at(config, pose, 0)?;
+    let (width, height, values) =
+        trace_parts::<[f32; 3]>(&[Placed { scene, pose }], config, regions)?;
+    Ok(std::array::from_fn(|k| {
+        let mut image = Radiance {
+            width,
+            height,
+            values: values.pixels.iter().map(|v| v[k]).collect(),
+        };
+        if let Some(region) = values.active {
+            gaussian_blur(&mut image, sigma_px, region);
+        }
+        image
+    }))
+}
+
+/// Traced pixels before the blur, and the box of the tiles traced.
+struct Traced<T> {
+    pixels: Vec<T>,
+    active: Option<(usize, usize, usize, usize)>,
+}
+
+/// Traces `parts` in the tiles that may show them (within `regions` when
+/// given): the image's width, height and pixels (module docs).
+fn trace_parts<T: Texel>(
+    parts: &[Placed],
+    config: &RenderConfig,
+    regions: Option<&[(usize, usize, usize, usize)]>,
+) -> Result<(usize, usize, Traced<T>), RenderError> {
+    let camera = &config.camera;
+    let appearance = &config.appearance;
+    let (width, height) = (camera.width() as usize, camera.height() as usize);
+    let mut traced = Traced {
+        pixels: vec![T::background(appearance); width * height],
+        active: None,
     };
     let tiles = tile_candidates(parts, camera);
     let tiles_x = width.div_ceil(TILE_PX);
@@ -153,7 +209,6 @@ pub(super) fn render_parts(
             })
             .collect(),
     };
-    let mut active: Option<(usize, usize, usize, usize)> = None;
     for (index, candidates) in tiles.iter().enumerate() {
         if candidates.shapes.is_empty() {
             continue;
@@ -168,21 +223,111 @@ pub(super) fn render_parts(
         render_tile(
             &shader,
             candidates,
-            x0,
-            y0,
+            (x0, y0),
             config.optics.supersampling as usize,
-            &mut image,
+            (width, height),
+            &mut traced.pixels,
         )?;
         let (x1, y1) = ((x0 + TILE_PX).min(width), (y0 + TILE_PX).min(height));
-        active = Some(match active {
+        traced.active = Some(match traced.active {
             None => (x0, y0, x1, y1),
             Some((a, b, c, d)) => (a.min(x0), b.min(y0), c.max(x1), d.max(y1)),
         });
     }
-    if let Some(region) = active {
-        gaussian_blur(&mut image, sigma_px, region);
+    Ok((width, height, traced))
+}
+
+/// What a sample carries: one radiance ([`f32`]), or the three unit
+/// channels of [`render_channels_within`] (`[f32; 3]`: the coating, the
+/// supports, the background).
+trait Texel: Copy {
+    /// The background's value.
+    fn background(appearance: &Appearance) -> Self;
+    /// A surface's value: `factor` (its shading and the exposure) times
+    /// its radiance, on the sphere's coating when `sphere`.
+    fn surface(appearance: &Appearance, sphere: bool, factor: f64) -> Self;
+    /// The mean of four corners.
+    fn mean4(corners: [Self; 4]) -> Self;
+    /// The largest spread between the four corners, over the channels,
+    /// as a fraction of full scale under `appearance`.
+    fn spread(corners: [Self; 4], appearance: &Appearance) -> f32;
+    /// Adds the value to a running sum, in f64.
+    fn accumulate(self, sum: &mut [f64; 3]);
+    /// A sum over `n` samples made a mean.
+    fn mean_of(sum: [f64; 3], n: usize) -> Self;
+}
+
+fn spread_of(values: [f32; 4]) -> f32 {
+    let (low, high) = values
+        .iter()
+        .fold((f32::INFINITY, f32::NEG_INFINITY), |(l, h), &c| {
+            (l.min(c), h.max(c))
+        });
+    high - low
+}
+
+impl Texel for f32 {
+    fn background(a: &Appearance) -> Self {
+        (a.background_radiance * a.exposure) as f32
     }
-    Ok(image)
+    fn surface(a: &Appearance, sphere: bool, factor: f64) -> Self {
+        let radiance = if sphere {
+            a.sphere_radiance
+        } else {
+            a.support_radiance
+        };
+        (radiance * factor) as f32
+    }
+    fn mean4(c: [Self; 4]) -> Self {
+        0.25 * (c[0] + c[1] + c[2] + c[3])
+    }
+    fn spread(c: [Self; 4], _: &Appearance) -> f32 {
+        spread_of(c)
+    }
+    fn accumulate(self, sum: &mut [f64; 3]) {
+        sum[0] += f64::from(self);
+    }
+    fn mean_of(sum: [f64; 3], n: usize) -> Self {
+        (sum[0] / n as f64) as f32
+    }
+}
+
+impl Texel for [f32; 3] {
+    fn background(a: &Appearance) -> Self {
+        [0.0, 0.0, a.exposure as f32]
+    }
+    fn surface(_: &Appearance, sphere: bool, factor: f64) -> Self {
+        let factor = factor as f32;
+        if sphere {
+            [factor, 0.0, 0.0]
+        } else {
+            [0.0, factor, 0.0]
+        }
+    }
+    fn mean4(c: [Self; 4]) -> Self {
+        std::array::from_fn(|k| 0.25 * (c[0][k] + c[1][k] + c[2][k] + c[3][k]))
+    }
+    /// Each unit channel's spread at the look's radiance, or at
+    /// [`CHANNEL_SPREAD_FLOOR`] where the look's is dimmer: the levels are
+    /// fitted after the render, and may come out brighter than the look's.
+    fn spread(c: [Self; 4], a: &Appearance) -> f32 {
+        let weights = [
+            a.sphere_radiance.max(CHANNEL_SPREAD_FLOOR),
+            a.support_radiance.max(CHANNEL_SPREAD_FLOOR),
+            1.0,
+        ];
+        (0..3)
+            .map(|k| weights[k] as f32 * spread_of([c[0][k], c[1][k], c[2][k], c[3][k]]))
+            .fold(0.0, f32::max)
+    }
+    fn accumulate(self, sum: &mut [f64; 3]) {
+        for (s, v) in sum.iter_mut().zip(self) {
+            *s += f64::from(v);
+        }
+    }
+    fn mean_of(sum: [f64; 3], n: usize) -> Self {
+        sum.map(|s| (s / n as f64) as f32)
+    }
 }
 
 /// The blur of a render at `pose`, px (σ), or [`RenderError::TooBlurred`]
@@ -343,9 +488,14 @@ impl Shader<'_> {
         Ok(Vector3::new(m.x, m.y, 1.0).normalize())
     }
 
-    /// The surface id and radiance seen at pixel position `(u, v)`: the
+    /// The surface id and value seen at pixel position `(u, v)`: the
     /// nearest hit over the parts.
-    fn sample(&self, u: f64, v: f64, candidates: &TileList) -> Result<(u32, f32), RenderError> {
+    fn sample<T: Texel>(
+        &self,
+        u: f64,
+        v: f64,
+        candidates: &TileList,
+    ) -> Result<(u32, T), RenderError> {
         let direction = self.direction(u, v)?;
         let mut nearest: Option<(usize, Hit, Vector3<f64>)> = None;
         for (part, shapes) in candidates.runs() {
@@ -361,53 +511,62 @@ impl Shader<'_> {
             }
         }
         Ok(match nearest {
-            None => (
-                BACKGROUND,
-                (self.appearance.background_radiance * self.appearance.exposure) as f32,
-            ),
+            None => (BACKGROUND, T::background(self.appearance)),
             Some((part, hit, direction)) => (
                 2 * (((part as u32) << SHAPE_BITS) | hit.shape as u32)
                     + u32::from(hit.sphere.is_some()),
-                self.shade(&self.parts[part], &hit, &direction) as f32,
+                T::surface(
+                    self.appearance,
+                    hit.sphere.is_some(),
+                    self.shading(&self.parts[part], &hit, &direction),
+                ),
             ),
         })
     }
 
     /// Radiance of a hit on `part` seen along `direction` (its frame;
     /// module docs of [`Lighting`]).
+    #[cfg(test)]
     fn shade(&self, part: &PartView, hit: &Hit, direction: &Vector3<f64>) -> f64 {
         let a = self.appearance;
+        let radiance = match hit.sphere {
+            Some(_) => a.sphere_radiance,
+            None => a.support_radiance,
+        };
+        radiance * self.shading(part, hit, direction)
+    }
+
+    /// What multiplies a hit's radiance (its coating's or its support's):
+    /// its shading under the lighting, and the exposure.
+    fn shading(&self, part: &PartView, hit: &Hit, direction: &Vector3<f64>) -> f64 {
+        let a = self.appearance;
         let facing = (-hit.normal.dot(direction)).max(0.0);
-        let lit = |radiance: f64| {
-            radiance * (a.ambient + (1.0 - a.ambient) * hit.normal.dot(&part.light).max(0.0))
-        };
-        let radiance = match (a.lighting, hit.sphere.is_some()) {
+        let lit = a.ambient + (1.0 - a.ambient) * hit.normal.dot(&part.light).max(0.0);
+        let factor = match (a.lighting, hit.sphere.is_some()) {
             (Lighting::Retroreflective | Lighting::Lambertian, true) => {
-                a.sphere_radiance * (1.0 - a.sphere_limb_falloff * (1.0 - facing))
+                1.0 - a.sphere_limb_falloff * (1.0 - facing)
             }
-            (Lighting::Retroreflective | Lighting::Lambertian, false) => {
-                a.support_radiance * facing
-            }
-            (Lighting::Diffuse, true) => lit(a.sphere_radiance),
-            (Lighting::Diffuse, false) => lit(a.support_radiance),
+            (Lighting::Retroreflective | Lighting::Lambertian, false) => facing,
+            (Lighting::Diffuse, _) => lit,
         };
-        radiance * a.exposure
+        factor * a.exposure
     }
 }
 
-/// Renders one tile into `image` (module docs).
-fn render_tile(
+/// Renders one tile, its corner `(x0, y0)`, into `pixels` of an image of
+/// `size` (module docs).
+fn render_tile<T: Texel>(
     shader: &Shader,
     candidates: &TileList,
-    x0: usize,
-    y0: usize,
+    (x0, y0): (usize, usize),
     supersampling: usize,
-    image: &mut Radiance,
+    (width, height): (usize, usize),
+    pixels: &mut [T],
 ) -> Result<(), RenderError> {
     let mut ids = [[0u32; CORNERS]; CORNERS];
-    let mut shades = [[0f32; CORNERS]; CORNERS];
-    let rows = TILE_PX.min(image.height - y0);
-    let columns = TILE_PX.min(image.width - x0);
+    let mut shades = [[T::background(shader.appearance); CORNERS]; CORNERS];
+    let rows = TILE_PX.min(height - y0);
+    let columns = TILE_PX.min(width - x0);
     for (j, (id_row, shade_row)) in ids
         .iter_mut()
         .zip(shades.iter_mut())
@@ -429,45 +588,40 @@ fn render_tile(
                 shades[j + 1][i],
                 shades[j + 1][i + 1],
             ];
-            let (low, high) = corners
-                .iter()
-                .fold((f32::INFINITY, f32::NEG_INFINITY), |(l, h), &c| {
-                    (l.min(c), h.max(c))
-                });
             let uniform = ids[j][i + 1] == id
                 && ids[j + 1][i] == id
                 && ids[j + 1][i + 1] == id
-                && high - low <= SHADE_SPREAD;
+                && T::spread(corners, shader.appearance) <= SHADE_SPREAD;
             let value = if uniform {
-                0.25 * (shades[j][i] + shades[j][i + 1] + shades[j + 1][i] + shades[j + 1][i + 1])
+                T::mean4(corners)
             } else {
                 supersample(shader, candidates, x0 + i, y0 + j, supersampling)?
             };
-            image.values[(y0 + j) * image.width + x0 + i] = value;
+            pixels[(y0 + j) * width + x0 + i] = value;
         }
     }
     Ok(())
 }
 
-/// The mean radiance of pixel `(x, y)` over an n × n grid of samples.
-fn supersample(
+/// The mean value of pixel `(x, y)` over an n × n grid of samples.
+fn supersample<T: Texel>(
     shader: &Shader,
     candidates: &TileList,
     x: usize,
     y: usize,
     supersampling: usize,
-) -> Result<f32, RenderError> {
+) -> Result<T, RenderError> {
     let step = 1.0 / supersampling as f64;
     let (u0, v0) = (x as f64 - 0.5, y as f64 - 0.5);
-    let mut sum = 0.0f64;
+    let mut sum = [0.0f64; 3];
     for b in 0..supersampling {
         for a in 0..supersampling {
             let u = u0 + (a as f64 + 0.5) * step;
             let v = v0 + (b as f64 + 0.5) * step;
-            sum += f64::from(shader.sample(u, v, candidates)?.1);
+            shader.sample::<T>(u, v, candidates)?.1.accumulate(&mut sum);
         }
     }
-    Ok((sum / (supersampling * supersampling) as f64) as f32)
+    Ok(T::mean_of(sum, supersampling * supersampling))
 }
 
 /// Blurs the pixels of `region` (x0, y0, x1, y1) grown by the kernel's
@@ -543,6 +697,53 @@ fn weighted(kernel: &[f32], value: impl Fn(usize) -> f32) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The three unit channels, weighted by a look's radiances, are that
+    /// look's render, in every lighting: to within the pixels near a limb
+    /// that the channels supersample (a unit channel's shading spreads
+    /// more across a pixel than a dimmer look's) and the single render
+    /// takes as the mean of its corners.
+    #[test]
+    fn the_channels_weighted_by_the_radiances_are_the_render() {
+        let layout = crate::layout::Layout::paper_biprism();
+        let marker =
+            crate::mesh::Marker::design(&layout, &crate::mesh::MarkerOptions::default()).unwrap();
+        let scene = Scene::from_marker(marker);
+        let pose = Pose::new(
+            nalgebra::Rotation3::from_euler_angles(0.5, -0.2, 0.3),
+            Vector3::new(10.0, -5.0, 450.0),
+        );
+        for lighting in [
+            Lighting::Retroreflective,
+            Lighting::Lambertian,
+            Lighting::Diffuse,
+        ] {
+            let mut config = RenderConfig::new(Camera::paper());
+            config.appearance = Appearance::preset(lighting);
+            config.appearance.background_radiance = 0.07;
+            config.appearance.exposure = 0.9;
+            let single = render_radiance(&scene, &pose, &config).unwrap();
+            let channels = render_channels_within(&scene, &pose, &config, None).unwrap();
+            let a = &config.appearance;
+            let weights = [a.sphere_radiance, a.support_radiance, a.background_radiance];
+            // differ: pixels apart by more than float rounding.
+            let (mut worst, mut total, mut differ) = (0f64, 0f64, 0usize);
+            for (i, &value) in single.values.iter().enumerate() {
+                let combined: f64 = (0..3)
+                    .map(|k| weights[k] * f64::from(channels[k].values[i]))
+                    .sum();
+                let error = (combined - f64::from(value)).abs();
+                worst = worst.max(error);
+                total += error;
+                differ += usize::from(error > 1e-5);
+            }
+            let mean = total / single.values.len() as f64;
+            assert!(
+                worst < 0.02 && mean < 2e-5,
+                "{lighting:?}: worst {worst}, mean {mean}, {differ} pixels apart by over 1e-5"
+            );
+        }
+    }
 
     /// Traced within regions, the image is the full render's inside each
     /// region (beyond the blur's reach from its border) and the

@@ -22,7 +22,8 @@ pub mod truth;
 pub mod workflow;
 
 pub use analysis::{
-    render_radiance, render_radiance_within, render_scene, scene_blur_px, Placed, Radiance,
+    render_channels_within, render_radiance, render_radiance_within, render_scene, scene_blur_px,
+    Placed, Radiance,
 };
 pub use config::{Appearance, Blur, Lighting, Noise, Optics, RenderConfig, Sensor};
 pub use scene::Scene;

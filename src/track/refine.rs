@@ -70,7 +70,8 @@ use super::likeness::Likeness;
 use crate::config::ConfigError;
 use crate::pose::{rotation_error_deg, Pose};
 use crate::render::{
-    expose, render_radiance_within, Lighting, Radiance, RenderConfig, Scene, Sensor,
+    expose, render_channels_within, render_radiance_within, Lighting, Radiance, RenderConfig,
+    Scene, Sensor,
 };
 use crate::sphere_image::ellipse_centre_normalised;
 use nalgebra::{Matrix3, Vector2, Vector3};
@@ -213,8 +214,9 @@ impl Refiner {
     /// spheres shaded as Lambertian ones where most of the frame's `blobs`
     /// are shaded, and
     /// the sphere's, the supports' and the background's radiances fitted
-    /// to the frame's pixels by least squares over the three renders of
-    /// each alone (the render is linear in each). `None` where the fit is
+    /// to the frame's pixels by least squares over the renders of each
+    /// alone (the render is linear in each), traced in one pass
+    /// ([`render_channels_within`]). `None` where the fit is
     /// degenerate (no sphere radiance above zero, or too few pixels): the
     /// appearance given stands then.
     fn fitted(
@@ -232,19 +234,8 @@ impl Refiner {
             base.appearance.ambient = 0.0;
         }
         base.appearance.exposure = 1.0;
-        let alone = |sphere: f64, support: f64, background: f64| {
-            let mut config = base.clone();
-            config.appearance.sphere_radiance = sphere;
-            config.appearance.support_radiance = support;
-            config.appearance.background_radiance = background;
-            render_radiance_within(&self.scene, pose, &config, Some(regions))
-                .map_err(|e| e.to_string())
-        };
-        let parts = [
-            alone(1.0, 0.0, 0.0)?,
-            alone(0.0, 1.0, 0.0)?,
-            alone(0.0, 0.0, 1.0)?,
-        ];
+        let parts = render_channels_within(&self.scene, pose, &base, Some(regions))
+            .map_err(|e| e.to_string())?;
         let width = parts[0].width;
         if (frame.width() as usize, frame.height() as usize) != (width, parts[0].height) {
             return Ok(None);
