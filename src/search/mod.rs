@@ -141,6 +141,7 @@ use crate::visibility::{
     spheres_hidden_by_supports, support_fractions, EyeCone, MaxHidden, Supports,
 };
 use nalgebra::Vector3;
+use rayon::prelude::*;
 use serde::Serialize;
 use std::str::FromStr;
 
@@ -921,6 +922,11 @@ impl Evaluator {
                     .then_some((&own, *max_hidden, screen.as_deref()))
             }
         };
+        // The visible scenarios whose identification this evaluation
+        // checks, identified after the loop in parallel (a repair round
+        // runs one Nelder–Mead start, so its evaluations are serial) and
+        // kept in scenario order.
+        let mut to_identify = Vec::new();
         for (s, scenario) in self.scenarios.iter().enumerate() {
             let pose = scenario.pose();
             let images = sphere_images(
@@ -966,14 +972,7 @@ impl Evaluator {
             values.behind += usize::from(!v.behind.is_empty());
             values.visible += usize::from(v.is_visible());
             if v.is_visible() && self.checks_identifiability(s) {
-                values.identified.push(self.identify(
-                    s,
-                    scenario,
-                    &pose,
-                    points,
-                    point_sigma,
-                    &images,
-                ));
+                to_identify.push((s, pose, images.clone()));
             }
             let margin = if v.hidden_by_support.is_empty() || following.is_some() {
                 visibility_margin_px(&images, &self.camera)
@@ -1099,6 +1098,12 @@ impl Evaluator {
                 Err(_) => values.failed[k] += usable.len(),
             }
         }
+        values.identified = to_identify
+            .par_iter()
+            .map(|(s, pose, images)| {
+                self.identify(*s, &self.scenarios[*s], pose, points, point_sigma, images)
+            })
+            .collect();
         values
     }
 
