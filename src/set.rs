@@ -1286,6 +1286,38 @@ pub fn group_blobs(
     image: &[Vector2<f64>],
     options: &UnlabelledOptions,
 ) -> Vec<Placement> {
+    grouping(objects, image, options).placements
+}
+
+/// A frame's blobs grouped into markers ([`grouping`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Grouping {
+    /// The markers placed, sorted by marker.
+    pub placements: Vec<Placement>,
+    /// Blob groups that two markers fit about as well: (the better
+    /// fitting marker, its rival, the better one's blobs); neither is
+    /// placed on them.
+    pub ambiguous: Vec<(usize, usize, Vec<usize>)>,
+}
+
+/// A rival marker that fits most of a placement's blobs within this
+/// factor of its reprojection RMS makes their identity ambiguous.
+pub const CROSS_AMBIGUITY_RATIO: f64 = 3.0;
+
+/// [`group_blobs`], and the blob groups whose marker is ambiguous: before
+/// a placement is accepted, a placement of another marker not yet placed
+/// that explains as many blobs, at least half of them (and three) the
+/// same, at an RMS within [`CROSS_AMBIGUITY_RATIO`] of its own makes the
+/// group ambiguous, and
+/// neither marker is placed on it (its blobs are set aside). A right
+/// marker fits its own blobs to their noise, far better than any other
+/// marker of a set whose markers one camera can tell apart; blobs biased
+/// by something in front of them may fit two markers alike.
+pub fn grouping(
+    objects: &[Vec<Vector3<f64>>],
+    image: &[Vector2<f64>],
+    options: &UnlabelledOptions,
+) -> Grouping {
     let mut candidates: Vec<Placement> = objects
         .par_iter()
         .enumerate()
@@ -1305,6 +1337,7 @@ pub fn group_blobs(
     candidates.sort_by(rank);
     let gate_sq = options.gate * options.gate;
     let mut chosen: Vec<Placement> = Vec::new();
+    let mut ambiguous = Vec::new();
     let mut used = vec![false; image.len()];
     let mut next = 0;
     while next < candidates.len() {
@@ -1344,13 +1377,35 @@ pub fn group_blobs(
             }
             continue;
         }
+        let shared_enough = |rival: &Placement| {
+            let shared = rival
+                .blobs
+                .iter()
+                .filter(|b| candidate.blobs.binary_search(b).is_ok())
+                .count();
+            shared >= MIN_POINTS.max(candidate.blobs.len().div_ceil(2))
+        };
+        let rival = candidates[next..].iter().find(|rival| {
+            rival.marker != candidate.marker
+                && rival.blobs.len() == candidate.blobs.len()
+                && !chosen.iter().any(|c| c.marker == rival.marker)
+                && rival.blobs.iter().all(|&b| !used[b])
+                && rival.rms <= CROSS_AMBIGUITY_RATIO * candidate.rms
+                && shared_enough(rival)
+        });
         for &b in &candidate.blobs {
             used[b] = true;
         }
-        chosen.push(candidate);
+        match rival {
+            Some(rival) => ambiguous.push((candidate.marker, rival.marker, candidate.blobs)),
+            None => chosen.push(candidate),
+        }
     }
     chosen.sort_by_key(|p| p.marker);
-    chosen
+    Grouping {
+        placements: chosen,
+        ambiguous,
+    }
 }
 
 #[cfg(test)]
@@ -1384,6 +1439,46 @@ mod tests {
         let mut moved = a.clone();
         moved[3].z += 0.5;
         assert!(!same_marker(&a, &moved, IDENTICAL_TOLERANCE_MM));
+    }
+
+    /// Blobs that two markers of a set fit about as well are given to
+    /// neither: a near copy of the marker (one point 0.2 mm off) against
+    /// noisy blobs of the marker; with the copy's point 30 mm off (the
+    /// copy then explains one blob fewer), the marker is placed.
+    #[test]
+    fn blobs_two_markers_fit_alike_are_given_to_neither() {
+        use rand::SeedableRng;
+        use rand_distr::{Distribution, Normal};
+        let a = marker();
+        let pose = Pose::new(
+            Rotation3::from_euler_angles(0.3, -0.2, 0.5),
+            Vector3::new(10.0, -5.0, 500.0),
+        );
+        let focal = 1300.0;
+        let noise = Normal::new(0.0, 0.3 / focal).unwrap();
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(4);
+        let image: Vec<Vector2<f64>> = a
+            .iter()
+            .map(|p| {
+                let c = pose.transform(p);
+                Vector2::new(c.x / c.z, c.y / c.z)
+                    + Vector2::new(noise.sample(&mut rng), noise.sample(&mut rng))
+            })
+            .collect();
+        let options = UnlabelledOptions::with_gate_px(2.5, focal, 1);
+        for (offset_mm, placed) in [(0.2, false), (30.0, true)] {
+            let mut copy = a.clone();
+            copy[2].x += offset_mm;
+            let grouping = grouping(&[a.clone(), copy], &image, &options);
+            let markers: Vec<usize> = grouping.placements.iter().map(|p| p.marker).collect();
+            if placed {
+                assert_eq!(markers, [0], "{grouping:?}");
+                assert!(grouping.ambiguous.is_empty());
+            } else {
+                assert!(markers.is_empty(), "{grouping:?}");
+                assert_eq!(grouping.ambiguous.len(), 1, "{grouping:?}");
+            }
+        }
     }
 
     /// A check over two halves of a grid, one absorbed into the other,

@@ -14,7 +14,7 @@ use super::frame::GreyFrame;
 use super::refine::Refiner;
 use crate::config::ConfigError;
 use crate::pnp::unlabelled::UnlabelledOptions;
-use crate::set::group_blobs;
+use crate::set::grouping;
 use nalgebra::Vector2;
 use serde::Serialize;
 
@@ -139,9 +139,21 @@ pub fn analyse_set(config: &SetTrackConfig, frame: &GreyFrame) -> SetFrameAnalys
         .iter()
         .map(|(_, c)| c.object.clone())
         .collect();
-    let placements = group_blobs(&objects, &image, &options);
+    let grouping = grouping(&objects, &image, &options);
     let mut markers = Vec::new();
-    let mut errors = Vec::new();
+    let mut errors: Vec<String> = grouping
+        .ambiguous
+        .iter()
+        .map(|(better, rival, blobs)| {
+            format!(
+                "markers {} and {} both fit {} blobs about as well: neither is named",
+                better + 1,
+                rival + 1,
+                blobs.len()
+            )
+        })
+        .collect();
+    let placements = grouping.placements;
     let mut claimed = vec![false; detection.blobs.len()];
     for placement in placements {
         let (layout, marker_config) = &config.markers[placement.marker];
