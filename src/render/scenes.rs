@@ -11,11 +11,12 @@ use super::config::RenderConfig;
 use super::scene::Scene;
 use super::truth::{part_truth, FrameTruth};
 use super::workflow::{
-    file_names, frame_names, open_frame_outputs, stage_images, MIN_DEPTH_MM, PHASE_CHECK,
-    PHASE_RENDER,
+    file_names, frame_names, open_frame_outputs, stage_images, write_frames, MIN_DEPTH_MM,
+    PHASE_CHECK,
 };
 use super::RenderError;
 use crate::camera::Camera;
+use crate::kernel::Outputs;
 use crate::layout::Layout;
 use crate::mesh::{file_stem, Marker, MarkerOptions};
 use crate::observer::{watch, Observer};
@@ -331,9 +332,7 @@ pub fn run_scenes(
         job.frames.len(),
         config.realisations,
     )?;
-    let stop = AtomicBool::new(false);
-    let done = AtomicU64::new(0);
-    let write_frame = |frame: usize| -> Result<SceneFrameFiles, RenderError> {
+    let write_frame = |frame: usize, files: &Outputs| -> Result<SceneFrameFiles, RenderError> {
         let parts: Vec<Placed> = job.frames[frame]
             .iter()
             .map(|(marker, pose)| Placed {
@@ -345,7 +344,7 @@ pub fn run_scenes(
         let radiance =
             render_parts(&parts, *blur_sigma_px, config, None).map_err(|e| e.in_frame(frame))?;
         let (names, record_name) = frame_names(&stem, frame, config.realisations);
-        let images = stage_images(&radiance, config, &files, &job.out_dir, names, frame)?;
+        let images = stage_images(&radiance, config, files, &job.out_dir, names, frame)?;
         let record = SceneRecord {
             frame,
             set: &job.name,
@@ -372,30 +371,7 @@ pub fn run_scenes(
             markers: truths.clone(),
         })
     };
-    let frames = watch(
-        observer,
-        PHASE_RENDER,
-        job.frames.len() as u64,
-        || done.load(Ordering::Relaxed),
-        Some(&stop),
-        || {
-            (0..job.frames.len())
-                .into_par_iter()
-                .map(|frame| {
-                    if stop.load(Ordering::SeqCst) {
-                        return Err(RenderError::Interrupted);
-                    }
-                    let written = write_frame(frame)?;
-                    done.fetch_add(1, Ordering::Relaxed);
-                    Ok(written)
-                })
-                .collect::<Result<Vec<_>, _>>()
-        },
-    )?;
-    if stop.load(Ordering::SeqCst) || observer.interrupted() {
-        return Err(RenderError::Interrupted);
-    }
-    files.commit()?;
+    let frames = write_frames(observer, files, job.frames.len(), write_frame)?;
     Ok(ScenesReport {
         name: job.name.clone(),
         frames,

@@ -191,25 +191,44 @@ pub fn run(job: &RenderJob, observer: &mut impl Observer) -> Result<RenderReport
         job.poses.len(),
         job.config.realisations,
     )?;
+    let frames = write_frames(observer, files, job.poses.len(), |frame, files| {
+        write_frame(job, &checked, files, &stem, frame)
+    })?;
+    Ok(RenderReport {
+        name: job.layout.name.clone(),
+        frames,
+        seconds: start.elapsed().as_secs_f64(),
+    })
+}
+
+/// Writes frames `0..count` with `write` in parallel, each staging its
+/// files in `files` (progress as [`PHASE_RENDER`] through `observer`, a
+/// stop answered between frames with [`RenderError::Interrupted`]), then
+/// commits them all.
+pub(super) fn write_frames<T: Send>(
+    observer: &mut impl Observer,
+    files: Outputs,
+    count: usize,
+    write: impl Fn(usize, &Outputs) -> Result<T, RenderError> + Sync,
+) -> Result<Vec<T>, RenderError> {
     let stop = AtomicBool::new(false);
     let done = AtomicU64::new(0);
-    let total = job.poses.len() as u64;
     let frames = watch(
         observer,
         PHASE_RENDER,
-        total,
+        count as u64,
         || done.load(Ordering::Relaxed),
         Some(&stop),
         || {
-            (0..job.poses.len())
+            (0..count)
                 .into_par_iter()
                 .map(|frame| {
                     if stop.load(Ordering::SeqCst) {
                         return Err(RenderError::Interrupted);
                     }
-                    let files = write_frame(job, &checked, &files, &stem, frame)?;
+                    let written = write(frame, &files)?;
                     done.fetch_add(1, Ordering::Relaxed);
-                    Ok(files)
+                    Ok(written)
                 })
                 .collect::<Result<Vec<_>, _>>()
         },
@@ -218,11 +237,7 @@ pub fn run(job: &RenderJob, observer: &mut impl Observer) -> Result<RenderReport
         return Err(RenderError::Interrupted);
     }
     files.commit()?;
-    Ok(RenderReport {
-        name: job.layout.name.clone(),
-        frames,
-        seconds: start.elapsed().as_secs_f64(),
-    })
+    Ok(frames)
 }
 
 /// The names of frame `frame`'s images (one per realisation) and of its
