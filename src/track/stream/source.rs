@@ -284,7 +284,11 @@ impl<R: Read + Send> Y4mSource<R> {
             inner: reader,
             count: Arc::clone(&count),
         };
-        let decoder = y4m::Decoder::new(counted).map_err(|e| header_error(&e))?;
+        let limits = y4m::Limits {
+            bytes: MAX_Y4M_FRAME_BYTES,
+        };
+        let decoder =
+            y4m::Decoder::new_with_limits(counted, limits).map_err(|e| header_error(&e))?;
         let colour = decoder.get_colorspace();
         let (w, h) = (decoder.get_width() as u64, decoder.get_height() as u64);
         let bytes = colour.get_bytes_per_sample() as u64;
@@ -315,6 +319,11 @@ impl<R: Read + Send> Y4mSource<R> {
     }
 }
 
+/// The largest Y4M frame (all planes) the reader allocates for: 8K 4:4:4
+/// at 12 bits is 199 MB, so a header that claims more is refused before
+/// its buffer is made.
+pub const MAX_Y4M_FRAME_BYTES: usize = 256 << 20;
+
 /// The words for a stream whose header the `y4m` crate refused.
 fn header_error(error: &y4m::Error) -> StreamError {
     let raw_hint = "for raw grey frames give --raw WIDTHxHEIGHT[:16]";
@@ -326,9 +335,10 @@ fn header_error(error: &y4m::Error) -> StreamError {
         y4m::Error::UnknownColorspace => StreamError::NotY4m(format!(
             "the YUV4MPEG2 stream's pixel format (its C field) is not one the reader takes: mono, mono12, or 4:2:0, 4:2:2 or 4:4:4 at 8, 10 or 12 bits (16-bit grey: {raw_hint} with -f rawvideo -pix_fmt gray16le)"
         )),
-        y4m::Error::OutOfMemory => StreamError::NotY4m(
-            "the YUV4MPEG2 stream's frames are over 1 GiB each".to_string(),
-        ),
+        y4m::Error::OutOfMemory => StreamError::NotY4m(format!(
+            "the YUV4MPEG2 stream's frames are over {} MiB each, more than any camera's frame here",
+            MAX_Y4M_FRAME_BYTES >> 20
+        )),
         other => StreamError::NotY4m(format!(
             "the stream does not start with a YUV4MPEG2 header ({other}); {raw_hint}"
         )),

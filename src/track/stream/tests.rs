@@ -163,6 +163,7 @@ fn a_cut_or_malformed_y4m_stream_ends_with_its_reason() {
         (&b""[..], "ended before"),
         (b"\x89PNG\r\n\x1a\nxxxxxxxx\n", "--raw"),
         (b"YUV4MPEG2 W4 H2 Cmono16\n", "pixel format"),
+        (b"YUV4MPEG2 W100000 H100000 Cmono\n", "MiB each"),
     ] {
         let error = Y4mSource::new(Cursor::new(not_y4m.to_vec()))
             .err()
