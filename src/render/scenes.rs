@@ -11,7 +11,7 @@ use super::config::RenderConfig;
 use super::scene::Scene;
 use super::truth::{part_truth, FrameTruth};
 use super::workflow::{
-    file_names, frame_names, open_frame_outputs, stage_images, write_frames, MIN_DEPTH_MM,
+    check_in_front, file_names, frame_names, open_frame_outputs, stage_images, write_frames,
     PHASE_CHECK,
 };
 use super::RenderError;
@@ -233,17 +233,7 @@ fn check(
         let blur_px = scene_blur_px(&job.config, &parts).map_err(|e| e.in_frame(frame))?;
         let mut truths = Vec::with_capacity(parts.len());
         for (k, (marker, pose)) in placed.iter().enumerate() {
-            let nearest = scenes[*marker]
-                .bounding_corners()
-                .iter()
-                .map(|p| pose.transform(p).z)
-                .fold(f64::INFINITY, f64::min);
-            if nearest.is_nan() || nearest <= MIN_DEPTH_MM {
-                return Err(RenderError::PartBehindCamera {
-                    frame,
-                    depth_mm: nearest,
-                });
-            }
+            check_in_front(&scenes[*marker], pose, frame)?;
             let truth =
                 part_truth(&parts, k, &names[*marker], camera).map_err(|e| e.in_frame(frame))?;
             let mut truth = MarkerTruth {

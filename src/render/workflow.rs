@@ -133,17 +133,7 @@ pub fn check(job: &RenderJob, observer: &mut impl Observer) -> Result<Checked, R
             return Err(RenderError::Interrupted);
         }
         let pose = &frame_pose.pose;
-        let nearest = scene
-            .bounding_corners()
-            .iter()
-            .map(|p| pose.transform(p).z)
-            .fold(f64::INFINITY, f64::min);
-        if nearest.is_nan() || nearest <= MIN_DEPTH_MM {
-            return Err(RenderError::PartBehindCamera {
-                frame,
-                depth_mm: nearest,
-            });
-        }
+        check_in_front(&scene, pose, frame)?;
         blur_at(&job.config, pose, frame)?;
         let truth = frame_truth(&scene, &names, pose, camera).map_err(|e| e.in_frame(frame))?;
         if truth.spheres.iter().all(|s| s.hidden.outside_image >= 1.0) {
@@ -173,6 +163,24 @@ pub fn check(job: &RenderJob, observer: &mut impl Observer) -> Result<Checked, R
         },
     )?;
     Ok(Checked { scene, truths })
+}
+
+/// Refuses frame `frame` when the part at `pose` reaches within
+/// [`MIN_DEPTH_MM`] of the camera's plane (its bounding box's nearest
+/// corner).
+pub(super) fn check_in_front(scene: &Scene, pose: &Pose, frame: usize) -> Result<(), RenderError> {
+    let nearest = scene
+        .bounding_corners()
+        .iter()
+        .map(|p| pose.transform(p).z)
+        .fold(f64::INFINITY, f64::min);
+    if nearest.is_nan() || nearest <= MIN_DEPTH_MM {
+        return Err(RenderError::PartBehindCamera {
+            frame,
+            depth_mm: nearest,
+        });
+    }
+    Ok(())
 }
 
 /// Runs the job (module docs). An observer that asks to stop gets
